@@ -1,0 +1,22 @@
+"""Errors raised by the ODE side."""
+
+
+class ModelError(ValueError):
+    """A model file or model description is invalid.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong.
+    file : str, optional
+        The model file, when the model came from one.
+    key : str, optional
+        Dotted path of the offending key, e.g. ``"coefficients.paper.c_y"``.
+    """
+
+    def __init__(self, message: str, file: str | None = None, key: str | None = None):
+        self.message = message
+        self.file = file
+        self.key = key
+        where = ": ".join(part for part in (file, key) if part)
+        super().__init__(f"{where}: {message}" if where else message)
