@@ -1,0 +1,110 @@
+"""Simulation results: time points plus named signals, as any engine produced them.
+
+Our MNA engine and the ngspice runner both return :class:`Waveforms`, so comparisons never care
+which engine ran. Signal names follow SPICE: ``v(node)`` for node voltages (lower case),
+``i(vname)`` for source branch currents (lower case).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from circuitsim.atomic import write_atomic
+
+
+@dataclass
+class Waveforms:
+    """Time points and signals.
+
+    Attributes
+    ----------
+    time : ndarray, shape (m,)
+        Seconds, strictly increasing (for an operating point: one point at 0).
+    signals : dict of str to ndarray, shape (m,)
+        Volts for ``v(...)``, amperes for ``i(...)``, in insertion order.
+    engine : str
+        Who produced them (``"builtin"``, ``"ngspice"``).
+    stats : dict
+        Engine statistics (accepted/rejected steps, Newton iterations, wall time s ...).
+    """
+
+    time: np.ndarray
+    signals: dict[str, np.ndarray] = field(default_factory=dict)
+    engine: str = ""
+    stats: dict = field(default_factory=dict)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """The signal called ``name`` (case-insensitive; ``"out"`` means ``v(out)``)."""
+        key = name.lower()
+        if key in self.signals:
+            return self.signals[key]
+        if f"v({key})" in self.signals:
+            return self.signals[f"v({key})"]
+        raise KeyError(f"no signal {name!r}; have {', '.join(self.signals)}")
+
+    def __contains__(self, name: str) -> bool:
+        key = name.lower()
+        return key in self.signals or f"v({key})" in self.signals
+
+    @property
+    def names(self) -> list[str]:
+        """Signal names in order."""
+        return list(self.signals)
+
+    def at(self, times: np.ndarray, names: list[str] | None = None) -> Waveforms:
+        """Linear interpolation onto ``times`` (s); outside the run the end values are held."""
+        times = np.asarray(times, dtype=float)
+        chosen = names if names is not None else self.names
+        return Waveforms(
+            time=times,
+            signals={n.lower(): np.interp(times, self.time, self[n]) for n in chosen},
+            engine=self.engine,
+            stats=dict(self.stats),
+        )
+
+    def select(self, names: list[str]) -> Waveforms:
+        """Only the named signals (on the same time points)."""
+        return Waveforms(
+            time=self.time,
+            signals={self._key(n): self[n] for n in names},
+            engine=self.engine,
+            stats=dict(self.stats),
+        )
+
+    def _key(self, name: str) -> str:
+        key = name.lower()
+        return key if key in self.signals else f"v({key})"
+
+    def to_csv(self, path: str | os.PathLike) -> None:
+        """Write ``time,<signal>,...`` with a header row, full precision, atomically."""
+        columns = np.column_stack([self.time, *self.signals.values()])
+        header = ",".join(["time", *self.signals])
+
+        def write(handle) -> None:
+            handle.write(header + "\n")
+            np.savetxt(handle, columns, delimiter=",", fmt="%.17g")
+
+        write_atomic(path, write)
+
+    def to_npz(self, path: str | os.PathLike) -> None:
+        """Write an ``.npz`` with ``time`` and one array per signal, atomically."""
+
+        def write(handle) -> None:
+            np.savez(handle, time=self.time, **self.signals)
+
+        write_atomic(path, write, binary=True)
+
+    @classmethod
+    def from_csv(cls, path: str | os.PathLike, engine: str = "") -> Waveforms:
+        """Read a file written by :meth:`to_csv`."""
+        with open(path) as handle:
+            header = handle.readline().strip().split(",")
+        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+        return cls(
+            time=data[:, 0],
+            signals={name: data[:, i + 1] for i, name in enumerate(header[1:])},
+            engine=engine,
+        )
