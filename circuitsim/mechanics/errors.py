@@ -20,3 +20,11 @@ class ModelError(ValueError):
         self.key = key
         where = ": ".join(part for part in (file, key) if part)
         super().__init__(f"{where}: {message}" if where else message)
+
+
+class IntegrationError(ModelError):
+    """The direct ODE solution failed (the integrator gave up, or kinks would not advance).
+
+    A ModelError so that callers (and the CLI) handling model problems handle this too; the
+    message says at what time and why.
+    """

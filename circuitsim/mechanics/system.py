@@ -95,6 +95,8 @@ class Sinusoid:
         Radians.
     amplitude_unit : str
         Unit of ``amplitude`` (``"m"`` for the wheelset).
+    name : str
+        The model file's name for this forcing group (``"track"``); may be empty.
     """
 
     direction: np.ndarray
@@ -102,6 +104,7 @@ class Sinusoid:
     frequency: float
     phase: float = 0.0
     amplitude_unit: str = ""
+    name: str = ""
 
     def value(self, t: float | np.ndarray) -> float | np.ndarray:
         """``amplitude * sin(2 pi f t + phase)`` (without the direction)."""
@@ -135,6 +138,11 @@ class System:
     circuit_hints : dict
         The model file's free-form ``[circuit]`` table, passed through for the translator
         (part names for the paper's circuit, preferred ranges ...).
+    coefficients : dict of str to float
+        The named coefficients of the chosen set at these parameters (wheelset: ``c_y``,
+        ``k_y`` ... in SI units); empty for hand-built systems.
+    coefficient_set : str
+        Name of that coefficient set (``"paper"``); empty for hand-built systems.
     """
 
     name: str
@@ -147,6 +155,8 @@ class System:
     x0: np.ndarray | None = None
     parameters: dict[str, float] = field(default_factory=dict)
     circuit_hints: dict = field(default_factory=dict)
+    coefficients: dict[str, float] = field(default_factory=dict)
+    coefficient_set: str = ""
 
     @property
     def n(self) -> int:

@@ -1,0 +1,277 @@
+"""A small, safe arithmetic language for model-file coefficients: ``"7.24e6 / V"``.
+
+Grammar (Python's precedence; ``**`` is right-associative and binds tighter than unary minus,
+so ``-2**2 == -4``)::
+
+    expr   := term (("+" | "-") term)*
+    term   := unary (("*" | "/") unary)*
+    unary  := ("+" | "-") unary | power
+    power  := atom ("**" unary)?
+    atom   := NUMBER | NAME | NAME "(" expr ("," expr)* ")" | "(" expr ")"
+
+Names are parameters, coefficients or the constant ``pi``; the functions are listed in
+``FUNCTIONS``. Nothing is ever handed to Python's ``eval``: the text is tokenized and parsed
+here into a tree of tuples, which :func:`evaluate` walks.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+FUNCTIONS = {
+    "sqrt": (math.sqrt, 1),
+    "exp": (math.exp, 1),
+    "log": (math.log, 1),
+    "log10": (math.log10, 1),
+    "sin": (math.sin, 1),
+    "cos": (math.cos, 1),
+    "tan": (math.tan, 1),
+    "atan": (math.atan, 1),
+    "abs": (abs, 1),
+    "min": (min, 2),
+    "max": (max, 2),
+}
+CONSTANTS = {"pi": math.pi}
+RESERVED = frozenset(FUNCTIONS) | frozenset(CONSTANTS)
+
+_TOKEN = re.compile(
+    r"\s*(?:(?P<number>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)"
+    r"|(?P<name>[A-Za-z_][A-Za-z_0-9]*)"
+    r"|(?P<op>\*\*|[-+*/(),]))"
+)
+
+
+class ExpressionError(ValueError):
+    """The text is not a valid expression, or cannot be evaluated (message says why)."""
+
+
+@dataclass(frozen=True)
+class Expression:
+    """A parsed expression.
+
+    Attributes
+    ----------
+    text : str
+        The source text.
+    tree : tuple
+        ``("num", value)``, ``("name", id)``, ``("neg", sub)``, ``("call", fn, args)`` or
+        ``(op, left, right)`` with op one of ``+ - * / **``.
+    """
+
+    text: str
+    tree: tuple
+
+    @property
+    def names(self) -> frozenset[str]:
+        """Every variable name the expression reads (functions and ``pi`` excluded)."""
+        found: set[str] = set()
+        _collect(self.tree, found)
+        return frozenset(found)
+
+    def __call__(self, env: dict[str, float]) -> float:
+        return evaluate(self, env)
+
+
+def _collect(node: tuple, found: set[str]) -> None:
+    kind = node[0]
+    if kind == "name":
+        if node[1] not in CONSTANTS:
+            found.add(node[1])
+    elif kind == "neg":
+        _collect(node[1], found)
+    elif kind == "call":
+        for arg in node[2]:
+            _collect(arg, found)
+    elif kind != "num":
+        _collect(node[1], found)
+        _collect(node[2], found)
+
+
+def _tokenize(text: str) -> list[tuple[str, str]]:
+    tokens = []
+    pos = 0
+    stripped = text.rstrip()
+    while pos < len(stripped):
+        match = _TOKEN.match(stripped, pos)
+        if match is None or match.end() == pos:
+            bad = stripped[pos:].lstrip()[:1]
+            hint = " (use ** for powers)" if bad == "^" else ""
+            raise ExpressionError(f"unexpected character {bad!r} in {text!r}{hint}")
+        kind = match.lastgroup
+        tokens.append((kind, match.group(kind)))
+        pos = match.end()
+    tokens.append(("end", ""))
+    return tokens
+
+
+class _Parser:
+    def __init__(self, text: str):
+        self.text = text
+        self.tokens = _tokenize(text)
+        self.pos = 0
+
+    def peek(self) -> tuple[str, str]:
+        return self.tokens[self.pos]
+
+    def take(self) -> tuple[str, str]:
+        token = self.tokens[self.pos]
+        self.pos += 1
+        return token
+
+    def expect(self, op: str) -> None:
+        kind, value = self.take()
+        if (kind, value) != ("op", op):
+            found = value or "end of text"
+            raise ExpressionError(f"expected {op!r} but found {found!r} in {self.text!r}")
+
+    def expr(self) -> tuple:
+        node = self.term()
+        while self.peek() in (("op", "+"), ("op", "-")):
+            op = self.take()[1]
+            node = (op, node, self.term())
+        return node
+
+    def term(self) -> tuple:
+        node = self.unary()
+        while self.peek() in (("op", "*"), ("op", "/")):
+            op = self.take()[1]
+            node = (op, node, self.unary())
+        return node
+
+    def unary(self) -> tuple:
+        if self.peek() == ("op", "-"):
+            self.take()
+            return ("neg", self.unary())
+        if self.peek() == ("op", "+"):
+            self.take()
+            return self.unary()
+        return self.power()
+
+    def power(self) -> tuple:
+        node = self.atom()
+        if self.peek() == ("op", "**"):
+            self.take()
+            node = ("**", node, self.unary())
+        return node
+
+    def atom(self) -> tuple:
+        kind, value = self.take()
+        if kind == "number":
+            return ("num", float(value))
+        if kind == "name":
+            if self.peek() == ("op", "("):
+                return self.call(value)
+            if value in FUNCTIONS:
+                raise ExpressionError(f"function {value!r} needs arguments in {self.text!r}")
+            return ("name", value)
+        if (kind, value) == ("op", "("):
+            node = self.expr()
+            self.expect(")")
+            return node
+        found = value or "end of text"
+        raise ExpressionError(
+            f"expected a number, name or '(' but found {found!r} in {self.text!r}"
+        )
+
+    def call(self, name: str) -> tuple:
+        if name not in FUNCTIONS:
+            known = ", ".join(sorted(FUNCTIONS))
+            raise ExpressionError(f"unknown function {name!r} in {self.text!r} (known: {known})")
+        self.expect("(")
+        args = [self.expr()]
+        while self.peek() == ("op", ","):
+            self.take()
+            args.append(self.expr())
+        self.expect(")")
+        arity = FUNCTIONS[name][1]
+        if len(args) != arity:
+            raise ExpressionError(
+                f"function {name!r} takes {arity} argument(s), got {len(args)} in {self.text!r}"
+            )
+        return ("call", name, tuple(args))
+
+
+def parse(source: str | int | float) -> Expression:
+    """Parse a number or expression text.
+
+    Parameters
+    ----------
+    source : str or float
+        ``"7.24e6 / V"``, ``"-k/2"``, or a plain number.
+
+    Raises
+    ------
+    ExpressionError
+        On a syntax error, an unknown function or a wrong argument count.
+    """
+    if isinstance(source, bool):
+        raise ExpressionError(f"expected a number or an expression string, got {source!r}")
+    if isinstance(source, int | float):
+        return Expression(repr(source), ("num", float(source)))
+    if not isinstance(source, str):
+        raise ExpressionError(
+            f"expected a number or an expression string, got {type(source).__name__}"
+        )
+    if not source.strip():
+        raise ExpressionError("empty expression")
+    parser = _Parser(source)
+    tree = parser.expr()
+    kind, value = parser.peek()
+    if kind != "end":
+        raise ExpressionError(f"unexpected {value!r} after a complete expression in {source!r}")
+    return Expression(source, tree)
+
+
+def evaluate(expression: Expression, env: dict[str, float]) -> float:
+    """Value of ``expression`` with the names bound in ``env``.
+
+    Raises
+    ------
+    ExpressionError
+        For an unknown name, a division by zero, a domain error or a non-finite result.
+    """
+    try:
+        value = _eval(expression.tree, env)
+    except ZeroDivisionError:
+        raise ExpressionError(f"division by zero in {expression.text!r}") from None
+    except (OverflowError, ValueError) as exc:
+        if isinstance(exc, ExpressionError):
+            raise
+        raise ExpressionError(f"cannot evaluate {expression.text!r}: {exc}") from None
+    if not math.isfinite(value):
+        raise ExpressionError(f"{expression.text!r} evaluates to {value}")
+    return value
+
+
+def _eval(node: tuple, env: dict[str, float]) -> float:
+    kind = node[0]
+    if kind == "num":
+        return node[1]
+    if kind == "name":
+        name = node[1]
+        if name in env:
+            return float(env[name])
+        if name in CONSTANTS:
+            return CONSTANTS[name]
+        raise ExpressionError(f"unknown name {name!r}")
+    if kind == "neg":
+        return -_eval(node[1], env)
+    if kind == "call":
+        function = FUNCTIONS[node[1]][0]
+        return float(function(*(_eval(arg, env) for arg in node[2])))
+    left = _eval(node[1], env)
+    right = _eval(node[2], env)
+    if kind == "+":
+        return left + right
+    if kind == "-":
+        return left - right
+    if kind == "*":
+        return left * right
+    if kind == "/":
+        return left / right
+    result = left**right
+    if isinstance(result, complex):
+        raise ExpressionError(f"{left} ** {right} is not real")
+    return float(result)

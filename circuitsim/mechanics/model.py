@@ -1,0 +1,312 @@
+"""A model as data: parameters, coefficient sets, switchable terms; numbers on request.
+
+:func:`load_model` reads a model file (see docs/model.md); :meth:`Model.system` evaluates it at
+chosen parameter values and coefficient set and returns the first-order
+:class:`~circuitsim.mechanics.system.System` every other room works from.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from circuitsim.mechanics.errors import ModelError
+from circuitsim.mechanics.expressions import ExpressionError
+from circuitsim.mechanics.modelfile import Item, ModelSpec, Parameter, read_model
+from circuitsim.mechanics.system import AbsTerm, PiecewiseLinearTerm, Sinusoid, System
+
+# A mass matrix whose condition number exceeds this is treated as singular: inverting it would
+# turn rounding noise into accelerations.
+_MAX_CONDITION = 1e12
+
+
+def load_model(path: str | Path | None = None) -> Model:
+    """Load a model file; ``None`` loads the built-in wheelset.
+
+    The file is checked completely, including an evaluation of every coefficient set at the
+    default parameters, so later calls to :meth:`Model.system` with the defaults cannot fail.
+
+    Raises
+    ------
+    ModelError
+        Naming the file, the dotted key and what is wrong.
+    """
+    model = Model(read_model(path))
+    for name in model.coefficient_sets:
+        everything_on = {group: True for group in model.nonlinear_terms}
+        forcing_on = {group: True for group in model.forcing_terms}
+        model.system(coefficients=name, nonlinear=everything_on, forcing=forcing_on)
+    return model
+
+
+class Model:
+    """A loaded model file.
+
+    Attributes
+    ----------
+    name, description, kind : str
+        From ``[model]``; kind is ``"second_order"`` or ``"first_order"``.
+    file : str
+        The model file.
+    states, units : tuple of str
+        State names and SI units in order (second order: coordinates, then their rates
+        ``<q>_dot``).
+    coordinates : tuple of str
+        Second-order coordinates (empty for first-order models).
+    parameters : dict of str to float
+        Default parameter values.
+    parameter_info : dict of str to Parameter
+        Defaults with unit and description.
+    options : dict of str to str
+        Command-line option name -> parameter name (``speed -> V``).
+    coefficient_sets : tuple of str
+        Names of the coefficient sets; ``default_coefficients`` is the one used when none is
+        named.
+    nonlinear_terms, forcing_terms : dict of str to bool
+        Names of the switchable groups and whether each is on by default.
+    circuit : dict
+        The free-form ``[circuit]`` table.
+    """
+
+    def __init__(self, spec: ModelSpec):
+        self.spec = spec
+        self.name = spec.name
+        self.description = spec.description
+        self.kind = spec.kind
+        self.file = spec.file
+        self.states = spec.states
+        self.units = spec.units
+        self.coordinates = spec.coordinates
+        self.parameter_info: dict[str, Parameter] = dict(spec.parameters)
+        self.parameters = {name: p.value for name, p in spec.parameters.items()}
+        self.options = dict(spec.options)
+        self.coefficient_sets = tuple(spec.coefficient_sets)
+        self.default_coefficients = spec.default_coefficients
+        self.nonlinear_terms = {name: g.enabled for name, g in spec.nonlinear.items()}
+        self.forcing_terms = {name: g.enabled for name, g in spec.forcing.items()}
+        self.circuit = spec.circuit
+
+    def __repr__(self) -> str:
+        return f"Model({self.name!r}, kind={self.kind!r}, states={self.states}, file={self.file!r})"
+
+    @property
+    def n(self) -> int:
+        """Number of states."""
+        return len(self.states)
+
+    def _fail(self, key: str | None, message: str) -> ModelError:
+        return ModelError(message, file=self.file, key=key)
+
+    def _value(self, item: Item, env: Mapping[str, float], coefficients: str) -> float:
+        try:
+            return item.expression(dict(env))
+        except ExpressionError as exc:
+            raise self._fail(
+                item.key, f"bad expression (with coefficient set {coefficients!r}): {exc}"
+            ) from None
+
+    def _switches(self, given, defaults: dict[str, bool], what: str) -> dict[str, bool]:
+        chosen = dict(defaults)
+        for name, on in dict(given or {}).items():
+            if name not in defaults:
+                known = ", ".join(defaults) or "none"
+                raise self._fail(f"{what}.{name}", f"unknown {what} term (known: {known})")
+            chosen[name] = bool(on)
+        return chosen
+
+    def environment(
+        self, coefficients: str | None = None, parameters: Mapping[str, float] | None = None
+    ) -> tuple[str, dict[str, float], dict[str, float]]:
+        """Parameter values and coefficient values for one evaluation.
+
+        Returns
+        -------
+        set_name : str
+        values : dict of str to float
+            The parameters (defaults overridden by ``parameters``).
+        coefficient_values : dict of str to float
+            The coefficient set evaluated at those parameters, in file order.
+        """
+        set_name = self.default_coefficients if coefficients is None else coefficients
+        if set_name not in self.spec.coefficient_sets:
+            raise self._fail(
+                "coefficients",
+                f"unknown coefficient set {set_name!r} (sets: {', '.join(self.coefficient_sets)})",
+            )
+        values = dict(self.parameters)
+        for name, value in dict(parameters or {}).items():
+            if name not in values:
+                known = ", ".join(self.parameters) or "none"
+                raise self._fail(f"parameters.{name}", f"unknown parameter (known: {known})")
+            try:
+                values[name] = float(value)
+            except (TypeError, ValueError):
+                raise self._fail(
+                    f"parameters.{name}", f"expected a number, got {value!r}"
+                ) from None
+            if not np.isfinite(values[name]):
+                raise self._fail(f"parameters.{name}", f"must be finite, got {value!r}")
+        env = dict(values)
+        coefficient_values = {}
+        for name, item in self.spec.coefficient_sets[set_name]:
+            coefficient_values[name] = env[name] = self._value(item, env, set_name)
+        return set_name, values, coefficient_values
+
+    def system(
+        self,
+        coefficients: str | None = None,
+        parameters: Mapping[str, float] | None = None,
+        nonlinear: Mapping[str, bool] | None = None,
+        x0: Sequence[float] | Mapping[str, float] | None = None,
+        forcing: Mapping[str, bool] | None = None,
+    ) -> System:
+        """Evaluate the model into a first-order :class:`System`.
+
+        Parameters
+        ----------
+        coefficients : str, optional
+            Coefficient set name (default: the file's ``coefficients.default``).
+        parameters : dict of str to float, optional
+            Overrides of the parameter defaults, e.g. ``{"V": 55, "f": 3, "a": 0.04}``.
+        nonlinear, forcing : dict of str to bool, optional
+            Switch named groups on or off (default: each group's ``enabled``). Switched-off
+            groups are absent from the System.
+        x0 : array_like, shape (n,), or dict of state name to float, optional
+            Initial state; default from the file's ``[initial]`` table (missing states 0).
+
+        Raises
+        ------
+        ModelError
+            Unknown set, parameter, group or state; an expression that cannot be evaluated;
+            a singular mass matrix.
+        """
+        set_name, values, coefficient_values = self.environment(coefficients, parameters)
+        env = {**values, **coefficient_values}
+        nonlinear_on = self._switches(nonlinear, self.nonlinear_terms, "nonlinear")
+        forcing_on = self._switches(forcing, self.forcing_terms, "forcing")
+        spec = self.spec
+        n = self.n
+
+        def value(item: Item) -> float:
+            return self._value(item, env, set_name)
+
+        def vector(row: dict[int, Item], size: int) -> np.ndarray:
+            out = np.zeros(size)
+            for index, item in row.items():
+                out[index] = value(item)
+            return out
+
+        def matrix(name: str, size: int) -> np.ndarray:
+            rows = spec.matrices.get(name)
+            if rows is None:
+                return np.zeros((size, size))
+            return np.array([[value(item) for item in row] for row in rows], dtype=float)
+
+        if self.kind == "second_order":
+            size = len(self.coordinates)
+            mass = matrix("M", size)
+            if not np.all(np.isfinite(mass)) or np.linalg.cond(mass) > _MAX_CONDITION:
+                raise self._fail(
+                    "matrices.M", f"singular mass matrix with coefficient set {set_name!r}"
+                )
+            inverse = np.linalg.inv(mass)
+            A = np.zeros((n, n))
+            A[:size, size:] = np.eye(size)
+            A[size:, :size] = -inverse @ matrix("K", size)
+            A[size:, size:] = -inverse @ matrix("C", size)
+            b0 = np.zeros(n)
+            if "F" in spec.matrices:
+                b0[size:] = inverse @ np.array([value(item) for item in spec.matrices["F"]])
+
+            def lhs_direction(enters: dict[int, Item]) -> np.ndarray:
+                # the term sits on the left-hand side: M q'' = ... - e s
+                out = np.zeros(n)
+                out[size:] = -inverse @ vector(enters, size)
+                return out
+
+            def rhs_direction(enters: dict[int, Item]) -> np.ndarray:
+                out = np.zeros(n)
+                out[size:] = inverse @ vector(enters, size)
+                return out
+
+            nonlinear_direction = lhs_direction
+        else:
+            A = matrix("A", n)
+            b0 = np.zeros(n)
+            if "b" in spec.matrices:
+                b0 = np.array([value(item) for item in spec.matrices["b"]])
+
+            def rhs_direction(enters: dict[int, Item]) -> np.ndarray:
+                return vector(enters, n)
+
+            nonlinear_direction = rhs_direction
+
+        terms = []
+        for name, group in spec.nonlinear.items():
+            if not nonlinear_on[name]:
+                continue
+            abs_terms = tuple(
+                AbsTerm(gain=value(t.gain), row=vector(t.row, n), offset=value(t.offset))
+                for t in group.abs_terms
+            )
+            terms.append(
+                PiecewiseLinearTerm(
+                    name=name,
+                    direction=nonlinear_direction(group.enters),
+                    linear=vector(group.linear, n),
+                    abs_terms=abs_terms,
+                    constant=value(group.constant),
+                    t_on=None if group.t_on is None else value(group.t_on),
+                )
+            )
+        sources = []
+        for name, group in spec.forcing.items():
+            if not forcing_on[name]:
+                continue
+            sources.append(
+                Sinusoid(
+                    direction=rhs_direction(group.enters),
+                    amplitude=value(group.amplitude),
+                    frequency=value(group.frequency),
+                    phase=value(group.phase),
+                    amplitude_unit=group.unit,
+                    name=name,
+                )
+            )
+        return System(
+            name=self.name,
+            states=self.states,
+            units=self.units,
+            A=A,
+            b0=b0,
+            nonlinear=tuple(terms),
+            forcing=tuple(sources),
+            x0=self._initial(x0, value),
+            parameters=values,
+            circuit_hints=dict(self.circuit),
+            coefficients=coefficient_values,
+            coefficient_set=set_name,
+        )
+
+    def _initial(self, x0, value) -> np.ndarray:
+        n = self.n
+        if x0 is None:
+            out = np.zeros(n)
+            for index, item in self.spec.initial.items():
+                out[index] = value(item)
+            return out
+        if isinstance(x0, Mapping):
+            out = np.zeros(n)
+            for name, entry in x0.items():
+                if name not in self.states:
+                    raise self._fail(
+                        f"initial.{name}", f"unknown state (states: {', '.join(self.states)})"
+                    )
+                out[self.states.index(name)] = float(entry)
+            return out
+        out = np.asarray(x0, dtype=float).reshape(-1)
+        if out.shape != (n,):
+            raise self._fail("initial", f"x0 needs {n} values ({', '.join(self.states)})")
+        return out.copy()

@@ -1,0 +1,501 @@
+"""Reading a model file (TOML) into a :class:`~circuitsim.mechanics.model.Model`.
+
+Everything the file says is checked here, and every problem becomes a ModelError naming the
+file, the dotted key and what is wrong. The format is documented in docs/model.md.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+from circuitsim.mechanics.errors import ModelError
+from circuitsim.mechanics.expressions import RESERVED, Expression, ExpressionError, parse
+
+BUILTIN = "wheelset"
+KINDS = ("second_order", "first_order")
+TOP_KEYS = {
+    "model": "name, kind, description",
+    "coordinates": "second-order coordinate names and units",
+    "states": "first-order state names and units",
+    "parameters": "named parameters with defaults",
+    "options": "command-line option -> parameter",
+    "coefficients": "named coefficient sets",
+    "matrices": "M, C, K (second order) or A (first order)",
+    "nonlinear": "piecewise-linear terms in abs() form",
+    "forcing": "sinusoidal forcing",
+    "initial": "initial conditions",
+    "circuit": "free-form hints for the circuit translator",
+}
+
+
+@dataclass(frozen=True)
+class Item:
+    """An expression together with where it came from (for error messages)."""
+
+    key: str
+    expression: Expression
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A named model parameter: default ``value`` in ``unit``."""
+
+    name: str
+    value: float
+    unit: str = ""
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class AbsSpec:
+    """``gain * |row . x + offset|`` before evaluation; row maps state index -> Item."""
+
+    gain: Item
+    row: dict[int, Item]
+    offset: Item
+
+
+@dataclass(frozen=True)
+class NonlinearSpec:
+    """A switchable piecewise-linear group as written in ``[nonlinear.<name>]``."""
+
+    name: str
+    key: str
+    description: str
+    enabled: bool
+    enters: dict[int, Item]
+    linear: dict[int, Item]
+    constant: Item
+    abs_terms: tuple[AbsSpec, ...]
+    t_on: Item | None
+
+
+@dataclass(frozen=True)
+class ForcingSpec:
+    """A sinusoidal forcing group as written in ``[forcing.<name>]``."""
+
+    name: str
+    key: str
+    description: str
+    enabled: bool
+    amplitude: Item
+    unit: str
+    frequency: Item
+    phase: Item
+    enters: dict[int, Item]
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """The checked, still symbolic content of a model file."""
+
+    file: str
+    name: str
+    description: str
+    kind: str
+    coordinates: tuple[str, ...]
+    coordinate_units: tuple[str, ...]
+    states: tuple[str, ...]
+    units: tuple[str, ...]
+    parameters: dict[str, Parameter]
+    options: dict[str, str]
+    coefficient_sets: dict[str, tuple[tuple[str, Item], ...]]
+    default_coefficients: str
+    matrices: dict[str, list[list[Item]] | list[Item]]
+    nonlinear: dict[str, NonlinearSpec]
+    forcing: dict[str, ForcingSpec]
+    initial: dict[int, Item]
+    circuit: dict
+
+
+def builtin_path(name: str = BUILTIN) -> Path:
+    """Path of a model file shipped inside the package (``"wheelset"``)."""
+    return Path(str(resources.files("circuitsim.mechanics") / "models" / f"{name}.toml"))
+
+
+class _Reader:
+    """Walks the TOML document; ``fail`` raises the ModelError for this file."""
+
+    def __init__(self, file: str):
+        self.file = file
+
+    def fail(self, key: str | None, message: str) -> ModelError:
+        return ModelError(message, file=self.file, key=key)
+
+    def table(self, value, key: str, required: bool = True) -> dict:
+        if value is None:
+            if required:
+                raise self.fail(key, "missing table")
+            return {}
+        if not isinstance(value, dict):
+            raise self.fail(key, f"wrong type: expected a table, got {_type(value)}")
+        return value
+
+    def check_keys(self, table: dict, key: str, allowed: tuple[str, ...]) -> None:
+        for name in table:
+            if name not in allowed:
+                where = f"{key}.{name}" if key else name
+                raise self.fail(where, f"unknown key (allowed: {', '.join(allowed)})")
+
+    def string(self, table: dict, name: str, key: str, default: str | None = None) -> str:
+        if name not in table:
+            if default is None:
+                raise self.fail(f"{key}.{name}", "missing key")
+            return default
+        value = table[name]
+        if not isinstance(value, str):
+            raise self.fail(f"{key}.{name}", f"wrong type: expected a string, got {_type(value)}")
+        return value
+
+    def boolean(self, table: dict, name: str, key: str, default: bool) -> bool:
+        value = table.get(name, default)
+        if not isinstance(value, bool):
+            raise self.fail(
+                f"{key}.{name}", f"wrong type: expected true or false, got {_type(value)}"
+            )
+        return value
+
+    def names(self, table: dict, name: str, key: str) -> tuple[str, ...]:
+        value = table.get(name)
+        if value is None:
+            raise self.fail(f"{key}.{name}", "missing key")
+        if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
+            raise self.fail(f"{key}.{name}", "wrong type: expected a non-empty list of strings")
+        for entry in value:
+            _check_identifier(self, entry, f"{key}.{name}")
+        if len(set(value)) != len(value):
+            raise self.fail(f"{key}.{name}", "duplicate names")
+        return tuple(value)
+
+    def expression(self, value, key: str) -> Item:
+        try:
+            return Item(key, parse(value))
+        except ExpressionError as exc:
+            raise self.fail(key, f"bad expression: {exc}") from None
+
+
+def _type(value) -> str:
+    return {dict: "a table", list: "an array", str: "a string", bool: "a boolean"}.get(
+        type(value), type(value).__name__
+    )
+
+
+def _check_identifier(reader: _Reader, name: str, key: str) -> None:
+    if not name.isidentifier():
+        raise reader.fail(key, f"{name!r} is not a valid name (letters, digits, _)")
+    if name in RESERVED:
+        raise reader.fail(key, f"{name!r} is reserved (a function or constant of expressions)")
+
+
+def read_model(path: str | Path | None = None) -> ModelSpec:
+    """Read and check a model file; ``None`` reads the built-in wheelset.
+
+    Raises
+    ------
+    ModelError
+        Naming the file, the dotted key and what is wrong.
+    """
+    path = builtin_path() if path is None else Path(path)
+    file = str(path)
+    reader = _Reader(file)
+    try:
+        with open(path, "rb") as handle:
+            document = tomllib.load(handle)
+    except FileNotFoundError:
+        raise reader.fail(None, "model file not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise reader.fail(None, f"not valid TOML: {exc}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise reader.fail(None, f"cannot read: {exc}") from None
+    reader.check_keys(document, "", tuple(TOP_KEYS))
+
+    model = reader.table(document.get("model"), "model")
+    reader.check_keys(model, "model", ("name", "description", "kind"))
+    name = reader.string(model, "name", "model")
+    description = reader.string(model, "description", "model", default="")
+    kind = reader.string(model, "kind", "model")
+    if kind not in KINDS:
+        raise reader.fail("model.kind", f"must be one of {', '.join(KINDS)}, got {kind!r}")
+
+    if kind == "second_order":
+        if "states" in document:
+            raise reader.fail("states", "a second_order model names [coordinates], not [states]")
+        section = reader.table(document.get("coordinates"), "coordinates")
+        reader.check_keys(section, "coordinates", ("names", "units"))
+        coordinates = reader.names(section, "names", "coordinates")
+        coordinate_units = _units(reader, section, "coordinates", len(coordinates))
+        states = coordinates + tuple(f"{q}_dot" for q in coordinates)
+        units = coordinate_units + tuple(_rate(u) for u in coordinate_units)
+        equations = coordinates
+    else:
+        if "coordinates" in document:
+            raise reader.fail(
+                "coordinates", "a first_order model names [states], not [coordinates]"
+            )
+        section = reader.table(document.get("states"), "states")
+        reader.check_keys(section, "states", ("names", "units"))
+        states = reader.names(section, "names", "states")
+        units = _units(reader, section, "states", len(states))
+        coordinates, coordinate_units = (), ()
+        equations = states
+
+    parameters = _parameters(reader, document, set(states))
+    options = _options(reader, document, parameters)
+    sets, default_set = _coefficient_sets(reader, document, parameters)
+    matrices = _matrices(reader, document, kind, len(equations))
+    nonlinear = {
+        group: _nonlinear(reader, table, f"nonlinear.{group}", states, equations, kind)
+        for group, table in reader.table(document.get("nonlinear"), "nonlinear", False).items()
+    }
+    forcing = {
+        group: _forcing(reader, table, f"forcing.{group}", equations)
+        for group, table in reader.table(document.get("forcing"), "forcing", False).items()
+    }
+    initial_table = reader.table(document.get("initial"), "initial", False)
+    initial = _row(reader, initial_table, "initial", states, kind, allow_coordinates=False)
+    circuit = reader.table(document.get("circuit"), "circuit", False)
+    return ModelSpec(
+        file=file,
+        name=name,
+        description=description,
+        kind=kind,
+        coordinates=coordinates,
+        coordinate_units=coordinate_units,
+        states=states,
+        units=units,
+        parameters=parameters,
+        options=options,
+        coefficient_sets=sets,
+        default_coefficients=default_set,
+        matrices=matrices,
+        nonlinear=nonlinear,
+        forcing=forcing,
+        initial=initial,
+        circuit=dict(circuit),
+    )
+
+
+def _rate(unit: str) -> str:
+    return "1/s" if unit in ("", "1") else f"{unit}/s"
+
+
+def _units(reader: _Reader, section: dict, key: str, count: int) -> tuple[str, ...]:
+    if "units" not in section:
+        return ("",) * count
+    value = section["units"]
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise reader.fail(f"{key}.units", "wrong type: expected a list of strings")
+    if len(value) != count:
+        raise reader.fail(f"{key}.units", f"wrong length: {len(value)} units for {count} names")
+    return tuple(value)
+
+
+def _parameters(reader: _Reader, document: dict, states: set[str]) -> dict[str, Parameter]:
+    table = reader.table(document.get("parameters"), "parameters", False)
+    parameters = {}
+    for name, value in table.items():
+        key = f"parameters.{name}"
+        _check_identifier(reader, name, key)
+        unit, description = "", ""
+        if isinstance(value, dict):
+            reader.check_keys(value, key, ("value", "unit", "description"))
+            unit = reader.string(value, "unit", key, default="")
+            description = reader.string(value, "description", key, default="")
+            if "value" not in value:
+                raise reader.fail(f"{key}.value", "missing key")
+            value = value["value"]
+            key = f"{key}.value"
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise reader.fail(key, f"wrong type: expected a number, got {_type(value)}")
+        parameters[name] = Parameter(name, float(value), unit, description)
+    return parameters
+
+
+def _options(reader: _Reader, document: dict, parameters: dict) -> dict[str, str]:
+    table = reader.table(document.get("options"), "options", False)
+    options = {}
+    for option, target in table.items():
+        key = f"options.{option}"
+        if not isinstance(target, str):
+            raise reader.fail(key, f"wrong type: expected a parameter name, got {_type(target)}")
+        if target not in parameters:
+            raise reader.fail(key, f"unknown parameter {target!r}")
+        options[option] = target
+    return options
+
+
+def _coefficient_sets(reader: _Reader, document: dict, parameters: dict):
+    table = reader.table(document.get("coefficients"), "coefficients", False)
+    sets: dict[str, tuple[tuple[str, Item], ...]] = {}
+    default = None
+    for name, entries in table.items():
+        key = f"coefficients.{name}"
+        if name == "default":
+            if not isinstance(entries, str):
+                raise reader.fail(key, f"wrong type: expected a set name, got {_type(entries)}")
+            default = entries
+            continue
+        entries = reader.table(entries, key)
+        items = []
+        for coefficient, value in entries.items():
+            _check_identifier(reader, coefficient, f"{key}.{coefficient}")
+            if coefficient in parameters:
+                raise reader.fail(
+                    f"{key}.{coefficient}", "a coefficient may not reuse a parameter's name"
+                )
+            items.append((coefficient, reader.expression(value, f"{key}.{coefficient}")))
+        sets[name] = tuple(items)
+    if not sets:
+        sets = {"default": ()}
+    if default is None:
+        default = next(iter(sets))
+    elif default not in sets:
+        raise reader.fail(
+            "coefficients.default", f"unknown set {default!r} (sets: {', '.join(sets)})"
+        )
+    return sets, default
+
+
+def _matrices(reader: _Reader, document: dict, kind: str, size: int) -> dict:
+    table = reader.table(document.get("matrices"), "matrices")
+    if kind == "second_order":
+        square, vectors, required = ("M", "C", "K"), ("F",), ("M", "K")
+    else:
+        square, vectors, required = ("A",), ("b",), ("A",)
+    reader.check_keys(table, "matrices", square + vectors)
+    for name in required:
+        if name not in table:
+            raise reader.fail(f"matrices.{name}", "missing key")
+    matrices: dict = {}
+    for name in square:
+        if name not in table:
+            continue
+        key = f"matrices.{name}"
+        rows = table[name]
+        if not isinstance(rows, list) or not all(isinstance(r, list) for r in rows):
+            raise reader.fail(key, "wrong type: expected an array of rows (arrays)")
+        if len(rows) != size:
+            raise reader.fail(key, f"wrong number of rows: expected {size}, got {len(rows)}")
+        matrices[name] = []
+        for i, row in enumerate(rows):
+            if len(row) != size:
+                raise reader.fail(
+                    f"{key}[{i}]", f"wrong row length: expected {size}, got {len(row)}"
+                )
+            matrices[name].append(
+                [reader.expression(v, f"{key}[{i}][{j}]") for j, v in enumerate(row)]
+            )
+    for name in vectors:
+        if name not in table:
+            continue
+        key = f"matrices.{name}"
+        values = table[name]
+        if not isinstance(values, list):
+            raise reader.fail(key, f"wrong type: expected an array, got {_type(values)}")
+        if len(values) != size:
+            raise reader.fail(key, f"wrong length: expected {size}, got {len(values)}")
+        matrices[name] = [reader.expression(v, f"{key}[{j}]") for j, v in enumerate(values)]
+    return matrices
+
+
+def _row(
+    reader: _Reader,
+    value,
+    key: str,
+    names: tuple[str, ...],
+    kind: str,
+    allow_coordinates: bool = True,
+) -> dict[int, Item]:
+    """A vector over ``names`` written as a table {name = expr} or an array; index -> Item.
+
+    For rows over the states of a second-order model an array may also list the coordinates
+    only (the rates get weight 0).
+    """
+    if isinstance(value, dict):
+        row = {}
+        for name, entry in value.items():
+            if name not in names:
+                raise reader.fail(f"{key}.{name}", f"unknown name (known: {', '.join(names)})")
+            row[names.index(name)] = reader.expression(entry, f"{key}.{name}")
+        return row
+    if isinstance(value, list):
+        lengths = [len(names)]
+        if kind == "second_order" and allow_coordinates and len(names) % 2 == 0:
+            lengths.append(len(names) // 2)
+        if len(value) not in lengths:
+            expected = " or ".join(str(n) for n in lengths)
+            raise reader.fail(
+                key,
+                f"wrong row length: expected {expected} ({', '.join(names)}), got {len(value)}",
+            )
+        return {i: reader.expression(v, f"{key}[{i}]") for i, v in enumerate(value)}
+    raise reader.fail(key, f"wrong type: expected a table or an array, got {_type(value)}")
+
+
+def _optional(reader: _Reader, table: dict, name: str, key: str, default) -> Item:
+    return reader.expression(table.get(name, default), f"{key}.{name}")
+
+
+def _nonlinear(reader, table, key, states, equations, kind) -> NonlinearSpec:
+    table = reader.table(table, key)
+    allowed = ("description", "enabled", "enters", "linear", "constant", "abs", "t_on")
+    reader.check_keys(table, key, allowed)
+    if "enters" not in table:
+        raise reader.fail(f"{key}.enters", "missing key")
+    enters = _row(reader, table["enters"], f"{key}.enters", equations, "first_order")
+    linear = _row(reader, table.get("linear", {}), f"{key}.linear", states, kind)
+    abs_list = table.get("abs", [])
+    if not isinstance(abs_list, list):
+        raise reader.fail(
+            f"{key}.abs", f"wrong type: expected an array of tables, got {_type(abs_list)}"
+        )
+    terms = []
+    for i, entry in enumerate(abs_list):
+        sub = f"{key}.abs[{i}]"
+        entry = reader.table(entry, sub)
+        reader.check_keys(entry, sub, ("gain", "row", "offset"))
+        for needed in ("gain", "row"):
+            if needed not in entry:
+                raise reader.fail(f"{sub}.{needed}", "missing key")
+        terms.append(
+            AbsSpec(
+                gain=reader.expression(entry["gain"], f"{sub}.gain"),
+                row=_row(reader, entry["row"], f"{sub}.row", states, kind),
+                offset=_optional(reader, entry, "offset", sub, 0.0),
+            )
+        )
+    t_on = None if "t_on" not in table else reader.expression(table["t_on"], f"{key}.t_on")
+    return NonlinearSpec(
+        name=key.split(".", 1)[1],
+        key=key,
+        description=reader.string(table, "description", key, default=""),
+        enabled=reader.boolean(table, "enabled", key, True),
+        enters=enters,
+        linear=linear,
+        constant=_optional(reader, table, "constant", key, 0.0),
+        abs_terms=tuple(terms),
+        t_on=t_on,
+    )
+
+
+def _forcing(reader, table, key, equations) -> ForcingSpec:
+    table = reader.table(table, key)
+    allowed = ("description", "enabled", "amplitude", "unit", "frequency", "phase", "enters")
+    reader.check_keys(table, key, allowed)
+    for needed in ("amplitude", "frequency", "enters"):
+        if needed not in table:
+            raise reader.fail(f"{key}.{needed}", "missing key")
+    return ForcingSpec(
+        name=key.split(".", 1)[1],
+        key=key,
+        description=reader.string(table, "description", key, default=""),
+        enabled=reader.boolean(table, "enabled", key, True),
+        amplitude=reader.expression(table["amplitude"], f"{key}.amplitude"),
+        unit=reader.string(table, "unit", key, default=""),
+        frequency=reader.expression(table["frequency"], f"{key}.frequency"),
+        phase=_optional(reader, table, "phase", key, 0.0),
+        enters=_row(reader, table["enters"], f"{key}.enters", equations, "first_order"),
+    )

@@ -1,0 +1,53 @@
+"""The wheelset against MODEL.md's reference numbers (computed independently, rtol 1e-11)."""
+
+import pytest
+
+from circuitsim.mechanics import load_model, solve
+
+# MODEL.md, "Forced response": f (Hz), flange -> max|y| (mm), y(5 s) (mm), max|y'| (m/s)
+FORCED = {
+    (3, False): (21.339, 1.2725, 0.5526),
+    (3, True): (14.265, 0.8557, 0.4772),
+    (5, False): (34.053, 3.9377, 1.3162),
+    (5, True): (16.599, -0.0154, 0.6703),
+    (10, False): (89.035, -23.9568, 5.1443),
+    (10, True): (26.706, -10.0155, 1.5942),
+}
+
+
+@pytest.fixture(scope="module")
+def wheelset():
+    return load_model()
+
+
+@pytest.mark.parametrize(("frequency", "flange"), sorted(FORCED))
+def test_forced_response_matches_model_md(wheelset, frequency, flange):
+    system = wheelset.system(
+        coefficients="paper",
+        parameters={"V": 55, "f": frequency, "a": 0.040},
+        nonlinear={"flange": flange},
+    )
+    result = solve(system, t_span=(0, 5), rtol=1e-10, atol=1e-12)
+    max_y, y_end, max_rate = FORCED[(frequency, flange)]
+    assert result.max_abs("y") * 1e3 == pytest.approx(max_y, rel=1e-3)
+    assert result.sol(5.0)[0] * 1e3 == pytest.approx(y_end, rel=1e-3)
+    assert result.max_abs("y_dot") == pytest.approx(max_rate, rel=1e-3)
+    if flange:
+        # the wheelset keeps striking the rail: kinks at |y| = eta, and only there
+        y_at_kinks = result.sol(result.kinks)[0]
+        assert len(result.kinks) > 10
+        assert abs(y_at_kinks) == pytest.approx(0.009, abs=1e-12)
+    else:
+        assert len(result.kinks) == 0
+
+
+@pytest.mark.parametrize(("speed", "expected"), [(54, 4.14e-6), (57, 1.223)])
+def test_free_response_decays_below_and_grows_above_critical_speed(wheelset, speed, expected):
+    system = wheelset.system(
+        parameters={"V": speed},
+        nonlinear={"flange": False},
+        forcing={"track": False},
+        x0={"y": 0.005},
+    )
+    result = solve(system, t_span=(0, 10))
+    assert result.max_abs("y", 9.0, 10.0) == pytest.approx(expected, rel=1e-2)
