@@ -1,0 +1,131 @@
+"""Test benches for the part library and the measurements taken from them.
+
+Each bench is SPICE text that ``.include``s the shipped ``parts.lib`` (so what is measured is
+the file users get), runs on any engine given as ``run(text) -> Waveforms``, and each
+measurement is taken from the simulated waveforms the way one would on a bench: no figure is
+read from the model's own parameters. Shared by the tests and by ``report.py`` (docs/parts.md).
+"""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+
+from circuitsim.netlist.library import LIBRARY_PATH
+from circuitsim.solver.waveforms import Waveforms
+
+Run = Callable[[str], Waveforms]
+
+requires_ngspice = pytest.mark.skipif(
+    shutil.which("ngspice") is None,
+    reason="ngspice is not installed (apt-get install -y ngspice; CI installs it)",
+)
+
+DESIGN = {
+    "dc_gain": 200e3,  # V/V: 200 V/mV (TL07x datasheet typical)
+    "unity_gain_hz": 3e6,  # Hz (datasheet typical unity-gain bandwidth)
+    "slew_v_per_us": 13.0,  # V/us (datasheet typical, unity gain)
+    "swing_pos_v": 13.5,  # V into 10 kOhm on +/-15 V (datasheet typical)
+    "swing_neg_v": -13.5,
+    "output_ohm": 100.0,  # open-loop output resistance, our choice (docs/parts.md)
+    "input_ohm": 1e12,  # datasheet typical
+}
+"""Design figures of the TL074-like macromodel, from the datasheet, not from parts.lib."""
+
+SUPPLIES = "VCC vcc 0 15\nVEE vee 0 -15\n"
+
+
+def deck(body: str, analysis: str, title: str = "part bench") -> str:
+    """A complete netlist: title, the library include, ``body``, ``analysis``, ``.end``."""
+    return f"{title}\n.include {LIBRARY_PATH}\n{body}{analysis}\n.end\n"
+
+
+def open_loop_output(run: Run, vd: float, load: str = "") -> float:
+    """v(out) of an open-loop TL074 with differential input ``vd`` (V); ``.op``."""
+    body = SUPPLIES + f"VP p 0 {vd!r}\nXU p 0 vcc vee out TL074\n" + load
+    return float(run(deck(body, ".op"))["v(out)"][0])
+
+
+def dc_gain(run: Run, vd: float = 10e-6) -> float:
+    """Open-loop DC gain, V/V, from the outputs at +vd and -vd (unloaded)."""
+    return (open_loop_output(run, vd) - open_loop_output(run, -vd)) / (2 * vd)
+
+
+def swing(run: Run, load_ohm: float = 10e3) -> tuple[float, float]:
+    """Clipping levels (V) into ``load_ohm`` on +/-15 V: (positive, negative)."""
+    load = f"RL out 0 {load_ohm!r}\n"
+    return open_loop_output(run, 1.0, load), open_loop_output(run, -1.0, load)
+
+
+def output_resistance(run: Run, test_amps: float = 1e-3) -> float:
+    """Open-loop output resistance, ohms: inputs grounded, ``test_amps`` drawn from the output."""
+    body = SUPPLIES + f"XU 0 0 vcc vee out TL074\nIT out 0 {test_amps!r}\n"
+    return -float(run(deck(body, ".op"))["v(out)"][0]) / test_amps
+
+
+def input_resistance(run: Run) -> float:
+    """Differential input resistance, ohms: 1 V across the inputs, the current measured."""
+    body = SUPPLIES + "VP p 0 1\nXU p 0 vcc vee out TL074\n"
+    return 1.0 / abs(float(run(deck(body, ".op"))["i(vp)"][0]))
+
+
+def follower_step(
+    run: Run, low: float, high: float, tstop: float, tstep: float, load: str = ""
+) -> Waveforms:
+    """Unity-gain follower: the input steps from ``low`` to ``high`` (V) at 0.1 us, 1 ns edge."""
+    body = (
+        SUPPLIES
+        + f"VIN in 0 PULSE({low!r} {high!r} 0.1u 1n 1n 1 2)\nXU in out vcc vee out TL074\n"
+        + load
+    )
+    return run(deck(body, f".tran {tstep!r} {tstop!r} 0 {tstep!r}"))
+
+
+def unity_gain_frequency(run: Run, step: float = 0.01) -> float:
+    """Unity-gain frequency, Hz, from a small step of an unloaded follower.
+
+    The follower's closed loop is a single pole at the unity-gain frequency f_u (times
+    A0 / (1 + A0), a 5e-6 correction), so the error decays as exp(-2 pi f_u t); f_u comes from a
+    straight-line fit of log(error) between 90 % and 10 % of the step.
+    """
+    waves = follower_step(run, 0.0, step, 1.5e-6, 2e-9)
+    t, v = waves.time, waves["v(out)"]
+    error = step - v
+    window = (t > 0.1e-6) & (error < 0.9 * step) & (error > 0.1 * step)
+    slope = np.polyfit(t[window], np.log(error[window]), 1)[0]
+    return -slope / (2 * np.pi)
+
+
+def slew_rate(run: Run) -> tuple[float, float]:
+    """Slew rates, V/us, rising and falling, of a follower (10 kOhm load) stepping +/-5 V.
+
+    Measured between 10 % and 90 % of the 10 V swing; with 0.69 V of linear input range
+    the stage is current-limited over all of it.
+    """
+    rates = []
+    for low, high in ((-5.0, 5.0), (5.0, -5.0)):
+        waves = follower_step(run, low, high, 2e-6, 5e-9, "RL out 0 10k\n")
+        t, v = waves.time, waves["v(out)"]
+        a, b = low + 0.1 * (high - low), low + 0.9 * (high - low)
+        ta, tb = _crossing(t, v, a), _crossing(t, v, b)
+        rates.append(abs(b - a) / (tb - ta) / 1e6)
+    return rates[0], rates[1]
+
+
+def offset_output(run: Run, vos: float) -> float:
+    """Output (V) of a grounded-input follower whose TL074 has ``vos`` volts of offset."""
+    body = SUPPLIES + f"XU 0 out vcc vee out TL074 vos={vos!r}\n"
+    return float(run(deck(body, ".op"))["v(out)"][0])
+
+
+def _crossing(t: np.ndarray, v: np.ndarray, level: float) -> float:
+    """First time (s) ``v`` passes ``level`` towards its final value, linearly interpolated."""
+    beyond = v > level if v[-1] > level else v < level
+    i = int(np.argmax(beyond))
+    if i == 0:
+        raise ValueError(f"the waveform never crosses {level} V")
+    t0, t1, v0, v1 = t[i - 1], t[i], v[i - 1], v[i]
+    return float(t0 + (level - v0) * (t1 - t0) / (v1 - v0))
