@@ -1,0 +1,553 @@
+"""SPICE netlist text to a :class:`~circuitsim.netlist.circuit.Circuit`.
+
+What is read (ngspice 39 conventions, checked with ``ngspice -b``):
+
+- The first line is always the title, whatever it holds. ``.title text`` replaces it.
+- ``+`` at the start of a line continues the previous logical line (comment lines may sit in
+  between); errors report the first physical line. ``*`` starts a comment line; ``;``
+  anywhere and ``$`` at the start of a word start an inline comment.
+- Keywords and node names are case-insensitive; node names are stored lower case, and
+  ``gnd`` is stored as ``"0"`` (ngspice 39 treats ``gnd`` as ground: a test proves it).
+  Element names keep their case. Model and subcircuit references (``Diode.model``,
+  ``Switch.model``, ``SubcircuitCall.subcircuit``) are stored lower case, as are the keys
+  of ``models``/``subcircuits``/``params``; ``Model.name`` and ``Subcircuit.name`` keep the
+  case they were written with. F/H control names keep their case (element lookup is
+  case-insensitive).
+- Elements R C L V I E F G H D S X (see :mod:`circuitsim.netlist.reader_elements`).
+- Values: numbers with suffixes (:mod:`circuitsim.netlist.values`), ``{expr}`` or ``'expr'``
+  or a bare parameter name, stored as :class:`~circuitsim.netlist.circuit.Expression` and
+  checked for syntax at read time.
+- Directives: ``.title .tran .op .ac .ic .options/.option/.opt .param .model .subckt/.ends
+  .include/.inc .lib/.endl .control/.endc .end``.
+- ``.include file`` and ``.lib file [section]``: paths relative to the including file's
+  folder (``base_dir`` for text, else the working directory); if absent there, the package
+  part library ``circuitsim/netlist/library/``. Included text has no title line. A ``.lib
+  name`` with one word followed later in the same file by ``.endl`` is a section; sections
+  are read only when asked for by ``.lib file name``. Include cycles are errors.
+- ``.options`` values: numbers are floats, ``{...}`` Expressions, flags ``True`` and other
+  words (``method=gear``) the word as a ``str`` (lower case).
+
+Ignored with a :class:`NetlistWarning` (``warnings`` module), because they only choose what a
+simulator prints or saves and carry no circuit meaning: ``.save .print .plot .probe .meas
+.measure .four``. Everything else is a :class:`~circuitsim.netlist.errors.NetlistError`:
+unknown directives, unsupported element letters (Q M J K T B ...), ``.global`` (only ground is
+global here; pass nodes through subcircuit ports instead), ``.endl``/``.ends`` without their
+opening line, a ``.subckt`` without ``.ends``, a ``.control`` without ``.endc``, duplicate
+``.model``/``.subckt`` names in one scope. Lines after ``.end`` are not read.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from circuitsim.netlist.circuit import (
+    AcSweep,
+    Circuit,
+    Element,
+    Expression,
+    Model,
+    OperatingPoint,
+    Subcircuit,
+    Transient,
+    Value,
+)
+from circuitsim.netlist.errors import NetlistError
+from circuitsim.netlist.expressions import evaluate
+from circuitsim.netlist.reader_elements import (
+    Cursor,
+    Line,
+    node_name,
+    parse_element,
+    split_header,
+    to_value,
+    tokenize,
+)
+from circuitsim.netlist.reader_params import split_assignments
+
+__all__ = ["parse_netlist", "read_netlist", "NetlistWarning", "LIBRARY_DIR"]
+
+LIBRARY_DIR = Path(__file__).resolve().parent / "library"
+
+_IGNORED = (".save", ".print", ".plot", ".probe", ".meas", ".measure", ".four")
+_MAX_INCLUDE_DEPTH = 32
+
+
+class NetlistWarning(UserWarning):
+    """A netlist line was read but not kept (e.g. ``.print``), so nothing is lost silently."""
+
+
+# --- physical lines to logical lines ------------------------------------------------------
+
+
+@dataclass
+class _Control:
+    """A raw ``.control`` ... ``.endc`` block."""
+
+    line: Line
+    text: str
+
+
+def _strip_comment(text: str) -> str:
+    cut = text.find(";")
+    if cut >= 0:
+        text = text[:cut]
+    # ngspice: '$' starts a comment at the start of a word (not inside a name like a$b)
+    for i, ch in enumerate(text):
+        if ch == "$" and (i == 0 or text[i - 1] in " \t,"):
+            return text[:i]
+    return text
+
+
+def _logical_lines(text: str, file: str, has_title: bool) -> tuple[str, list[Line | _Control]]:
+    """Join continuations, drop comments, set ``.control`` blocks aside, stop at ``.end``."""
+    physical = text.splitlines()
+    title = ""
+    start = 0
+    if has_title:
+        title = physical[0].lstrip("\ufeff").strip() if physical else ""
+        start = 1
+    out: list[Line | _Control] = []
+    current: tuple[int, str] | None = None
+    i = start
+    while i < len(physical):
+        number = i + 1
+        raw = physical[i].lstrip("\ufeff") if i == 0 else physical[i]
+        stripped = raw.strip()
+        i += 1
+        if not stripped or stripped.startswith("*"):
+            continue
+        if stripped.startswith("+"):
+            if current is None:
+                raise NetlistError(
+                    "continuation line '+' with no line before it to continue",
+                    file=file,
+                    line=number,
+                    text=raw,
+                )
+            current = (current[0], current[1] + " " + _strip_comment(stripped[1:]))
+            continue
+        if current is not None:
+            out.append(Line(file, current[0], current[1].strip()))
+            current = None
+        body = _strip_comment(stripped).strip()
+        if not body:
+            continue
+        keyword = body.split()[0].lower()
+        if keyword == ".control":
+            block: list[str] = []
+            while i < len(physical) and physical[i].strip().lower().split()[:1] != [".endc"]:
+                block.append(physical[i].rstrip())
+                i += 1
+            if i >= len(physical):
+                raise NetlistError(".control block without .endc", file=file, line=number, text=raw)
+            i += 1
+            out.append(_Control(Line(file, number, body), "\n".join(block)))
+            continue
+        if keyword == ".end":
+            break
+        current = (number, body)
+    if current is not None:
+        out.append(Line(file, current[0], current[1].strip()))
+    return title, out
+
+
+# --- include handling ---------------------------------------------------------------------
+
+
+def _include_target(line: Line, rest: str, what: str) -> tuple[str, str | None]:
+    """The file (quotes removed) and, for ``.lib``, the optional section name."""
+    rest = rest.strip()
+    if not rest:
+        raise line.error(f"{what} needs a file name")
+    if rest[0] in "\"'":
+        end = rest.find(rest[0], 1)
+        if end < 0:
+            raise line.error(f"unbalanced quote in {what} file name")
+        path, tail = rest[1:end], rest[end + 1 :].split()
+    else:
+        parts = rest.split()
+        path, tail = parts[0], parts[1:]
+    if not path:
+        raise line.error(f"{what} needs a file name")
+    if len(tail) > 1 or (tail and what == ".include"):
+        raise line.error(f"unexpected {' '.join(tail)!r} after the file name of {what}")
+    return path, (tail[0].lower() if tail else None)
+
+
+def _resolve(line: Line, path: str, base_dir: Path) -> Path:
+    candidate = Path(path)
+    tried = [candidate] if candidate.is_absolute() else [base_dir / candidate, LIBRARY_DIR / path]
+    for option in tried:
+        if option.is_file():
+            return option.resolve()
+    where = " or ".join(str(t) for t in tried)
+    raise line.error(f"include file {path!r} not found (looked for {where})")
+
+
+def _read_file(line: Line | None, path: Path, file: str) -> str:
+    try:
+        return path.read_text(encoding="utf-8", errors="strict")
+    except (OSError, UnicodeDecodeError) as exc:
+        if line is None:
+            raise NetlistError(f"cannot read netlist: {exc}", file=file) from None
+        raise line.error(f"cannot read {path}: {exc}") from None
+
+
+def _select_sections(
+    lines: list[Line | _Control], section: str | None, where: Line | None, path: Path
+) -> list[Line | _Control]:
+    """Keep the lines outside ``.lib name``/``.endl`` sections, or only those of ``section``."""
+
+    def lib_words(entry: Line | _Control) -> list[str] | None:
+        if isinstance(entry, Line):
+            words = entry.text.split()
+            if words[0].lower() == ".lib" and len(words) == 2:
+                return words
+        return None
+
+    has_endl = [isinstance(e, Line) and e.text.split()[0].lower() == ".endl" for e in lines]
+    kept: list[Line | _Control] = []
+    inside: str | None = None
+    found = False
+    for index, entry in enumerate(lines):
+        words = lib_words(entry)
+        if inside is None and words is not None and any(has_endl[index + 1 :]):
+            inside = words[1].lower()
+            found = found or inside == section
+            continue
+        if isinstance(entry, Line) and entry.text.split()[0].lower() == ".endl":
+            if inside is None:
+                raise entry.error(".endl without a .lib section before it")
+            inside = None
+            continue
+        if (inside is None and section is None) or (inside is not None and inside == section):
+            kept.append(entry)
+    if section is not None and not found:
+        assert where is not None
+        raise where.error(f"library section {section!r} not found in {path}")
+    return kept
+
+
+# --- the reader ---------------------------------------------------------------------------
+
+
+@dataclass
+class _Scope:
+    """A place elements go: the top level or an open ``.subckt``."""
+
+    opened: Line | None
+    elements: list[Element]
+    models: dict
+    subcircuits: dict
+    params: dict
+    subcircuit: Subcircuit | None = None
+
+
+@dataclass
+class _Reader:
+    circuit: Circuit
+    scopes: list[_Scope] = field(default_factory=list)
+    include_stack: list[str] = field(default_factory=list)
+    known: dict[str, float] = field(default_factory=dict)  # global params evaluable so far
+
+    def run(self, lines: list[Line | _Control], base_dir: Path) -> None:
+        for entry in lines:
+            if isinstance(entry, _Control):
+                if len(self.scopes) > 1:
+                    raise entry.line.error(".control is not allowed inside a .subckt")
+                self.circuit.control.append(entry.text)
+                continue
+            if entry.text.startswith("."):
+                self.directive(entry, base_dir)
+            else:
+                element = parse_element(entry)
+                self.scopes[-1].elements.append(element)
+
+    # --- directives ---
+    def directive(self, line: Line, base_dir: Path) -> None:
+        word, _, rest = line.text.partition(" ")
+        keyword = word.lower()
+        handler = _DIRECTIVES.get(keyword)
+        if handler is not None:
+            handler(self, line, rest, base_dir)
+            return
+        if keyword in _IGNORED:
+            warnings.warn(
+                f"{line.file}:{line.number}: {word} ignored (output requests carry no circuit "
+                "meaning; use the runner's outputs instead)",
+                NetlistWarning,
+                stacklevel=4,
+            )
+            return
+        if keyword == ".global":
+            raise line.error(
+                ".global is not supported: only ground 0 (alias gnd) is global; pass the node "
+                "through the subcircuit's ports instead"
+            )
+        known = " ".join(sorted(_DIRECTIVES))
+        raise line.error(f"unsupported directive {word!r} (supported: {known})")
+
+    def top_only(self, line: Line, what: str) -> None:
+        if len(self.scopes) > 1:
+            raise line.error(f"{what} is not allowed inside a .subckt")
+
+    def include(self, line: Line, rest: str, base_dir: Path) -> None:
+        what = line.text.split()[0].lower()
+        what = ".include" if what.startswith(".inc") else ".lib"
+        path_text, section = _include_target(line, rest, what)
+        path = _resolve(line, path_text, base_dir)
+        key = f"{path}#{section or ''}"
+        if key in self.include_stack or len(self.include_stack) >= _MAX_INCLUDE_DEPTH:
+            chain = " -> ".join(k.split("#")[0] for k in [*self.include_stack, key])
+            raise line.error(f"include cycle: {chain}")
+        _, lines = _logical_lines(_read_file(line, path, str(path)), str(path), has_title=False)
+        lines = _select_sections(lines, section, line, path)
+        self.include_stack.append(key)
+        try:
+            self.run(lines, path.parent)
+        finally:
+            self.include_stack.pop()
+
+    def lib(self, line: Line, rest: str, base_dir: Path) -> None:
+        self.include(line, rest, base_dir)
+
+    def endl(self, line: Line, rest: str, base_dir: Path) -> None:
+        raise line.error(".endl without a .lib section before it")
+
+    def title(self, line: Line, rest: str, base_dir: Path) -> None:
+        self.circuit.title = rest.strip()
+
+    def end_subckt(self, line: Line, rest: str, base_dir: Path) -> None:
+        if len(self.scopes) == 1:
+            raise line.error(".ends without a .subckt before it")
+        scope = self.scopes.pop()
+        assert scope.subcircuit is not None
+        words = rest.split()
+        if len(words) > 1:
+            raise line.error(f"unexpected {words[1]!r} after .ends name")
+        if words and words[0].lower() != scope.subcircuit.name.lower():
+            raise line.error(
+                f".ends {words[0]} does not match the open .subckt {scope.subcircuit.name}"
+            )
+
+    def subckt(self, line: Line, rest: str, base_dir: Path) -> None:
+        c = Cursor(tokenize(line), line, ".subckt name port ... [params: name=default ...]")
+        c.pos = 1
+        words, params = split_header(c, "subcircuit name or port")
+        if not words:
+            raise c.error("missing subcircuit name")
+        name, ports = words[0], tuple(node_name(w) for w in words[1:])
+        duplicates = {p for p in ports if ports.count(p) > 1}
+        if duplicates:
+            raise c.error(f"port {sorted(duplicates)[0]!r} listed twice")
+        if "0" in ports:
+            raise c.error("ground (0) cannot be a subcircuit port")
+        scope = self.scopes[-1]
+        if name.lower() in scope.subcircuits:
+            raise line.error(f"subcircuit {name!r} defined twice")
+        sub = Subcircuit(name, ports, params=params)
+        scope.subcircuits[name.lower()] = sub
+        self.scopes.append(_Scope(line, sub.elements, sub.models, sub.subcircuits, sub.params, sub))
+
+    def model(self, line: Line, rest: str, base_dir: Path) -> None:
+        c = Cursor(tokenize(line), line, ".model name kind(param=value ...)")
+        c.pos = 1
+        name = c.word("model name")
+        kind = c.word("model kind (D, SW ...)").upper()
+        token = c.peek()
+        if token is not None and token.kind == "(":
+            c.take("(")
+            close = next((i for i in range(c.pos, len(c.tokens)) if c.tokens[i].kind == ")"), None)
+            if close is None or close != len(c.tokens) - 1:
+                raise c.error("unbalanced parentheses in the parameter list")
+            inner = Cursor(c.tokens[c.pos : close], line, c.usage)
+            params = inner.assignments("model parameter")
+        else:
+            params = c.assignments("model parameter")
+        scope = self.scopes[-1]
+        if name.lower() in scope.models:
+            raise line.error(f"model {name!r} defined twice")
+        scope.models[name.lower()] = Model(name, kind, params)
+
+    def param(self, line: Line, rest: str, base_dir: Path) -> None:
+        pairs = split_assignments(line, rest)
+        scope = self.scopes[-1]
+        for name, value in pairs.items():
+            scope.params[name] = value
+            if len(self.scopes) == 1:
+                self.learn(name, value)
+
+    def learn(self, name: str, value: Value) -> None:
+        """Keep the evaluated global params, for .tran/.ac values given as expressions."""
+        try:
+            self.known[name] = (
+                value if isinstance(value, float) else evaluate(value.text, self.known)
+            )
+        except ValueError:
+            self.known.pop(name, None)
+
+    def number(self, c: Cursor, what: str) -> float:
+        value = c.value(what)
+        if isinstance(value, Expression):
+            try:
+                return evaluate(value.text, self.known)
+            except ValueError as exc:
+                raise c.error(f"cannot evaluate {what}: {exc}") from None
+        return value
+
+    def tran(self, line: Line, rest: str, base_dir: Path) -> None:
+        self.top_only(line, ".tran")
+        c = Cursor(tokenize(line), line, ".tran tstep tstop [tstart [tmax]] [uic]")
+        c.pos = 1
+        values: list[float] = []
+        uic = False
+        while not c.at_end():
+            token = c.peek()
+            assert token is not None
+            if token.kind == "word" and token.text.lower() == "uic":
+                c.take("uic")
+                uic = True
+                c.finish()
+                break
+            if len(values) == 4:
+                raise c.error(f"unexpected {token.text!r}")
+            values.append(self.number(c, ("tstep", "tstop", "tstart", "tmax")[len(values)]))
+        if len(values) < 2:
+            raise c.error(f"missing {('tstep', 'tstop')[len(values)]}")
+        tstep, tstop = values[:2]
+        tstart = values[2] if len(values) > 2 else 0.0
+        tmax = values[3] if len(values) > 3 else None
+        if tstep <= 0 or tstop <= 0:
+            raise c.error("tstep and tstop must be positive")
+        if not 0 <= tstart < tstop:
+            raise c.error("tstart must be at least 0 and less than tstop")
+        if tmax is not None and tmax <= 0:
+            raise c.error("tmax must be positive")
+        self.circuit.analyses.append(Transient(tstep, tstop, tstart, tmax, uic))
+
+    def op(self, line: Line, rest: str, base_dir: Path) -> None:
+        self.top_only(line, ".op")
+        if rest.strip():
+            raise line.error(f"unexpected {rest.strip()!r} after .op")
+        self.circuit.analyses.append(OperatingPoint())
+
+    def ac(self, line: Line, rest: str, base_dir: Path) -> None:
+        self.top_only(line, ".ac")
+        c = Cursor(tokenize(line), line, ".ac dec|oct|lin points fstart fstop")
+        c.pos = 1
+        variation = c.word("dec, oct or lin").lower()
+        if variation not in ("dec", "oct", "lin"):
+            raise c.error(f"expected dec, oct or lin, found {variation!r}")
+        points = self.number(c, "number of points")
+        if points != int(points) or points < 1:
+            raise c.error(f"number of points must be a positive integer, got {points!r}")
+        fstart = self.number(c, "fstart")
+        fstop = self.number(c, "fstop")
+        c.finish()
+        if not 0 < fstart <= fstop:
+            raise c.error("frequencies must satisfy 0 < fstart <= fstop")
+        self.circuit.analyses.append(AcSweep(variation, int(points), fstart, fstop))
+
+    def ic(self, line: Line, rest: str, base_dir: Path) -> None:
+        self.top_only(line, ".ic")
+        c = Cursor(tokenize(line), line, ".ic v(node)=value ...")
+        c.pos = 1
+        if c.at_end():
+            raise c.error("missing v(node)=value")
+        while not c.at_end():
+            v = c.word("v(node)")
+            if v.lower() != "v":
+                raise c.error(f"expected v(node), found {v!r}")
+            c.expect("(", "'(' after v")
+            node = c.node("node name")
+            c.expect(")", "')' after the node name")
+            c.expect("=", "'=' after v(node)")
+            self.circuit.initial_conditions[node] = c.value(f"initial voltage of {node}")
+
+    def options(self, line: Line, rest: str, base_dir: Path) -> None:
+        self.top_only(line, ".options")
+        c = Cursor(tokenize(line), line, ".options name=value ... flag ...")
+        c.pos = 1
+        while not c.at_end():
+            name = c.word("option name").lower()
+            token = c.peek()
+            if token is not None and token.kind == "=":
+                c.take("=")
+                value_token = c.take(f"value of option {name}")
+                if (
+                    value_token.kind == "word"
+                    and not value_token.text[:1].isdigit()
+                    and not (value_token.text[:1] in "+-." and value_token.text[1:2].isdigit())
+                ):
+                    self.circuit.options[name] = value_token.text.lower()
+                else:
+                    self.circuit.options[name] = to_value(value_token, line, f"option {name}")
+            else:
+                self.circuit.options[name] = True
+
+
+_DIRECTIVES = {
+    ".title": _Reader.title,
+    ".tran": _Reader.tran,
+    ".op": _Reader.op,
+    ".ac": _Reader.ac,
+    ".ic": _Reader.ic,
+    ".options": _Reader.options,
+    ".option": _Reader.options,
+    ".opt": _Reader.options,
+    ".param": _Reader.param,
+    ".model": _Reader.model,
+    ".subckt": _Reader.subckt,
+    ".ends": _Reader.end_subckt,
+    ".include": _Reader.include,
+    ".inc": _Reader.include,
+    ".lib": _Reader.lib,
+    ".endl": _Reader.endl,
+}
+
+
+def parse_netlist(text: str, source: str = "<string>", base_dir: str | None = None) -> Circuit:
+    """Read SPICE netlist text.
+
+    Parameters
+    ----------
+    text : str
+        The whole netlist; its first line is the title.
+    source : str
+        Name used in error messages and stored as ``Circuit.source``.
+    base_dir : str, optional
+        Folder for relative ``.include``/``.lib`` paths; default the working directory.
+
+    Returns
+    -------
+    Circuit
+
+    Raises
+    ------
+    NetlistError
+        With file, 1-based line number, the offending text and what was expected.
+    """
+    if not isinstance(text, str):
+        raise NetlistError(f"netlist text must be str, got {type(text).__name__}", file=source)
+    folder = Path(base_dir) if base_dir is not None else Path(os.getcwd())
+    title, lines = _logical_lines(text, source, has_title=True)
+    lines = _select_sections(lines, None, None, Path(source))
+    circuit = Circuit(title=title, source=source)
+    top = _Scope(None, circuit.elements, circuit.models, circuit.subcircuits, circuit.params)
+    reader = _Reader(circuit, [top])
+    reader.run(lines, folder)
+    if len(reader.scopes) > 1:
+        opened = reader.scopes[-1].opened
+        assert opened is not None
+        raise opened.error(f".subckt {reader.scopes[-1].subcircuit.name} has no .ends")
+    return circuit
+
+
+def read_netlist(path: str | os.PathLike[str]) -> Circuit:
+    """Read a netlist file; relative includes are looked up next to it. See parse_netlist."""
+    file = Path(path)
+    text = _read_file(None, file, str(path))
+    return parse_netlist(text, source=str(path), base_dir=str(file.resolve().parent))
