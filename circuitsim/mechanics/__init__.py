@@ -12,6 +12,7 @@ Typical use::
 from circuitsim.mechanics.errors import IntegrationError, ModelError
 from circuitsim.mechanics.model import Model, load_model
 from circuitsim.mechanics.solve import OdeResult, solve
+from circuitsim.mechanics.stability import critical_speed, eigenvalues, growth_rate, state_matrix
 from circuitsim.mechanics.system import AbsTerm, PiecewiseLinearTerm, Sinusoid, System
 
 __all__ = [
@@ -23,6 +24,10 @@ __all__ = [
     "PiecewiseLinearTerm",
     "Sinusoid",
     "System",
+    "critical_speed",
+    "eigenvalues",
+    "growth_rate",
     "load_model",
     "solve",
+    "state_matrix",
 ]

@@ -96,6 +96,32 @@ class Model:
         """Number of states."""
         return len(self.states)
 
+    def option_parameters(self, values: Mapping[str, float | None]) -> dict[str, float]:
+        """Translate command-line option values to parameter values through ``[options]``.
+
+        Parameters
+        ----------
+        values : dict of option name to float or None
+            ``{"speed": 57.0, "freq": None}``; None means "not given" and is skipped.
+
+        Raises
+        ------
+        ModelError
+            An option the model file does not map to a parameter.
+        """
+        out = {}
+        for option, value in values.items():
+            if value is None:
+                continue
+            if option not in self.options:
+                mapped = ", ".join(self.options) or "none"
+                raise self._fail(
+                    f"options.{option}",
+                    f"the model has no parameter for --{option} (mapped options: {mapped})",
+                )
+            out[self.options[option]] = float(value)
+        return out
+
     def _fail(self, key: str | None, message: str) -> ModelError:
         return ModelError(message, file=self.file, key=key)
 
@@ -174,7 +200,8 @@ class Model:
             Switch named groups on or off (default: each group's ``enabled``). Switched-off
             groups are absent from the System.
         x0 : array_like, shape (n,), or dict of state name to float, optional
-            Initial state; default from the file's ``[initial]`` table (missing states 0).
+            Initial state; default from the file's ``[initial]`` table (missing states 0). A
+            dict overrides only the states it names.
 
         Raises
         ------
@@ -292,13 +319,14 @@ class Model:
 
     def _initial(self, x0, value) -> np.ndarray:
         n = self.n
-        if x0 is None:
+        if x0 is None or isinstance(x0, Mapping):
             out = np.zeros(n)
             for index, item in self.spec.initial.items():
                 out[index] = value(item)
+        if x0 is None:
             return out
         if isinstance(x0, Mapping):
-            out = np.zeros(n)
+            # named states override the file's initial values; the others keep them
             for name, entry in x0.items():
                 if name not in self.states:
                     raise self._fail(

@@ -102,6 +102,21 @@ class OdeResult:
         dense = np.concatenate((dense, [hi]))
         return float(np.max(np.abs(self.sol(dense)[self.states.index(name)])))
 
+    def csv_text(self, t: np.ndarray | None = None) -> str:
+        """CSV text: header ``time,<states...>``, one row per time (SI units, 10 digits).
+
+        Parameters
+        ----------
+        t : ndarray, shape (p,), optional
+            Sample times, s (default: the solver points ``self.t``).
+        """
+        times = self.t if t is None else np.asarray(t, dtype=float)
+        values = self.x if t is None else self.sol(times)
+        table = np.vstack((times, values)).T
+        lines = [",".join(("time",) + self.states)]
+        lines.extend(",".join(f"{v:.10g}" for v in row) for row in table)
+        return "\n".join(lines) + "\n"
+
 
 class _Phase:
     """The vector field while a fixed set of terms is on, as plain arrays (fast rhs)."""

@@ -1,0 +1,149 @@
+"""Linear stability: eigenvalues of the linear part versus a parameter, and where they cross.
+
+The linear part is ``System.A``: piecewise-linear terms (the flange) are left out, as in the
+paper's hunting analysis. The critical value of a parameter is where the largest real part of
+the eigenvalues crosses zero; the hunting frequency is the imaginary part there over 2 pi.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+
+import numpy as np
+from scipy.optimize import brentq
+
+from circuitsim.mechanics.errors import ModelError
+from circuitsim.mechanics.model import Model
+
+
+def state_matrix(
+    model: Model,
+    coefficients: str | None = None,
+    parameters: Mapping[str, float] | None = None,
+) -> np.ndarray:
+    """The linear part A (shape (n, n), 1/s) at the given parameters, nonlinear terms off."""
+    off = {name: False for name in model.nonlinear_terms}
+    return model.system(coefficients=coefficients, parameters=parameters, nonlinear=off).A
+
+
+def eigenvalues(
+    model: Model,
+    parameter: str = "V",
+    values: Iterable[float] = (),
+    coefficients: str | None = None,
+    parameters: Mapping[str, float] | None = None,
+) -> np.ndarray:
+    """Eigenvalues of the linear part for each value of one parameter.
+
+    Parameters
+    ----------
+    model : Model
+    parameter : str
+        The parameter swept (wheelset: ``"V"``, m/s).
+    values : iterable of float
+        Its values.
+    coefficients : str, optional
+        Coefficient set (default: the model's default).
+    parameters : dict, optional
+        Other parameter overrides.
+
+    Returns
+    -------
+    ndarray of complex, shape (len(values), n)
+        1/s; each row sorted by decreasing real part (then decreasing imaginary part).
+    """
+    _check_parameter(model, parameter)
+    rows = []
+    for value in np.atleast_1d(np.asarray(list(values), dtype=float)):
+        A = state_matrix(model, coefficients, {**dict(parameters or {}), parameter: value})
+        lam = np.linalg.eigvals(A)
+        rows.append(lam[np.lexsort((-lam.imag, -lam.real))])
+    return np.array(rows).reshape(-1, model.n)
+
+
+def growth_rate(
+    model: Model,
+    value: float,
+    parameter: str = "V",
+    coefficients: str | None = None,
+    parameters: Mapping[str, float] | None = None,
+) -> float:
+    """Largest real part of the linear part's eigenvalues (1/s) at ``parameter = value``."""
+    return float(eigenvalues(model, parameter, [value], coefficients, parameters)[0, 0].real)
+
+
+def critical_speed(
+    model: Model,
+    coefficients: str | None = None,
+    parameter: str = "V",
+    bracket: tuple[float, float] = (1.0, 1000.0),
+    parameters: Mapping[str, float] | None = None,
+    scan: int = 200,
+) -> tuple[float, float]:
+    """The parameter value where the linear part first loses stability, and the frequency.
+
+    The bracket is scanned on a logarithmic grid (linear if it includes 0 or negative values)
+    for the first change from stable to unstable, then brentq refines it to ~1e-12 relative.
+
+    Parameters
+    ----------
+    model : Model
+    coefficients : str, optional
+        Coefficient set.
+    parameter : str
+        The parameter (wheelset: forward speed ``"V"``, m/s).
+    bracket : (float, float)
+        Search interval in the parameter's units.
+    parameters : dict, optional
+        Other parameter overrides.
+    scan : int
+        Grid points of the scan.
+
+    Returns
+    -------
+    value : float
+        Critical value (m/s for V).
+    hunting_frequency : float
+        |Im| / 2 pi of the critical eigenvalue, Hz (0 for a real eigenvalue).
+
+    Raises
+    ------
+    ModelError
+        When the largest real part does not change sign from negative to positive inside the
+        bracket.
+    """
+    _check_parameter(model, parameter)
+    lo, hi = (float(v) for v in bracket)
+    if not hi > lo:
+        raise ModelError(f"bracket must increase, got ({lo}, {hi})", file=model.file)
+    if lo > 0:
+        grid = np.geomspace(lo, hi, scan)
+    else:
+        grid = np.linspace(lo, hi, scan)
+
+    def rate(value: float) -> float:
+        return growth_rate(model, value, parameter, coefficients, parameters)
+
+    rates = np.array([rate(v) for v in grid])
+    crossing = np.nonzero((rates[:-1] < 0) & (rates[1:] >= 0))[0]
+    if crossing.size == 0:
+        raise ModelError(
+            f"the linear part does not lose stability for {parameter} in [{lo:g}, {hi:g}] "
+            f"(largest real part from {rates.min():.4g} to {rates.max():.4g} 1/s)",
+            file=model.file,
+            key=f"parameters.{parameter}",
+        )
+    i = crossing[0]
+    value = brentq(rate, grid[i], grid[i + 1], xtol=1e-12 * abs(grid[i + 1]), rtol=1e-13)
+    lam = eigenvalues(model, parameter, [value], coefficients, parameters)[0, 0]
+    return float(value), float(abs(lam.imag) / (2.0 * np.pi))
+
+
+def _check_parameter(model: Model, parameter: str) -> None:
+    if parameter not in model.parameters:
+        known = ", ".join(model.parameters) or "none"
+        raise ModelError(
+            f"unknown parameter {parameter!r} (known: {known})",
+            file=model.file,
+            key=f"parameters.{parameter}",
+        )
