@@ -1,0 +1,289 @@
+"""Running ngspice in batch mode on a netlist and reading its waveforms back.
+
+The netlist (a :class:`~circuitsim.netlist.circuit.Circuit`, written in the ngspice dialect, or
+SPICE text, or a file) gets its own ``.control`` blocks replaced by one that runs the deck's
+analyses and writes the chosen analysis' vectors to an ASCII rawfile, which this module parses::
+
+    .control
+    set filetype=ascii
+    run
+    setplot tran1
+    write <tmp>/out.raw
+    .endc
+
+ngspice's exit status is not trusted (a failed run may still exit 0): a run counts as failed
+when the rawfile is missing or empty, or when the log holds error lines ("Error", "singular
+matrix", "Timestep too small", "doAnalyses: ...", "simulation(s) aborted"); the error then
+carries those lines. Results are ``.tran`` (time plus signals) or ``.op`` (one point at t = 0).
+``.ac`` is refused with a clear error: its complex vectors do not fit :class:`Waveforms`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from circuitsim.interop.errors import NgspiceError
+from circuitsim.netlist.circuit import Circuit
+from circuitsim.solver.waveforms import Waveforms
+
+_ERROR_LINE = re.compile(
+    r"\berror\b|singular matrix|timestep too small|doanalyses|simulations? aborted"
+    r"|unknown subckt|could not find|unable to find definition|no such vector|not found",
+    re.IGNORECASE,
+)
+_MAX_LOG_LINES = 40
+
+
+def ngspice_available() -> bool:
+    """True when an ``ngspice`` executable is on PATH."""
+    return shutil.which("ngspice") is not None
+
+
+def run_ngspice(
+    netlist: Circuit | str | os.PathLike,
+    probes: list[str] | None = None,
+    timeout: float = 300.0,
+) -> Waveforms:
+    """Run ``ngspice -b`` on ``netlist`` and return its waveforms.
+
+    Parameters
+    ----------
+    netlist : Circuit, str or path-like
+        A circuit (written with the ngspice dialect), SPICE text (a ``str``), or a netlist file
+        (a ``Path``/path-like; relative ``.include``/``.lib`` files are found beside it).
+    probes : list of str, optional
+        Signals to return (``"out"`` or ``"v(out)"``, ``"i(v1)"``); all of them when None.
+    timeout : float
+        Seconds before ngspice is stopped and NgspiceError raised.
+
+    Returns
+    -------
+    Waveforms
+        ``engine="ngspice"``; ``time`` in seconds, shape (m,), ``v(node)`` volts and
+        ``i(name)`` amperes with lower-case SPICE names (subcircuit nodes as ``v(x1.node)``);
+        an operating point is one point at t = 0. ``stats["wall_time_s"]`` is ngspice's
+        wall-clock time including start-up, ``stats["analysis"]`` ``"tran"`` or ``"op"``.
+
+    Raises
+    ------
+    NgspiceError
+        ngspice is not installed, timed out, reported errors, wrote no output, the deck has
+        no ``.tran``/``.op``, or a probe is not among the results.
+    """
+    deck, cwd = _deck_text(netlist)
+    analysis = _chosen_analysis(deck)
+    binary = shutil.which("ngspice")
+    if binary is None:
+        raise NgspiceError("ngspice is not installed or not on PATH (apt-get install -y ngspice)")
+    with tempfile.TemporaryDirectory(prefix="circuitsim-ngspice-") as tmp:
+        raw = Path(tmp) / "out.raw"
+        deck_path = Path(tmp) / "deck.cir"
+        deck_path.write_text(_with_control(deck, analysis, raw))
+        started = time.perf_counter()
+        try:
+            done = subprocess.run(
+                [binary, "-b", str(deck_path)],
+                cwd=cwd or tmp,
+                capture_output=True,
+                text=True,
+                errors="replace",
+                timeout=timeout,
+                stdin=subprocess.DEVNULL,
+            )
+        except subprocess.TimeoutExpired as exc:
+            log = _text(exc.stdout) + _text(exc.stderr)
+            raise NgspiceError(f"ngspice did not finish within {timeout:g} s", _tail(log)) from None
+        wall = time.perf_counter() - started
+        log = done.stdout + "\n" + done.stderr
+        errors = _error_lines(log)
+        if errors:
+            raise NgspiceError("ngspice reported errors", errors)
+        if not raw.exists() or raw.stat().st_size == 0:
+            raise NgspiceError(
+                f"ngspice wrote no results (exit status {done.returncode})", _tail(log)
+            )
+        waves = parse_ascii_raw(raw.read_text(errors="replace"))
+    waves.stats["wall_time_s"] = wall
+    waves.stats["analysis"] = analysis
+    if probes is not None:
+        missing = [p for p in probes if p not in waves]
+        if missing:
+            raise NgspiceError(
+                f"no signal {', '.join(missing)} in the ngspice results; "
+                f"have {', '.join(waves.names)}"
+            )
+        waves = waves.select(probes)
+        waves.stats = {"wall_time_s": wall, "analysis": analysis}
+    return waves
+
+
+def parse_ascii_raw(text: str) -> Waveforms:
+    """The first plot of an ngspice ASCII rawfile as Waveforms (real data only).
+
+    Raises
+    ------
+    NgspiceError
+        The file is not an ASCII rawfile, holds complex data, or is cut short.
+    """
+    lines = text.splitlines()
+    header: dict[str, str] = {}
+    names: list[str] = []
+    kinds: list[str] = []
+    row = 0
+    while row < len(lines) and not lines[row].startswith("Variables:"):
+        key, _, value = lines[row].partition(":")
+        header[key.strip().lower()] = value.strip()
+        row += 1
+    try:
+        count = int(header["no. variables"])
+        points = int(header["no. points"])
+    except (KeyError, ValueError):
+        raise NgspiceError("ngspice's rawfile has no variable/point counts", text[:400]) from None
+    if "complex" in header.get("flags", "").lower():
+        raise NgspiceError("complex (.ac) results are not supported by the ngspice runner")
+    for line in lines[row + 1 : row + 1 + count]:
+        fields = line.split()
+        names.append(fields[1])
+        kinds.append(fields[2] if len(fields) > 2 else "")
+    values_at = row + 1 + count
+    if values_at >= len(lines) or not lines[values_at].startswith("Values:"):
+        raise NgspiceError("ngspice's rawfile has no Values section", text[:400])
+    tokens = " ".join(lines[values_at + 1 :]).split()
+    # Each point is its index followed by one number per variable.
+    try:
+        data = np.array(tokens[: points * (count + 1)], dtype=float)
+        data = data.reshape(points, count + 1)[:, 1:]
+    except ValueError:
+        raise NgspiceError(
+            f"ngspice's rawfile is cut short: expected {points} points of {count} values"
+        ) from None
+    signals: dict[str, np.ndarray] = {}
+    time_axis = np.zeros(1)
+    for column, (name, kind) in enumerate(zip(names, kinds, strict=True)):
+        key = _signal_name(name, kind)
+        if key == "time":
+            time_axis = data[:, column].copy()
+        else:
+            signals[key] = data[:, column].copy()
+    if points == 1 and "operating point" in header.get("plotname", "").lower():
+        time_axis = np.zeros(1)
+    return Waveforms(time=time_axis, signals=signals, engine="ngspice")
+
+
+def _signal_name(name: str, kind: str) -> str:
+    """ngspice's vector name in our spelling: ``v(node)``, ``i(vname)``, ``time``."""
+    name = name.lower()
+    if name == "time" or name.startswith(("v(", "i(")):
+        return name
+    if name.endswith("#branch"):
+        return f"i({name[: -len('#branch')]})"
+    if kind.lower() == "current":
+        return f"i({name})"
+    return f"v({name})"
+
+
+def _deck_text(netlist: Circuit | str | os.PathLike) -> tuple[str, str | None]:
+    """The SPICE text to run and the folder to run it in (None: a temporary one)."""
+    if isinstance(netlist, Circuit):
+        from circuitsim.netlist.writer import write_netlist
+
+        return write_netlist(dataclasses.replace(netlist, control=[]), "ngspice"), None
+    if isinstance(netlist, str):
+        return netlist, None
+    path = Path(netlist)
+    try:
+        text = path.read_text(errors="replace")
+    except OSError as exc:
+        raise NgspiceError(f"cannot read the netlist {path}: {exc}") from None
+    return text, str(path.resolve().parent)
+
+
+def _logical_lines(deck: str) -> list[str]:
+    """Physical lines with ``+`` continuations joined (first line, the title, kept as is)."""
+    joined: list[str] = []
+    for line in deck.splitlines():
+        if joined and line.lstrip().startswith("+") and len(joined) > 1:
+            joined[-1] += " " + line.lstrip()[1:]
+        else:
+            joined.append(line)
+    return joined
+
+
+def _chosen_analysis(deck: str) -> str:
+    """``"tran"`` if the deck has a ``.tran``, else ``"op"``; NgspiceError otherwise."""
+    found = set()
+    in_control = False
+    for line in _logical_lines(deck)[1:]:
+        word = line.strip().split(maxsplit=1)[0].lower() if line.strip() else ""
+        if word == ".control":
+            in_control = True
+        elif word == ".endc":
+            in_control = False
+        elif not in_control and word in (".tran", ".op", ".ac"):
+            found.add(word[1:])
+    if "tran" in found:
+        return "tran"
+    if "op" in found:
+        return "op"
+    if "ac" in found:
+        raise NgspiceError(
+            "the ngspice runner returns .tran and .op results only; this deck has only .ac"
+        )
+    raise NgspiceError("the netlist has no .tran or .op analysis for ngspice to run")
+
+
+def _with_control(deck: str, analysis: str, raw: Path) -> str:
+    """``deck`` without its ``.control`` blocks and ``.end``, plus ours, plus ``.end``."""
+    kept: list[str] = []
+    in_control = False
+    for index, line in enumerate(deck.splitlines()):
+        word = line.strip().split(maxsplit=1)[0].lower() if line.strip() and index else ""
+        if word == ".control":
+            in_control = True
+        elif word == ".endc":
+            in_control = False
+        elif not in_control and word != ".end":
+            kept.append(line)
+    kept += [
+        ".control",
+        "set filetype=ascii",
+        "run",
+        f"setplot {analysis}1",
+        f"write {raw}",
+        ".endc",
+        ".end",
+    ]
+    return "\n".join(kept) + "\n"
+
+
+def _error_lines(log: str) -> str:
+    """The lines of ngspice's log that report an error, each with the line after it."""
+    lines = log.splitlines()
+    picked: dict[str, None] = {}
+    for index, line in enumerate(lines):
+        if line.startswith("Circuit:") or not _ERROR_LINE.search(line):
+            continue
+        for extra in lines[index : index + 2]:
+            if extra.strip():
+                picked.setdefault(extra.rstrip(), None)
+    return "\n".join(list(picked)[:_MAX_LOG_LINES])
+
+
+def _tail(log: str) -> str:
+    lines = [line for line in log.splitlines() if line.strip()]
+    return "\n".join(lines[-_MAX_LOG_LINES:])
+
+
+def _text(data: bytes | str | None) -> str:
+    if data is None:
+        return ""
+    return data if isinstance(data, str) else data.decode(errors="replace")

@@ -1,0 +1,116 @@
+"""What differs between the SPICE dialects the writer emits: ngspice, LTspice, Multisim.
+
+Each :class:`Dialect` is plain data read by :mod:`circuitsim.netlist.writer`; the sources of
+each rule (and which rules could not be tried here) are listed in docs/netlists.md.
+
+- ngspice (tested live, ngspice 39): ``**`` and ``^`` both raise to a power; in ``.param``
+  expressions ``log`` is the natural logarithm (checked: ``{log(100)}`` gives 4.60517), so the
+  writer spells it ``ln``; ``.subckt ... params: a=1`` with defaults; ``.control`` blocks.
+- LTspice (published help, not run here): ``^`` is Boolean XOR, ``**`` is the power operator;
+  ``ln``/``log`` natural, ``log10``; switch model parameters written ``Ron Roff Vt Vh``; no
+  ``.control`` blocks.
+- Multisim (SPICE3f5/XSPICE based, not run here): ``^`` is the SPICE3 power operator; node names
+  restricted to letters, digits and ``_``; no ``.control`` blocks.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+from circuitsim.netlist.errors import NetlistError
+
+
+@dataclass(frozen=True)
+class Dialect:
+    """The spelling rules of one simulator's netlist language.
+
+    Attributes
+    ----------
+    name : str
+        ``"ngspice"``, ``"ltspice"`` or ``"multisim"``.
+    power : str
+        The operator written for "raise to a power" in ``{...}`` expressions.
+    control_blocks : bool
+        Whether ``.control`` ... ``.endc`` blocks are understood (ngspice only).
+    model_param_names : dict of (str, str) to str
+        ``(model kind, lower-case parameter)`` to the spelling written; others are written in
+        lower case.
+    node_pattern : str
+        Regular expression a node name must match in full; others are renamed.
+    width : int
+        Longest line written before breaking onto a ``+`` continuation line (characters).
+    """
+
+    name: str
+    power: str
+    control_blocks: bool
+    model_param_names: dict[tuple[str, str], str] = field(default_factory=dict)
+    node_pattern: str = r"[A-Za-z0-9_.\-+:#!<>\[\]/]+"
+    width: int = 80
+
+
+DIALECTS: dict[str, Dialect] = {
+    "ngspice": Dialect(name="ngspice", power="**", control_blocks=True),
+    "ltspice": Dialect(
+        name="ltspice",
+        power="**",
+        control_blocks=False,
+        model_param_names={
+            ("SW", "ron"): "Ron",
+            ("SW", "roff"): "Roff",
+            ("SW", "vt"): "Vt",
+            ("SW", "vh"): "Vh",
+        },
+    ),
+    "multisim": Dialect(
+        name="multisim",
+        power="^",
+        control_blocks=False,
+        model_param_names={
+            ("SW", "ron"): "RON",
+            ("SW", "roff"): "ROFF",
+            ("SW", "vt"): "VT",
+            ("SW", "vh"): "VH",
+        },
+        node_pattern=r"[A-Za-z0-9_]+",
+    ),
+}
+
+
+def get_dialect(name: str) -> Dialect:
+    """The dialect called ``name`` (case-insensitive); NetlistError naming the choices if none."""
+    try:
+        return DIALECTS[name.lower()]
+    except KeyError:
+        choices = ", ".join(DIALECTS)
+        raise NetlistError(f"unknown dialect {name!r}; choose one of {choices}") from None
+
+
+# A power operator (``**`` before ``*`` so the longest match wins) or an identifier followed
+# by an opening parenthesis (a function call).
+_POWER_OR_CALL = re.compile(r"\*\*|\^|\b([A-Za-z_][A-Za-z0-9_]*)(\s*\()")
+
+
+def rewrite_expression(text: str, dialect: Dialect) -> str:
+    """The expression ``text`` (no braces) spelled for ``dialect``.
+
+    ``log(x)`` becomes ``ln(x)`` (our expressions, like ngspice's ``.param``, read ``log`` as
+    the natural logarithm; LTspice agrees but SPICE3-derived tools do not, so the unambiguous
+    name is written), and both power operators become ``dialect.power``.
+    """
+
+    def replace(match: re.Match) -> str:
+        if match.group(1) is None:
+            return dialect.power
+        name = match.group(1)
+        if name.lower() == "log":
+            return "ln("
+        return match.group(0)
+
+    return _POWER_OR_CALL.sub(replace, text)
+
+
+def model_param_name(kind: str, param: str, dialect: Dialect) -> str:
+    """The spelling of model parameter ``param`` of a ``kind`` model in ``dialect``."""
+    return dialect.model_param_names.get((kind.upper(), param.lower()), param.lower())

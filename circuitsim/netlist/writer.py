@@ -1,0 +1,347 @@
+"""Circuit -> SPICE text, in the ngspice, LTspice or Multisim dialect.
+
+The writer is the reader's inverse: ``parse_netlist(write_netlist(c))`` has the same meaning as
+``c``, values bit for bit (numbers are written with the shortest text that reads back to the
+same float). Lines are broken onto ``+`` continuation lines before ``dialect.width``
+characters; a token (a number, ``{expression}``) is never split.
+
+Order of the output: title, notes (``* circuitsim: ...`` comments about what a dialect could
+not take), ``.param``, ``.model``, ``.subckt`` definitions, elements, ``.ic``, ``.options``,
+analyses, ``.control`` blocks (ngspice only), ``.end``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+
+from circuitsim.atomic import write_text_atomic
+from circuitsim.netlist.circuit import (
+    AcSweep,
+    Capacitor,
+    Cccs,
+    Ccvs,
+    Circuit,
+    CurrentSource,
+    Diode,
+    Element,
+    Expression,
+    Inductor,
+    Model,
+    OperatingPoint,
+    Pulse,
+    Pwl,
+    Resistor,
+    Sin,
+    Subcircuit,
+    SubcircuitCall,
+    Switch,
+    Transient,
+    Value,
+    Vccs,
+    Vcvs,
+    VoltageSource,
+    Waveform,
+)
+from circuitsim.netlist.dialects import (
+    Dialect,
+    get_dialect,
+    model_param_name,
+    rewrite_expression,
+)
+from circuitsim.netlist.errors import NetlistError
+from circuitsim.netlist.values import format_value
+
+NOTE = "* circuitsim: "
+
+
+def write_netlist(circuit: Circuit, dialect: str = "ngspice") -> str:
+    """The SPICE text of ``circuit`` in ``dialect`` (``ngspice``, ``ltspice``, ``multisim``).
+
+    Raises
+    ------
+    NetlistError
+        Unknown dialect, or a value no SPICE can read (NaN, an infinite value other than a
+        one-shot pulse's width).
+    """
+    return _Writer(circuit, get_dialect(dialect)).text()
+
+
+def save_netlist(circuit: Circuit, path: str | os.PathLike, dialect: str = "ngspice") -> None:
+    """Write ``circuit`` to ``path`` in ``dialect``, atomically (no half-written file)."""
+    write_text_atomic(path, write_netlist(circuit, dialect))
+
+
+class _Writer:
+    """One writing pass: the dialect, the node renames, the lines written so far."""
+
+    def __init__(self, circuit: Circuit, dialect: Dialect):
+        self.circuit = circuit
+        self.dialect = dialect
+        self.notes: list[str] = []
+        self.renames = _node_renames(circuit, dialect)
+        for old, new in self.renames.items():
+            self.notes.append(f"node {old!r} renamed {new!r} ({dialect.name} node names)")
+        self.lines: list[str] = []
+
+    # --- the whole file ---
+
+    def text(self) -> str:
+        circuit = self.circuit
+        body: list[str] = []
+        self.lines = body
+        for name, value in circuit.params.items():
+            self.emit([f".param {name}={self.value(value)}"])
+        for model in circuit.models.values():
+            self.model(model)
+        for sub in circuit.subcircuits.values():
+            self.subcircuit(sub)
+        for element in circuit.elements:
+            self.element(element)
+        if circuit.initial_conditions:
+            self.emit(
+                [".ic"]
+                + [
+                    f"v({self.node(node)})={self.value(value)}"
+                    for node, value in circuit.initial_conditions.items()
+                ]
+            )
+        if circuit.options:
+            options = [self.option(k, v) for k, v in circuit.options.items()]
+            self.emit([".options"] + [o for o in options if o])
+        for analysis in circuit.analyses:
+            self.emit(self.analysis(analysis))
+        for block in circuit.control:
+            if self.dialect.control_blocks:
+                body.extend(_control_lines(block))
+            else:
+                self.notes.append(f".control block dropped ({self.dialect.name} has none)")
+        body.append(".end")
+        title = " ".join(circuit.title.split())
+        head = [title] + [NOTE + note for note in self.notes]
+        return "\n".join(head + body) + "\n"
+
+    # --- pieces ---
+
+    def emit(self, tokens: list[str]) -> None:
+        """Append one logical line, broken onto ``+`` lines before the dialect's width."""
+        line = tokens[0]
+        for token in tokens[1:]:
+            if len(line) + 1 + len(token) > self.dialect.width:
+                self.lines.append(line)
+                line = "+ " + token
+            else:
+                line += " " + token
+        self.lines.append(line)
+
+    def value(self, value: Value) -> str:
+        if isinstance(value, Expression):
+            return "{" + rewrite_expression(value.text, self.dialect) + "}"
+        number = float(value)
+        if not math.isfinite(number):
+            raise NetlistError(f"cannot write the value {number!r}: SPICE has no such number")
+        return format_value(number)
+
+    def node(self, name: str) -> str:
+        return self.renames.get(name, name)
+
+    def nodes(self, element: Element) -> list[str]:
+        return [self.node(n) for n in element.nodes]
+
+    def option(self, key: str, value: Value | bool) -> str:
+        if value is True:
+            return key
+        if value is False:
+            # A flag that is off is the same as no flag at all.
+            return ""
+        return f"{key}={self.value(value)}"
+
+    def model(self, model: Model) -> None:
+        params = [
+            f"{model_param_name(model.kind, key, self.dialect)}={self.value(value)}"
+            for key, value in model.params.items()
+        ]
+        if model.kind.upper() == "SW" and self.dialect.name == "ltspice":
+            vh = model.params.get("vh")
+            if isinstance(vh, float | int) and vh < 0:
+                self.notes.append(
+                    f"model {model.name}: LTspice reads a negative Vh as a smooth transition,"
+                    " ngspice as reversed hysteresis"
+                )
+        if not params:
+            self.emit([f".model {model.name} {model.kind.upper()}"])
+            return
+        params[0] = f"{model.kind.upper()}({params[0]}"
+        params[-1] += ")"
+        self.emit([".model", model.name] + params)
+
+    def subcircuit(self, sub: Subcircuit) -> None:
+        header = [".subckt", sub.name] + [self.node(p) for p in sub.ports]
+        if sub.params:
+            header.append("params:")
+            header += [f"{k}={self.value(v)}" for k, v in sub.params.items()]
+        self.emit(header)
+        for model in sub.models.values():
+            self.model(model)
+        for inner in sub.subcircuits.values():
+            self.subcircuit(inner)
+        for element in sub.elements:
+            self.element(element)
+        self.lines.append(f".ends {sub.name}")
+
+    def element(self, element: Element) -> None:
+        tokens = [element.name, *self.nodes(element)]
+        v = self.value
+        if isinstance(element, Resistor):
+            tokens.append(v(element.resistance))
+        elif isinstance(element, Capacitor | Inductor):
+            value = element.capacitance if isinstance(element, Capacitor) else element.inductance
+            tokens.append(v(value))
+            if element.ic is not None:
+                tokens.append(f"IC={v(element.ic)}")
+        elif isinstance(element, VoltageSource | CurrentSource):
+            tokens += self.source(element)
+        elif isinstance(element, Switch):
+            # Switch before Vcvs/Vccs: all three share the four-node base class.
+            tokens.append(element.model)
+            if element.initial:
+                tokens.append(element.initial.upper())
+        elif isinstance(element, Vcvs):
+            tokens.append(v(element.gain))
+        elif isinstance(element, Vccs):
+            tokens.append(v(element.transconductance))
+        elif isinstance(element, Cccs):
+            tokens += [element.control, v(element.gain)]
+        elif isinstance(element, Ccvs):
+            tokens += [element.control, v(element.transresistance)]
+        elif isinstance(element, Diode):
+            tokens.append(element.model)
+            if isinstance(element.area, Expression) or element.area != 1.0:
+                tokens.append(v(element.area))
+        elif isinstance(element, SubcircuitCall):
+            tokens.append(element.subcircuit)
+            tokens += [f"{k}={v(val)}" for k, val in element.params.items()]
+        else:
+            raise NetlistError(f"{element.name}: cannot write a {type(element).__name__}")
+        self.emit(tokens)
+
+    def source(self, source: VoltageSource | CurrentSource) -> list[str]:
+        tokens: list[str] = []
+        dc = source.dc
+        if source.waveform is None or isinstance(dc, Expression) or dc != 0.0:
+            tokens += ["DC", self.value(dc)]
+        if _nonzero(source.ac_magnitude) or _nonzero(source.ac_phase):
+            tokens += ["AC", self.value(source.ac_magnitude)]
+            if _nonzero(source.ac_phase):
+                tokens.append(self.value(source.ac_phase))
+        if source.waveform is not None:
+            tokens += self.waveform(source.name, source.waveform)
+        return tokens
+
+    def waveform(self, owner: str, shape: Waveform) -> list[str]:
+        if isinstance(shape, Sin):
+            fields = [shape.offset, shape.amplitude, shape.frequency]
+            fields += _trimmed([shape.delay, shape.damping, shape.phase])
+            return self.call("SIN", fields)
+        if isinstance(shape, Pulse):
+            fields = [shape.initial, shape.pulsed, shape.delay, shape.rise, shape.fall]
+            width = shape.width
+            if shape.period is not None:
+                if not isinstance(width, Expression) and math.isinf(width):
+                    raise NetlistError(
+                        f"{owner}: a PULSE with a period needs a finite width; SPICE cannot "
+                        "write an infinite one"
+                    )
+                fields += [width, shape.period]
+            elif isinstance(width, Expression) or not math.isinf(width):
+                fields.append(width)
+            # An infinite width without a period is SPICE's default (pw = per = tstop: one
+            # pulse that lasts to the end of the run), so it is left out.
+            return self.call("PULSE", fields)
+        if isinstance(shape, Pwl):
+            if not shape.points:
+                raise NetlistError(f"{owner}: a PWL needs at least one (time, value) point")
+            return self.call("PWL", [x for point in shape.points for x in point])
+        raise NetlistError(f"{owner}: cannot write the waveform {type(shape).__name__}")
+
+    def call(self, keyword: str, fields: list[Value]) -> list[str]:
+        tokens = [self.value(f) for f in fields]
+        tokens[0] = f"{keyword}({tokens[0]}"
+        tokens[-1] += ")"
+        return tokens
+
+    def analysis(self, analysis) -> list[str]:
+        v = self.value
+        if isinstance(analysis, Transient):
+            tokens = [".tran", v(analysis.tstep), v(analysis.tstop)]
+            if analysis.tstart != 0.0 or analysis.tmax is not None:
+                tokens.append(v(analysis.tstart))
+            if analysis.tmax is not None:
+                tokens.append(v(analysis.tmax))
+            if analysis.uic:
+                tokens.append("uic")
+            return tokens
+        if isinstance(analysis, OperatingPoint):
+            return [".op"]
+        if isinstance(analysis, AcSweep):
+            return [
+                ".ac",
+                analysis.variation.lower(),
+                str(int(analysis.points)),
+                v(analysis.fstart),
+                v(analysis.fstop),
+            ]
+        raise NetlistError(f"cannot write the analysis {analysis!r}")
+
+
+def _nonzero(value: Value) -> bool:
+    return isinstance(value, Expression) or value != 0.0
+
+
+def _trimmed(fields: list[Value]) -> list[Value]:
+    """``fields`` without its trailing zeros (SPICE's defaults for optional waveform fields)."""
+    while fields and not _nonzero(fields[-1]):
+        fields = fields[:-1]
+    return fields
+
+
+def _control_lines(block: str) -> list[str]:
+    """A ``.control`` block as lines, wrapped in ``.control``/``.endc`` unless it already is."""
+    lines = block.strip("\n").splitlines()
+    first = lines[0].strip().lower() if lines else ""
+    if first.startswith(".control"):
+        return lines
+    return [".control", *lines, ".endc"]
+
+
+def _all_nodes(circuit: Circuit) -> set[str]:
+    names: set[str] = set(circuit.initial_conditions)
+    scopes: list[Circuit | Subcircuit] = [circuit]
+    while scopes:
+        scope = scopes.pop()
+        for element in scope.elements:
+            names.update(element.nodes)
+        if isinstance(scope, Subcircuit):
+            names.update(scope.ports)
+        scopes.extend(scope.subcircuits.values())
+    return names
+
+
+def _node_renames(circuit: Circuit, dialect: Dialect) -> dict[str, str]:
+    """Nodes whose names ``dialect`` cannot take, mapped to new names no other node has."""
+    pattern = re.compile(dialect.node_pattern)
+    names = _all_nodes(circuit)
+    taken = {n.lower() for n in names}
+    renames: dict[str, str] = {}
+    for name in sorted(names):
+        if pattern.fullmatch(name):
+            continue
+        base = re.sub(r"[^A-Za-z0-9_]", "_", name) or "n"
+        new, count = base, 1
+        while new.lower() in taken:
+            count += 1
+            new = f"{base}_{count}"
+        taken.add(new.lower())
+        renames[name] = new
+    return renames

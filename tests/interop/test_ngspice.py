@@ -1,0 +1,140 @@
+"""The ngspice runner: an RC step against its analytic solution, failures, a missing binary."""
+
+import shutil
+
+import numpy as np
+import pytest
+
+from circuitsim.interop.errors import NgspiceError
+from circuitsim.interop.ngspice import ngspice_available, parse_ascii_raw, run_ngspice
+from circuitsim.netlist.circuit import (
+    AcSweep,
+    Capacitor,
+    Circuit,
+    OperatingPoint,
+    Pulse,
+    Resistor,
+    Transient,
+    VoltageSource,
+)
+
+requires_ngspice = pytest.mark.skipif(
+    shutil.which("ngspice") is None,
+    reason="ngspice is not installed (apt-get install -y ngspice; CI installs it)",
+)
+
+R, C = 1e3, 1e-6  # tau = 1 ms
+
+
+def _rc_step() -> Circuit:
+    c = Circuit(title="rc step")
+    c.add(
+        VoltageSource("V1", "in", "0", waveform=Pulse(0.0, 1.0, 0.0, 1e-9, 1e-9, 1.0)),
+        Resistor("R1", "in", "out", R),
+        Capacitor("C1", "out", "0", C),
+    )
+    c.analyses.append(Transient(1e-5, 5e-3, 0.0, 1e-5))
+    return c
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+def test_rc_step_matches_the_analytic_solution():
+    waves = run_ngspice(_rc_step())
+    assert waves.engine == "ngspice"
+    assert waves.names == ["v(in)", "v(out)", "i(v1)"]
+    t = waves.time
+    assert t[0] == 0.0 and t[-1] == pytest.approx(5e-3) and np.all(np.diff(t) > 0)
+    exact = 1.0 - np.exp(-t / (R * C))
+    after = t > 1e-6  # past the 1 ns rise
+    assert np.max(np.abs(waves["out"][after] - exact[after])) < 1e-3
+    # Source current: SPICE sign, from n+ through the source, so -(v(in) - v(out))/R.
+    expected = -(waves["in"] - waves["out"]) / R
+    assert np.allclose(waves["i(v1)"][after], expected[after], atol=1e-9)
+    assert waves.stats["wall_time_s"] > 0 and waves.stats["analysis"] == "tran"
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+def test_operating_point_is_one_point_at_zero_and_probes_select():
+    c = Circuit(title="divider")
+    c.add(
+        VoltageSource("V1", "in", "0", dc=3.0),
+        Resistor("R1", "in", "out", 2e3),
+        Resistor("R2", "out", "0", 1e3),
+    )
+    c.analyses.append(OperatingPoint())
+    waves = run_ngspice(c, probes=["out", "i(V1)"])
+    assert waves.time.tolist() == [0.0]
+    assert waves.names == ["v(out)", "i(v1)"]
+    assert waves["out"][0] == pytest.approx(1.0, rel=1e-9)
+    assert waves["i(v1)"][0] == pytest.approx(-1e-3, rel=1e-9)
+    with pytest.raises(NgspiceError, match="no signal v\\(nope\\)|no signal nope"):
+        run_ngspice(c, probes=["nope"])
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+def test_file_with_relative_include_and_own_control_block(tmp_path):
+    (tmp_path / "load.inc").write_text("R2 out 0 1k\n")
+    (tmp_path / "main.cir").write_text(
+        "divider from a file\nV1 in 0 DC 2\nR1 in out 1k\n.include load.inc\n.op\n"
+        ".control\nrun\nprint v(out)\nquit\n.endc\n.end\n"
+    )
+    waves = run_ngspice(tmp_path / "main.cir")
+    assert waves["out"][0] == pytest.approx(1.0, rel=1e-9)
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+def test_unknown_subcircuit_raises_with_the_log_line():
+    text = "bad\nV1 in 0 DC 1\nR1 in out 1k\nX1 out 0 nosuch\n.op\n.end\n"
+    with pytest.raises(NgspiceError) as info:
+        run_ngspice(text)
+    assert "unknown subckt" in info.value.log.lower()
+    assert "x1 out 0 nosuch" in info.value.log.lower()
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+def test_singular_circuit_raises_even_though_ngspice_may_exit_0():
+    # Two ideal sources in parallel: KVL cannot hold, the matrix is singular.
+    text = "loop\nV1 in 0 DC 1\nV2 in 0 DC 2\nR1 in 0 1k\n.tran 1u 10u\n.end\n"
+    with pytest.raises(NgspiceError) as info:
+        run_ngspice(text)
+    assert "singular matrix" in info.value.log.lower()
+
+
+def test_deck_without_tran_or_op_is_refused_before_running():
+    c = _rc_step()
+    c.analyses = []
+    with pytest.raises(NgspiceError, match="no .tran or .op analysis"):
+        run_ngspice(c)
+    c.analyses = [AcSweep("dec", 10, 1.0, 1e3)]
+    with pytest.raises(NgspiceError, match=r"\.tran and \.op results only"):
+        run_ngspice(c)
+
+
+def test_missing_binary_gives_a_clear_error(monkeypatch, tmp_path):
+    monkeypatch.setenv("PATH", str(tmp_path))
+    assert ngspice_available() is False
+    with pytest.raises(NgspiceError, match="ngspice is not installed"):
+        run_ngspice(_rc_step())
+
+
+def test_parse_ascii_raw_by_hand():
+    text = (
+        "Title: hand made\nDate: today\nPlotname: Transient Analysis\nFlags: real\n"
+        "No. Variables: 3\nNo. Points: 2\nVariables:\n"
+        "\t0\ttime\ttime\n\t1\tout\tvoltage\n\t2\tv1#branch\tcurrent\n"
+        "Values:\n 0\t0.000000000000000e+00\n\t1.5e+00\n\t-2e-03\n\n"
+        " 1\t1.000000000000000e-03\n\t2.5e+00\n\t-1e-03\n"
+    )
+    waves = parse_ascii_raw(text)
+    assert waves.time.tolist() == [0.0, 1e-3]
+    assert waves.signals["v(out)"].tolist() == [1.5, 2.5]
+    assert waves.signals["i(v1)"].tolist() == [-2e-3, -1e-3]
+    with pytest.raises(NgspiceError, match="cut short"):
+        parse_ascii_raw(text.replace("No. Points: 2", "No. Points: 3"))
+    with pytest.raises(NgspiceError, match="complex"):
+        parse_ascii_raw(text.replace("Flags: real", "Flags: complex"))
