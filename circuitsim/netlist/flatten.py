@@ -1,0 +1,306 @@
+"""Expand subcircuit instances and evaluate every expression: a flat, all-float Circuit.
+
+Rules (ngspice's, where ngspice has one):
+
+- Parameters: global ``.param`` values are evaluated in written order (a later one may use an
+  earlier one). An instance's parameters are evaluated in the caller's scope; the subcircuit's
+  defaults are then evaluated in order, each one replaced by the instance's value when given,
+  so later defaults see the overrides (``params: a=1 b={2*a}`` with ``a=5`` gives ``b=10``).
+  Inside a body the names visible are those of the scope where the ``.subckt`` was defined
+  (global params for a top-level definition, the enclosing instance's for a nested one),
+  shadowed by the subcircuit's own.
+- Names: an element ``R1`` inside instance ``XU1`` (inside ``X2``) becomes ``R.X2.XU1.R1`` -
+  ngspice's form, type letter first, so :attr:`Element.letter` still tells the kind.
+  Top-level elements keep their names.
+- Nodes: ports map to the instance's connection nodes; ground ``0`` stays global; any other
+  internal node ``n1`` becomes ``x2.xu1.n1`` (lower case, instance path then node).
+- Models: a ``.model`` inside a ``.subckt`` is local to it (and to subcircuits defined inside
+  it). Each instance gets its own copy under the name ``<instance path>.<model>``
+  (``x2.xu1.dmod``, lower case) with its parameters evaluated in the instance's scope;
+  ``Diode.model`` and ``Switch.model`` are rewritten to it. Global models keep their names.
+  A model that no scope defines is left as written, for the topology checks to report.
+- F/H controls naming a voltage source of the same body are renamed with it; other names are
+  left alone (they refer to the top level).
+- Subcircuit lookup is lexical too: a body sees its own nested definitions, then those of the
+  scopes around its definition.
+
+Errors are :class:`~circuitsim.netlist.errors.NetlistError` (file = ``circuit.source``, no
+line: a Circuit does not remember lines) naming the instance path and element: unknown
+subcircuit, wrong number of connections, recursion (direct or indirect), an instance parameter
+the subcircuit does not declare, an undefined parameter, a bad expression, and circuits that
+would expand past 200 000 elements or 64 levels.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from circuitsim.netlist.circuit import (
+    Circuit,
+    Element,
+    Expression,
+    Model,
+    Pulse,
+    Pwl,
+    Sin,
+    Subcircuit,
+    SubcircuitCall,
+    Value,
+)
+from circuitsim.netlist.errors import NetlistError
+from circuitsim.netlist.expressions import evaluate
+
+__all__ = ["flatten", "evaluate_value", "MAX_ELEMENTS", "MAX_DEPTH"]
+
+MAX_ELEMENTS = 200_000
+MAX_DEPTH = 64
+
+_NODE_FIELDS = ("positive", "negative", "control_positive", "control_negative", "anode", "cathode")
+
+
+@dataclass
+class _Scope:
+    params: dict[str, float]
+    models: dict[str, str]  # visible model name (lower) -> flat model key
+    subcircuits: dict[str, tuple[Subcircuit, _Scope]]  # name -> (definition, defining scope)
+
+
+class _Flattener:
+    def __init__(self, circuit: Circuit):
+        self.circuit = circuit
+        self.file = circuit.source
+        self.elements: list[Element] = []
+        self.models: dict[str, Model] = {}
+
+    def error(self, message: str) -> NetlistError:
+        return NetlistError(message, file=self.file)
+
+    def value(self, value: object, params: Mapping[str, float], what: str) -> float:
+        try:
+            return evaluate_value(value, params)
+        except ValueError as exc:
+            raise self.error(f"{what}: {exc}") from None
+
+    # --- scopes ---
+    def scope_for(
+        self,
+        defining: _Scope | None,
+        own_params: Mapping[str, Value],
+        overrides: Mapping[str, float],
+        models: Mapping[str, Model],
+        subcircuits: Mapping[str, Subcircuit],
+        path: str,
+        where: str,
+    ) -> _Scope:
+        params = dict(defining.params) if defining else {}
+        for name, default in own_params.items():
+            key = name.lower()
+            if key in overrides:
+                params[key] = overrides[key]
+            else:
+                params[key] = self.value(default, params, f"{where}parameter {name}")
+        visible_models = dict(defining.models) if defining else {}
+        for name, model in models.items():
+            flat_key = f"{path}.{name.lower()}" if path else name.lower()
+            if flat_key in self.models:
+                raise self.error(f"{where}model {name!r} defined twice")
+            self.models[flat_key] = Model(
+                flat_key if path else model.name,
+                model.kind,
+                {
+                    k: self.value(v, params, f"{where}model {model.name} parameter {k}")
+                    for k, v in model.params.items()
+                },
+            )
+            visible_models[name.lower()] = flat_key
+        scope = _Scope(params, visible_models, dict(defining.subcircuits) if defining else {})
+        for name, sub in subcircuits.items():
+            scope.subcircuits[name.lower()] = (sub, scope)
+        return scope
+
+    # --- expansion ---
+    def expand(
+        self,
+        elements: list[Element],
+        scope: _Scope,
+        path: list[str],
+        nodes: Mapping[str, str],
+        stack: list[Subcircuit],
+    ) -> None:
+        prefix = ".".join(path)
+        node_prefix = prefix.lower()
+        where = f"in {prefix}: " if path else ""
+
+        def node(name: str) -> str:
+            key = name.lower()
+            if key == "0":
+                return "0"
+            if key in nodes:
+                return nodes[key]
+            return f"{node_prefix}.{key}" if path else key
+
+        def element_name(name: str) -> str:
+            return f"{name[:1].upper()}.{prefix}.{name}" if path else name
+
+        local = {e.name.lower(): element_name(e.name) for e in elements}
+        for element in elements:
+            if isinstance(element, SubcircuitCall):
+                self.call(element, scope, path, node, stack, where)
+                continue
+            if len(self.elements) >= MAX_ELEMENTS:
+                raise self.error(f"the flat circuit would exceed {MAX_ELEMENTS} elements")
+            self.elements.append(
+                self.flat_element(element, scope, element_name, node, local, where)
+            )
+
+    def call(self, call, scope, path, node, stack, where) -> None:
+        key = call.subcircuit.lower()
+        found = scope.subcircuits.get(key)
+        if found is None:
+            raise self.error(f"{where}{call.name}: unknown subcircuit {call.subcircuit!r}")
+        sub, defining = found
+        if any(s is sub for s in stack):
+            chain = " -> ".join([*(s.name for s in stack), sub.name])
+            raise self.error(f"{where}{call.name}: recursive subcircuit {chain}")
+        if len(stack) >= MAX_DEPTH:
+            raise self.error(f"{where}{call.name}: subcircuits nested deeper than {MAX_DEPTH}")
+        if len(call.connections) != len(sub.ports):
+            raise self.error(
+                f"{where}{call.name}: subcircuit {sub.name} has {len(sub.ports)} port(s) "
+                f"({' '.join(sub.ports)}), got {len(call.connections)} connection(s)"
+            )
+        declared = {k.lower() for k in sub.params}
+        overrides: dict[str, float] = {}
+        for name, value in call.params.items():
+            if name.lower() not in declared:
+                known = ", ".join(sorted(declared)) or "none"
+                raise self.error(
+                    f"{where}{call.name}: subcircuit {sub.name} has no parameter {name!r} "
+                    f"(its parameters: {known})"
+                )
+            overrides[name.lower()] = self.value(
+                value, scope.params, f"{where}{call.name} parameter {name}"
+            )
+        inner_path = [*path, call.name]
+        inner_where = f"in {'.'.join(inner_path)}: "
+        inner = self.scope_for(
+            defining,
+            sub.params,
+            overrides,
+            sub.models,
+            sub.subcircuits,
+            ".".join(inner_path).lower(),
+            inner_where,
+        )
+        mapping = {port.lower(): node(conn) for port, conn in zip(sub.ports, call.connections)}
+        self.expand(sub.elements, inner, inner_path, mapping, [*stack, sub])
+
+    def flat_element(self, element, scope, element_name, node, local, where) -> Element:
+        what = f"{where}{element.name}"
+        kwargs: dict[str, object] = {}
+        for f in dataclasses.fields(element):
+            value = getattr(element, f.name)
+            if f.name == "name":
+                kwargs[f.name] = element_name(value)
+            elif f.name in _NODE_FIELDS:
+                kwargs[f.name] = node(value)
+            elif f.name == "model":
+                kwargs[f.name] = scope.models.get(value.lower(), value.lower())
+            elif f.name == "control":
+                kwargs[f.name] = local.get(value.lower(), value)
+            elif f.name == "initial":
+                kwargs[f.name] = value
+            else:
+                kwargs[f.name] = self.field_value(value, scope.params, f"{what} {f.name}")
+        return type(element)(**kwargs)
+
+    def field_value(self, value: object, params: Mapping[str, float], what: str) -> object:
+        if value is None:
+            return None
+        if isinstance(value, Sin | Pulse):
+            return type(value)(
+                **{
+                    f.name: self.field_value(getattr(value, f.name), params, f"{what} {f.name}")
+                    for f in dataclasses.fields(value)
+                }
+            )
+        if isinstance(value, Pwl):
+            return Pwl(
+                tuple(
+                    (
+                        self.value(t, params, f"{what} time {i + 1}"),
+                        self.value(v, params, f"{what} value {i + 1}"),
+                    )
+                    for i, (t, v) in enumerate(value.points)
+                )
+            )
+        return self.value(value, params, what)
+
+
+def evaluate_value(value: object, params: Mapping[str, float]) -> float:
+    """A Value as a float: numbers pass through, Expressions are evaluated against ``params``.
+
+    Raises ValueError for anything else or a failed evaluation.
+    """
+    if isinstance(value, bool):
+        raise ValueError(f"expected a number, got {value!r}")
+    if isinstance(value, int | float):
+        return float(value)
+    if isinstance(value, Expression):
+        return evaluate(value.text, params)
+    raise ValueError(f"expected a number or Expression, got {value!r}")
+
+
+def flatten(circuit: Circuit) -> Circuit:
+    """A new Circuit with every subcircuit instance expanded and every value a float.
+
+    Parameters
+    ----------
+    circuit : Circuit
+        A circuit as read or built; it is not modified.
+
+    Returns
+    -------
+    Circuit
+        No :class:`SubcircuitCall`, no subcircuits, no Expression; ``params`` holds the
+        evaluated global parameters, ``models`` the global models plus one copy of each local
+        model per instance.
+
+    Raises
+    ------
+    NetlistError
+        See the module docstring.
+    """
+    work = _Flattener(circuit)
+    top = work.scope_for(
+        None, circuit.params, {}, circuit.models, circuit.subcircuits, "", "global "
+    )
+    work.expand(circuit.elements, top, [], {}, [])
+    for analysis in circuit.analyses:
+        for f in dataclasses.fields(analysis):
+            value = getattr(analysis, f.name)
+            if isinstance(value, Expression):  # analyses hold floats; be safe for builders
+                raise work.error(f"analysis {analysis!r} holds an unevaluated expression")
+    initial = {
+        node: work.value(value, top.params, f".ic v({node})")
+        for node, value in circuit.initial_conditions.items()
+    }
+    options: dict[str, object] = {}
+    for name, value in circuit.options.items():
+        if isinstance(value, Expression):
+            value = work.value(value, top.params, f"option {name}")
+        options[name] = value
+    return Circuit(
+        title=circuit.title,
+        elements=work.elements,
+        models=work.models,
+        subcircuits={},
+        params=dict(top.params),
+        analyses=list(circuit.analyses),
+        initial_conditions=initial,
+        options=options,  # type: ignore[arg-type]
+        control=list(circuit.control),
+        source=circuit.source,
+    )
