@@ -194,7 +194,9 @@ class _Flattener:
             ".".join(inner_path).lower(),
             inner_where,
         )
-        mapping = {port.lower(): node(conn) for port, conn in zip(sub.ports, call.connections)}
+        mapping = {
+            port.lower(): node(conn) for port, conn in zip(sub.ports, call.connections, strict=True)
+        }
         self.expand(sub.elements, inner, inner_path, mapping, [*stack, sub])
 
     def flat_element(self, element, scope, element_name, node, local, where) -> Element:
