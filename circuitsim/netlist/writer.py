@@ -118,7 +118,7 @@ class _Writer:
             else:
                 self.notes.append(f".control block dropped ({self.dialect.name} has none)")
         body.append(".end")
-        title = " ".join(circuit.title.split())
+        title = " ".join(circuit.title.splitlines()).strip()
         head = [title] + [NOTE + note for note in self.notes]
         return "\n".join(head + body) + "\n"
 
@@ -149,12 +149,14 @@ class _Writer:
     def nodes(self, element: Element) -> list[str]:
         return [self.node(n) for n in element.nodes]
 
-    def option(self, key: str, value: Value | bool) -> str:
+    def option(self, key: str, value: Value | bool | str) -> str:
         if value is True:
             return key
         if value is False:
             # A flag that is off is the same as no flag at all.
             return ""
+        if isinstance(value, str):
+            return f"{key}={value}"  # a word, such as method=gear
         return f"{key}={self.value(value)}"
 
     def model(self, model: Model) -> None:

@@ -171,7 +171,7 @@ def test_nested_subcircuit_with_parameters():
 def test_directives():
     c = _rc()
     c.initial_conditions = {"out": 0.5, "in": 0.0}
-    c.options = {"reltol": 1e-4, "method": Expression("gear"), "noacct": True}
+    c.options = {"reltol": 1e-4, "method": "gear", "noacct": True}
     c.analyses = [
         Transient(1e-6, 1e-3, 1e-4, 1e-6, uic=True),
         OperatingPoint(),
@@ -181,7 +181,7 @@ def test_directives():
     lines = write_netlist(c).splitlines()
     assert lines[4:] == [
         ".ic v(out)=0.5 v(in)=0",
-        ".options reltol=100u method={gear} noacct",
+        ".options reltol=100u method=gear noacct",
         ".tran 1u 1m 100u 1u uic",
         ".op",
         ".ac dec 10 1 1meg",

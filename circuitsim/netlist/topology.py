@@ -1,0 +1,390 @@
+"""Topology checks: what makes a circuit unsolvable or suspicious before any engine runs.
+
+:func:`check_circuit` returns a list of :class:`Finding` and never raises for a bad circuit
+(only for a malformed object). It works on a hierarchical circuit (checks each ``.subckt``
+body, then flattens for the electrical checks) and on a flat one (the solver calls it to
+explain a singular matrix); it needs no analysis and only touches the graph once.
+
+Kinds of finding
+----------------
+``duplicate-name``
+    Two elements of one scope (top level or one ``.subckt`` body) share a name, ignoring case.
+``undefined-model`` / ``wrong-model-kind``
+    A diode or switch names a model that no enclosing scope defines, or one of another kind
+    (a diode needs ``D``, a switch ``SW``).
+``undefined-subcircuit`` / ``port-count``
+    An ``X`` line names no known ``.subckt``, or passes another number of nodes than it has
+    ports.
+``undefined-control``
+    An ``F``/``H`` source names a controlling voltage source that its scope does not have.
+``unconnected-port``
+    A ``.subckt`` port that no element inside it touches.
+``floating-node``
+    A node with a single terminal on it (the element ends there and carries no current).
+``no-dc-path``
+    A set of nodes joined to ground by no DC path: only capacitors (or current sources feeding
+    capacitors, or controlling inputs) connect it to the rest. Their DC voltages are
+    undefined, so ``.op`` and a transient without ``uic`` have a singular matrix.
+``current-source-cutset``
+    A set of nodes joined to the rest only through current sources (I, G, F outputs): KCL
+    fixes the sum of those currents and nothing fixes the voltages, in every analysis.
+``voltage-loop``
+    A loop made only of voltage sources, E/H outputs and inductors (or one of them with both
+    ends on the same node): the loop current is undetermined at DC and KVL may contradict the
+    sources.
+
+Why cut sets and DC paths are one computation: take the graph of elements that conduct at DC
+(R, L, V, E/H outputs, D, S). A connected piece of it that does not hold ground is exactly a
+node set whose only links to the rest are elements left out (C, I, G/F outputs, control
+inputs). If those links are all current sources the set is a current-source cut set; if any is
+a capacitor it is a capacitor (and current source) cut set, i.e. a node set with no DC path.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import networkx as nx
+
+from circuitsim.netlist.circuit import (
+    Capacitor,
+    Cccs,
+    Ccvs,
+    Circuit,
+    CurrentControlled,
+    CurrentSource,
+    Diode,
+    Element,
+    Inductor,
+    Model,
+    Subcircuit,
+    SubcircuitCall,
+    Switch,
+    Vccs,
+    Vcvs,
+    VoltageControlled,
+    VoltageSource,
+)
+from circuitsim.netlist.errors import NetlistError
+
+GROUND = "0"
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One problem found in a circuit.
+
+    Attributes
+    ----------
+    kind : str
+        One of the kinds listed in this module's docstring (``"floating-node"`` ...).
+    message : str
+        A sentence naming the elements and nodes involved.
+    elements : tuple of str
+        Element names involved (flattened names for the electrical checks).
+    nodes : tuple of str
+        Node names involved.
+    """
+
+    kind: str
+    message: str
+    elements: tuple[str, ...] = ()
+    nodes: tuple[str, ...] = ()
+
+    def __str__(self) -> str:
+        return f"{self.kind}: {self.message}"
+
+
+def check_circuit(circuit: Circuit) -> list[Finding]:
+    """All findings for ``circuit``: naming and reference checks per scope, then electrical.
+
+    The electrical checks (floating nodes, DC paths, cut sets, loops) run on the flattened
+    circuit when it has subcircuit calls; if it cannot be flattened (an undefined subcircuit,
+    a parameter that does not evaluate) they run on the top level alone, treating each
+    unresolved ``X`` call as conducting between all its nodes, so its problems are still
+    reported by the reference checks above rather than hidden.
+    """
+    findings: list[Finding] = []
+    _check_scope(
+        circuit.elements, [circuit.models], [circuit.subcircuits], "", findings, circuit.elements
+    )
+    flat = circuit
+    if any(isinstance(e, SubcircuitCall) for e in circuit.elements):
+        try:
+            from circuitsim.netlist.flatten import flatten
+
+            flat = flatten(circuit)
+        except NetlistError as exc:
+            if not findings:
+                findings.append(Finding("unflattenable", str(exc)))
+            flat = circuit
+    findings += electrical_findings(flat.elements)
+    return findings
+
+
+# --- naming and reference checks, per scope -----------------------------------------------
+
+
+def _check_scope(
+    elements: list[Element],
+    models: list[dict[str, Model]],
+    subcircuits: list[dict[str, Subcircuit]],
+    where: str,
+    findings: list[Finding],
+    top: list[Element],
+) -> None:
+    """Checks of one scope's elements; ``models``/``subcircuits`` innermost scope first.
+
+    An F/H control may name a voltage source of its own body or of the top level (as
+    :func:`~circuitsim.netlist.flatten.flatten` resolves it).
+    """
+    scope = f" in .subckt {where}" if where else ""
+    seen: dict[str, str] = {}
+    for element in elements:
+        key = element.name.lower()
+        if key in seen:
+            findings.append(
+                Finding(
+                    "duplicate-name",
+                    f"{element.name} and {seen[key]} share a name{scope}",
+                    (seen[key], element.name),
+                )
+            )
+        else:
+            seen[key] = element.name
+    for element in elements:
+        if isinstance(element, Diode | Switch):
+            _check_model(element, models, scope, findings)
+        elif isinstance(element, SubcircuitCall):
+            _check_call(element, subcircuits, scope, findings)
+        elif isinstance(element, CurrentControlled):
+            key = element.control.lower()
+            control = next((e for e in [*elements, *top] if e.name.lower() == key), None)
+            if not isinstance(control, VoltageSource):
+                what = "no voltage source" if control is None else f"{control.name}, not a V source"
+                findings.append(
+                    Finding(
+                        "undefined-control",
+                        f"{element.name} is controlled by {element.control}: {what}{scope}",
+                        (element.name,),
+                    )
+                )
+    for table in subcircuits[:1]:
+        for sub in table.values():
+            _check_subcircuit(sub, models, subcircuits, findings, top)
+
+
+def _check_subcircuit(
+    sub: Subcircuit,
+    models: list[dict[str, Model]],
+    subcircuits: list[dict[str, Subcircuit]],
+    findings: list[Finding],
+    top: list[Element],
+) -> None:
+    used = {node for element in sub.elements for node in element.nodes}
+    for port in sub.ports:
+        if port not in used:
+            findings.append(
+                Finding(
+                    "unconnected-port",
+                    f"port {port} of .subckt {sub.name} is connected to nothing inside it",
+                    (),
+                    (port,),
+                )
+            )
+    _check_scope(
+        sub.elements,
+        [sub.models, *models],
+        [sub.subcircuits, *subcircuits],
+        sub.name,
+        findings,
+        top,
+    )
+
+
+def _lookup(name: str, tables: list[dict]) -> object | None:
+    key = name.lower()
+    for table in tables:
+        for candidate, value in table.items():
+            if candidate.lower() == key:
+                return value
+    return None
+
+
+def _check_model(
+    element: Diode | Switch, models: list[dict[str, Model]], scope: str, findings: list[Finding]
+) -> None:
+    wanted = "D" if isinstance(element, Diode) else "SW"
+    model = _lookup(element.model, models)
+    if model is None:
+        findings.append(
+            Finding(
+                "undefined-model",
+                f"{element.name} uses model {element.model!r}, which is not defined{scope}",
+                (element.name,),
+            )
+        )
+    elif model.kind.upper() != wanted:
+        findings.append(
+            Finding(
+                "wrong-model-kind",
+                f"{element.name} needs a {wanted} model but {model.name} is "
+                f"{model.kind.upper()}{scope}",
+                (element.name,),
+            )
+        )
+
+
+def _check_call(
+    call: SubcircuitCall,
+    subcircuits: list[dict[str, Subcircuit]],
+    scope: str,
+    findings: list[Finding],
+) -> None:
+    sub = _lookup(call.subcircuit, subcircuits)
+    if sub is None:
+        findings.append(
+            Finding(
+                "undefined-subcircuit",
+                f"{call.name} calls .subckt {call.subcircuit!r}, which is not defined{scope}",
+                (call.name,),
+            )
+        )
+    elif len(call.connections) != len(sub.ports):
+        findings.append(
+            Finding(
+                "port-count",
+                f"{call.name} connects {len(call.connections)} nodes to .subckt {sub.name}, "
+                f"which has {len(sub.ports)} ports ({' '.join(sub.ports)}){scope}",
+                (call.name,),
+                tuple(call.connections),
+            )
+        )
+
+
+# --- electrical checks, on one flat list of elements -------------------------------------
+
+
+def _output_nodes(element: Element) -> tuple[str, ...]:
+    """The nodes current flows through (controlling inputs excluded)."""
+    if isinstance(element, VoltageControlled):
+        return (element.positive, element.negative)
+    return element.nodes
+
+
+def _conducts_dc(element: Element) -> bool:
+    return not isinstance(element, Capacitor | CurrentSource | Vccs | Cccs)
+
+
+def _is_current_source(element: Element) -> bool:
+    return isinstance(element, CurrentSource | Vccs | Cccs)
+
+
+def _fixes_voltage(element: Element) -> bool:
+    """Elements that force a branch voltage at DC: V, E, H and (a short at DC) L."""
+    return isinstance(element, VoltageSource | Vcvs | Ccvs | Inductor)
+
+
+def electrical_findings(elements: list[Element]) -> list[Finding]:
+    """Floating nodes, no-DC-path sets, current-source cut sets and voltage loops.
+
+    ``elements`` is a flat list (no subcircuit calls expected; a remaining call is treated as
+    a conductor between all its nodes). Ground is node ``"0"``.
+    """
+    findings: list[Finding] = []
+    terminals: dict[str, list[str]] = {}
+    for element in elements:
+        for node in element.nodes:
+            terminals.setdefault(node, []).append(element.name)
+    floating = [n for n, names in terminals.items() if n != GROUND and len(names) == 1]
+    for node in floating:
+        findings.append(
+            Finding(
+                "floating-node",
+                f"node {node} has one connection only ({terminals[node][0]})",
+                (terminals[node][0],),
+                (node,),
+            )
+        )
+    findings += _cut_sets(elements, terminals, set(floating))
+    findings += _voltage_loops(elements)
+    return findings
+
+
+def _cut_sets(
+    elements: list[Element], terminals: dict[str, list[str]], floating: set[str]
+) -> list[Finding]:
+    graph = nx.Graph()
+    graph.add_nodes_from(terminals)
+    graph.add_node(GROUND)
+    for element in elements:
+        if _conducts_dc(element):
+            nodes = _output_nodes(element)
+            graph.add_edges_from(zip(nodes[:1] * (len(nodes) - 1), nodes[1:], strict=True))
+    findings = []
+    for piece in nx.connected_components(graph):
+        if GROUND in piece or piece <= floating:
+            continue
+        nodes = tuple(sorted(piece))
+        links = [
+            e
+            for e in elements
+            if not _conducts_dc(e)
+            and len({n in piece for n in _output_nodes(e)}) == 2  # one end in, one out
+        ]
+        names = tuple(e.name for e in links)
+        listed = ", ".join(nodes)
+        if links and all(_is_current_source(e) for e in links):
+            findings.append(
+                Finding(
+                    "current-source-cutset",
+                    f"nodes {listed} connect to the rest only through current sources "
+                    f"{', '.join(names)}: their voltages are undetermined",
+                    names,
+                    nodes,
+                )
+            )
+        else:
+            through = f"only through {', '.join(names)}" if links else "through no element"
+            findings.append(
+                Finding(
+                    "no-dc-path",
+                    f"nodes {listed} have no DC path to ground (connected {through})",
+                    names,
+                    nodes,
+                )
+            )
+    return findings
+
+
+def _voltage_loops(elements: list[Element]) -> list[Finding]:
+    """Loops of V, E/H outputs and inductors, found as the edge that closes each one."""
+    forest = nx.Graph()
+    findings = []
+    for element in elements:
+        if not _fixes_voltage(element):
+            continue
+        a, b = _output_nodes(element)
+        if a == b:
+            loop, nodes = (element.name,), (a,)
+        elif forest.has_node(a) and forest.has_node(b) and nx.has_path(forest, a, b):
+            path = nx.shortest_path(forest, a, b)
+            loop = tuple(forest.edges[u, v]["name"] for u, v in zip(path, path[1:], strict=False))
+            loop += (element.name,)
+            nodes = tuple(path)
+        else:
+            forest.add_edge(a, b, name=element.name)
+            continue
+        findings.append(
+            Finding(
+                "voltage-loop",
+                f"{', '.join(loop)} form a loop of voltage sources and inductors "
+                f"through nodes {', '.join(nodes)}",
+                loop,
+                nodes,
+            )
+        )
+    return findings
+
+
+__all__ = ["Finding", "check_circuit", "electrical_findings"]
