@@ -14,6 +14,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
+from circuitsim.netlist.circuit import Circuit, Pwl, Sin, Transient, VoltageSource
 from circuitsim.netlist.library import LIBRARY_PATH
 from circuitsim.solver.waveforms import Waveforms
 
@@ -129,3 +130,64 @@ def _crossing(t: np.ndarray, v: np.ndarray, level: float) -> float:
         raise ValueError(f"the waveform never crosses {level} V")
     t0, t1, v0, v1 = t[i - 1], t[i], v[i - 1], v[i]
     return float(t0 + (level - v0) * (t1 - t0) / (v1 - v0))
+
+
+# --- nonlinear blocks -----------------------------------------------------------------------
+
+BLOCK_R = 10e3
+"""Resistance the block benches use, ohms."""
+
+
+def ramp_circuit(span: float = 10.0, duration: float = 10e-3) -> Circuit:
+    """A circuit with a slow ramp from -span to +span (V) at node ``in`` (and its negative
+    at ``nin``) and a ``.tran`` sampling it every 1/2000 of ``duration``."""
+    circuit = Circuit("block ramp bench")
+    ramp = Pwl(((0.0, -span), (duration, span)))
+    back = Pwl(((0.0, span), (duration, -span)))
+    circuit.add(
+        VoltageSource("VIN", "in", "0", waveform=ramp),
+        VoltageSource("VNIN", "nin", "0", waveform=back),
+    )
+    step = duration / 2000
+    circuit.analyses.append(Transient(step, duration, tmax=step))
+    return circuit
+
+
+def sine_circuit(amplitude: float, frequency: float, periods: float = 2.0) -> Circuit:
+    """A sine of ``amplitude`` (V) and ``frequency`` (Hz) at node ``in``, sampled finely."""
+    circuit = Circuit("block sine bench")
+    circuit.add(VoltageSource("VIN", "in", "0", waveform=Sin(0.0, amplitude, frequency)))
+    step = 1.0 / frequency / 4000
+    circuit.analyses.append(Transient(step, periods / frequency, tmax=step))
+    return circuit
+
+
+def dead_zone(x: np.ndarray, eta: float) -> np.ndarray:
+    """The dead zone: 0 inside +/-eta, slope 1 outside."""
+    return np.sign(x) * np.maximum(np.abs(x) - eta, 0.0)
+
+
+def glitch(
+    run_circuit: Callable[[Circuit], Waveforms], kind: str, frequency: float, amplitude: float = 5.0
+) -> tuple[float, float]:
+    """Zero-crossing glitch of the precision |x| block driven by a sine.
+
+    Returns
+    -------
+    peak_error : float
+        Largest |v(out) - |v(in)|| over the second period, volts.
+    width : float
+        Total time (s) per zero crossing that the error exceeds 1 % of ``amplitude``.
+    """
+    from circuitsim.synthesis.nonlinear import add_precision_abs
+
+    circuit = sine_circuit(amplitude, frequency)
+    add_precision_abs(circuit, "ABS1", "in", "out", BLOCK_R, kind)
+    waves = run_circuit(circuit)
+    t = waves.time
+    error = np.abs(waves["out"] - np.abs(waves["in"]))
+    second = t >= 1.0 / frequency
+    bad = second & (error > 0.01 * amplitude)
+    # two crossings per period; time spent beyond 1 % by trapezoid on the sample grid
+    width = float(np.sum(np.diff(t)[bad[1:]])) / 2.0
+    return float(error[second].max()), width

@@ -1,0 +1,139 @@
+"""Precision |x| and dead-zone blocks: names, errors, and transfer curves on ngspice.
+
+References are the mathematical functions themselves (|x|, the dead zone, the flange force
+identity k y - (k/2)(|y + eta| - |y - eta|) = k deadzone(y)); a slow ramp over +/-10 V must
+follow them within 1 % of full scale (0.1 V).
+"""
+
+import numpy as np
+import partbench
+import pytest
+
+from circuitsim.interop.ngspice import run_ngspice
+from circuitsim.netlist.circuit import Circuit, Diode, Resistor, SubcircuitCall, VoltageSource
+from circuitsim.synthesis.errors import SynthesisError
+from circuitsim.synthesis.nonlinear import add_dead_zone, add_precision_abs
+from circuitsim.synthesis.opamps import OPAMP_KINDS, add_opamp
+
+FULL_SCALE = 10.0
+R = partbench.BLOCK_R
+ETA = 2.0  # the abs form sees |y| + eta: 12 V, inside the TL074 block range (docs)
+
+
+def test_abs_names_follow_the_prefix():
+    circuit = Circuit("t")
+    used = add_precision_abs(circuit, "ABS1", "y", "f", R, "ideal", offset_volts=0.5)
+    assert used == ["XABS1A", "XABS1B"]
+    names = [e.name for e in circuit.elements]
+    assert names == [
+        "RABS1_1", "RABS1_2", "DABS1_1", "DABS1_2", "XABS1A",
+        "RABS1_3", "RABS1_4", "RABS1_5", "VABS1_B", "RABS1_6", "RABS1_7", "XABS1B",
+    ]  # fmt: skip
+    values = {e.name: e.resistance for e in circuit.elements if isinstance(e, Resistor)}
+    assert values["RABS1_4"] == R / 2 and values["RABS1_1"] == R
+    assert circuit.element("VABS1_B").dc == 0.5
+    assert all(e.model.lower() == "d1n4148" for e in circuit.elements if isinstance(e, Diode))
+
+
+def test_dead_zone_names_and_supply_bias():
+    circuit = Circuit("t")
+    used = add_dead_zone(circuit, "DZ", "y", "f", 0.5, R, "tl074", bias="supplies")
+    assert used == ["XDZA", "XDZB", "XDZC"]
+    assert all(circuit.element(n).connections[2:4] == ("vcc", "vee") for n in used)
+    assert circuit.element("RDZ_2").positive == "vee"
+    assert circuit.element("RDZ_2").resistance == pytest.approx(R * 15 / 0.5)
+    assert circuit.element("RDZ_5").positive == "vcc"
+    sources = [e.name for e in circuit.elements if isinstance(e, VoltageSource)]
+    assert sources == ["VCC", "VEE"]
+
+
+def test_blocks_leave_names_of_other_sections_alone():
+    circuit = Circuit("t")
+    add_opamp(circuit, "XU1A", "0", "s", "y1", "tl074")
+    add_precision_abs(circuit, "ABS1", "y1", "f1", R, "tl074")
+    add_precision_abs(circuit, "ABS2", "y1", "f2", R, "tl074", sign=-1)
+    calls = [e.name for e in circuit.elements if isinstance(e, SubcircuitCall)]
+    assert calls == ["XU1A", "XABS1A", "XABS1B", "XABS2A", "XABS2B"]
+    assert sum(isinstance(e, VoltageSource) for e in circuit.elements) == 2  # VCC, VEE once
+
+
+@pytest.mark.parametrize(
+    ("call", "match"),
+    [
+        (lambda c: add_precision_abs(c, "A B", "y", "f", R, "ideal"), "prefix"),
+        (lambda c: add_precision_abs(c, "A", "y", "f", -1.0, "ideal"), "resistance"),
+        (lambda c: add_precision_abs(c, "A", "y", "f", R, "ideal", sign=2), "sign"),
+        (lambda c: add_precision_abs(c, "A", "y", "f", R, "opa"), "kind"),
+        (lambda c: add_dead_zone(c, "D", "y", "f", 0.0, R, "ideal"), "half-width"),
+        (lambda c: add_dead_zone(c, "D", "y", "f", 1.0, R, "ideal", bias="supplies"), "tl074"),
+        (lambda c: add_dead_zone(c, "D", "y", "f", 1.0, R, "ideal", bias="zener"), "bias"),
+    ],
+)
+def test_bad_block_requests(call, match):
+    with pytest.raises(SynthesisError, match=match):
+        call(Circuit("t"))
+
+
+def _abs(circuit, kind):
+    add_precision_abs(circuit, "ABS1", "in", "out", R, kind)
+    return np.abs
+
+
+def _abs_negative(circuit, kind):
+    add_precision_abs(circuit, "ABS1", "in", "out", R, kind, sign=-1)
+    return lambda x: -np.abs(x)
+
+
+def _abs_offset(circuit, kind):
+    add_precision_abs(circuit, "ABS1", "in", "out", R, kind, offset_volts=-1.5)
+    return lambda x: np.abs(x - 1.5)
+
+
+def _dead_zone(circuit, kind):
+    add_dead_zone(circuit, "DZ1", "in", "out", ETA, R, kind)
+    return lambda x: partbench.dead_zone(x, ETA)
+
+
+def _dead_zone_supplies(circuit, kind):
+    if kind != "tl074":
+        pytest.skip("the supply bias needs real op-amps")
+    add_dead_zone(circuit, "DZ1", "in", "out", ETA, R, kind, bias="supplies")
+    return lambda x: partbench.dead_zone(x, ETA)
+
+
+def _flange_from_two_abs(circuit, kind):
+    # y - |y + eta| / 2 + |y - eta| / 2 with an inverting summer fed -y, +|y+eta| and
+    # -|y-eta|: the paper's form of the flange force (divided by k).
+    add_precision_abs(circuit, "ABS1", "in", "a1", R, kind, offset_volts=ETA)
+    add_precision_abs(circuit, "ABS2", "in", "a2", R, kind, offset_volts=-ETA, sign=-1)
+    circuit.add(
+        Resistor("RS1", "nin", "sum", R),
+        Resistor("RS2", "a1", "sum", 2 * R),
+        Resistor("RS3", "a2", "sum", 2 * R),
+        Resistor("RS4", "sum", "out", R),
+    )
+    add_opamp(circuit, "XSUM", "0", "sum", "out", kind)
+    return lambda x: partbench.dead_zone(x, ETA)
+
+
+BLOCKS = [_abs, _abs_negative, _abs_offset, _dead_zone, _dead_zone_supplies, _flange_from_two_abs]
+
+
+@partbench.requires_ngspice
+@pytest.mark.parametrize("kind", OPAMP_KINDS)
+@pytest.mark.parametrize("build", BLOCKS, ids=lambda b: b.__name__.strip("_"))
+def test_transfer_curve_from_slow_ramp(build, kind):
+    circuit = partbench.ramp_circuit(FULL_SCALE)
+    reference = build(circuit, kind)
+    waves = run_ngspice(circuit)
+    x, y = waves["in"], waves["out"]
+    assert np.ptp(x) == pytest.approx(2 * FULL_SCALE)
+    assert np.max(np.abs(y - reference(x))) < 0.01 * FULL_SCALE
+
+
+@partbench.requires_ngspice
+def test_glitch_grows_with_frequency_and_is_small_at_the_papers_rates():
+    peaks = [partbench.glitch(run_ngspice, "tl074", f)[0] for f in (10.0, 1e3, 1e4)]
+    assert peaks[0] < peaks[1] < peaks[2]
+    # 10 Hz (the paper's excitation range, real time): under 0.5 % of the 5 V amplitude
+    assert peaks[0] < 0.005 * 5.0
