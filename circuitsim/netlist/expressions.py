@@ -89,7 +89,7 @@ FUNCTIONS: dict[str, tuple[Callable[..., float], int, int]] = {
 _TOKEN = re.compile(
     r"""
     (?P<space>\s+)
-  | (?P<number>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?[a-zA-Z]*)
+  | (?P<number>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?(?:[a-zA-Z][a-zA-Z0-9_]*)?)
   | (?P<name>[a-zA-Z_][a-zA-Z0-9_.]*)
   | (?P<op>\*\*|[-+*/^(),])
     """,
