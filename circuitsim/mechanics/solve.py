@@ -19,7 +19,7 @@ from circuitsim.mechanics.system import System
 
 # A restart that has not moved time forward more than this many times in a row means events
 # keep firing at the restart point: give up rather than loop forever.
-_MAX_STALLS = 50
+_MAX_STALLS = 3
 
 
 @dataclass
@@ -152,27 +152,32 @@ class _Phase:
             dx = dx + self.F @ (self.amplitude * np.sin(self.omega * t + self.phase))
         return dx
 
-    def events(self, t: float, x: np.ndarray) -> list:
+    def events(self, t: float, x: np.ndarray, atol: np.ndarray, nudge: bool = False) -> list:
         """One terminal event per kink argument, armed only towards the far side.
 
         An argument sitting (numerically) on zero at the restart point is given the side it is
-        about to move into, from its rate; the event then looks only for a crossing away from
-        that side, so the crossing just handled cannot fire again at the restart point.
+        about to move into, from its rate (or its curvature when the rate vanishes); the event
+        then looks only for a crossing away from that side, so the crossing just handled cannot
+        fire again at the restart point. When that was not enough (the state rests on the kink,
+        so the argument stays exactly zero and scipy counts 0 -> 0 as a crossing), ``nudge``
+        also shifts such arguments onto their side by a margin below the absolute tolerance.
         """
         events = []
         if not self.labels:
             return events
         g = self.R @ x + self.offsets
-        rate = self.R @ self.rhs(t, x)
-        accel = self.R @ (self.A @ self.rhs(t, x))
+        slope = self.rhs(t, x)
+        rate = self.R @ slope
+        curvature = self.R @ (self.A @ slope)
         scale = np.abs(self.R) @ np.abs(x) + np.abs(self.offsets)
-        tiny = 1e-12 * np.maximum(scale, 1e-300)
+        margin = 1e-12 * scale + np.abs(self.R) @ atol
         for j in range(len(self.labels)):
-            if abs(g[j]) > tiny[j]:
-                side = np.sign(g[j])
+            if abs(g[j]) > margin[j]:
+                side, bias = np.sign(g[j]), 0.0
             else:
-                side = np.sign(rate[j]) or np.sign(accel[j]) or 1.0
-            events.append(_event(self.R[j], self.offsets[j], -side))
+                side = np.sign(rate[j]) or np.sign(curvature[j]) or 1.0
+                bias = 2.0 * side * margin[j] if nudge else 0.0
+            events.append(_event(self.R[j], self.offsets[j] + bias, -side))
         return events
 
 
@@ -230,6 +235,7 @@ def solve(
         raise IntegrationError(f"initial state needs {n} values, got {x.size}")
     switches = sorted({term.t_on for term in system.nonlinear if term.t_on is not None})
     switches = [s for s in switches if t0 < s < t1]
+    atol_vector = np.broadcast_to(np.asarray(atol, dtype=float), (n,))
     options = {"rtol": rtol, "atol": atol, "method": method, "dense_output": True}
     if max_step is not None:
         options["max_step"] = max_step
@@ -239,29 +245,34 @@ def solve(
     while t < t1:
         phase = _Phase(system, t)
         t_end = next((s for s in switches if s > t), t1)
-        events = phase.events(t, x)
+        events = phase.events(t, x, atol_vector, nudge=stalls > 0)
         sol = solve_ivp(phase.rhs, (t, t_end), x, events=events or None, **options)
         nfev += sol.nfev
         if sol.status == -1:
             raise IntegrationError(f"integration failed at t = {sol.t[-1]:.6g} s: {sol.message}")
-        keep = slice(1, None) if times else slice(None)
-        times.append(sol.t[keep])
-        values.append(sol.y[:, keep])
-        starts.append(t)
-        pieces.append(sol.sol)
         t_next, x_next = sol.t[-1], sol.y[:, -1]
         if sol.status == 1:
             hit = [(ev[0], k) for k, ev in enumerate(sol.t_events) if len(ev)]
             t_next, k = min(hit)
             x_next = sol.y_events[k][0]
+        if t_next <= t:
+            # an event at the restart point itself: retry with the arguments nudged
+            stalls += 1
+            if stalls > _MAX_STALLS:
+                raise IntegrationError(f"kink events keep firing without progress at t = {t:.6g} s")
+            continue
+        stalls = 0
+        keep = slice(1, None) if times else slice(None)
+        times.append(sol.t[keep])
+        values.append(sol.y[:, keep])
+        starts.append(t)
+        pieces.append(sol.sol)
+        if sol.status == 1:
             kinks.append(t_next)
             labels.append(phase.labels[k])
-        stalls = stalls + 1 if t_next <= t else 0
-        if stalls > _MAX_STALLS:
-            raise IntegrationError(f"kink events keep firing without progress at t = {t:.6g} s")
-        t, x = float(t_next), np.array(x_next, dtype=float)
-        if sol.status == 0:
-            t = t_end
+            t, x = float(t_next), np.array(x_next, dtype=float)
+        else:
+            t, x = t_end, np.array(x_next, dtype=float)
     return OdeResult(
         t=np.concatenate(times),
         x=np.concatenate(values, axis=1),
