@@ -263,6 +263,78 @@ def _run_ode(args: argparse.Namespace) -> int:
 COMMANDS.append(_add_ode)
 
 
+def _add_convert(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "convert",
+        help="rewrite a SPICE netlist for ngspice, LTspice or Multisim",
+        description=(
+            "Read a netlist (with its .include/.lib files) and write it in another dialect: "
+            "switch model parameters, power operator, .control blocks, node names (see "
+            "docs/netlists.md). Values are written so that they read back bit for bit."
+        ),
+    )
+    parser.add_argument("netlist", metavar="IN.cir", help="netlist to read")
+    parser.add_argument(
+        "--dialect",
+        choices=("ngspice", "ltspice", "multisim"),
+        default="ngspice",
+        help="dialect to write (default: ngspice)",
+    )
+    parser.add_argument(
+        "-o", "--output", metavar="OUT.cir", help="file to write (default: standard output)"
+    )
+    parser.set_defaults(func=_run_convert, error_exit_code=2)
+
+
+def _run_convert(args: argparse.Namespace) -> int:
+    from circuitsim.netlist.reader import read_netlist
+    from circuitsim.netlist.writer import save_netlist, write_netlist
+
+    circuit = read_netlist(args.netlist)
+    if args.output:
+        save_netlist(circuit, args.output, args.dialect)
+        print(f"wrote {args.output} ({args.dialect})", file=sys.stderr)
+    else:
+        sys.stdout.write(write_netlist(circuit, args.dialect))
+    return 0
+
+
+COMMANDS.append(_add_convert)
+
+
+def _add_check(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "check",
+        help="topology checks: floating nodes, no DC path, source loops, undefined models ...",
+        description=(
+            "Read a netlist and report what would make it unsolvable or suspicious: floating "
+            "nodes, nodes with no DC path to ground, current-source cut sets, loops of voltage "
+            "sources and inductors, unconnected subcircuit ports, duplicate names, undefined "
+            "or wrong-kind models and subcircuits. Exit code 0: clean, 1: findings, "
+            "2: the netlist could not be read."
+        ),
+    )
+    parser.add_argument("netlist", metavar="FILE.cir", help="netlist to check")
+    parser.set_defaults(func=_run_check, error_exit_code=2)
+
+
+def _run_check(args: argparse.Namespace) -> int:
+    from circuitsim.netlist.reader import read_netlist
+    from circuitsim.netlist.topology import check_circuit
+
+    findings = check_circuit(read_netlist(args.netlist))
+    for finding in findings:
+        print(f"{args.netlist}: {finding.kind}: {finding.message}")
+    if not findings:
+        print(f"{args.netlist}: no findings")
+        return 0
+    print(f"{len(findings)} finding(s)", file=sys.stderr)
+    return 1
+
+
+COMMANDS.append(_add_check)
+
+
 # --- end of verbs ---
 
 
