@@ -169,7 +169,7 @@ def dead_zone(x: np.ndarray, eta: float) -> np.ndarray:
 
 def glitch(
     run_circuit: Callable[[Circuit], Waveforms], kind: str, frequency: float, amplitude: float = 5.0
-) -> tuple[float, float]:
+) -> tuple[float, float, float]:
     """Zero-crossing glitch of the precision |x| block driven by a sine.
 
     Returns
@@ -177,17 +177,26 @@ def glitch(
     peak_error : float
         Largest |v(out) - |v(in)|| over the second period, volts.
     width : float
-        Total time (s) per zero crossing that the error exceeds 1 % of ``amplitude``.
+        Time (s) per zero crossing that the error exceeds 1 % of ``amplitude``.
+    mean_ratio : float
+        Time-average of |v(out) - |v(in)|| over that of |v(in)| (what an integrator fed by
+        the block sees), dimensionless.
     """
     from circuitsim.synthesis.nonlinear import add_precision_abs
 
     circuit = sine_circuit(amplitude, frequency)
     add_precision_abs(circuit, "ABS1", "in", "out", BLOCK_R, kind)
     waves = run_circuit(circuit)
-    t = waves.time
-    error = np.abs(waves["out"] - np.abs(waves["in"]))
-    second = t >= 1.0 / frequency
-    bad = second & (error > 0.01 * amplitude)
-    # two crossings per period; time spent beyond 1 % by trapezoid on the sample grid
-    width = float(np.sum(np.diff(t)[bad[1:]])) / 2.0
-    return float(error[second].max()), width
+    second = waves.time >= 1.0 / frequency
+    t = waves.time[second]
+    error = np.abs(waves["out"] - np.abs(waves["in"]))[second]
+    dt = np.diff(t)
+    bad = error[1:] > 0.01 * amplitude
+    width = float(np.sum(dt[bad])) / 2.0  # two crossings per period
+    mean_ratio = _integral(t, error) / _integral(t, np.abs(waves["in"][second]))
+    return float(error.max()), width, mean_ratio
+
+
+def _integral(t: np.ndarray, y: np.ndarray) -> float:
+    """Trapezoid integral of samples ``y`` over times ``t``."""
+    return float(np.sum(np.diff(t) * (y[1:] + y[:-1]) / 2.0))

@@ -1,0 +1,108 @@
+"""Measure the part library for docs/parts.md: figures table, glitch table, step-response plot.
+
+Run from the repository root: ``python tests/parts/report.py`` (prints Markdown tables and
+writes ``docs/figures/tl074_step.png``). Uses every engine that is available: ngspice and,
+once it runs these benches, our solver (``circuitsim.solver.simulate``).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+import partbench  # noqa: E402
+
+from circuitsim.interop.ngspice import run_ngspice  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+FIGURE = ROOT / "docs" / "figures" / "tl074_step.png"
+
+
+def engines() -> dict:
+    """Name -> run(text or Circuit) -> Waveforms, for every engine that can run."""
+    found = {"ngspice": run_ngspice}
+    try:
+        from engines import run_builtin  # the test helper that reads text into our solver
+
+        found["builtin"] = run_builtin
+    except ImportError:
+        pass
+    return found
+
+
+def figures(run) -> dict[str, float]:
+    """Every datasheet figure of the TL074 macromodel measured with ``run``."""
+    rising, falling = partbench.slew_rate(run)
+    high, low = partbench.swing(run)
+    return {
+        "dc_gain": partbench.dc_gain(run),
+        "unity_gain_hz": partbench.unity_gain_frequency(run),
+        "slew_v_per_us": min(rising, falling),
+        "swing_pos_v": high,
+        "swing_neg_v": low,
+        "output_ohm": partbench.output_resistance(run),
+        "input_ohm": partbench.input_resistance(run),
+    }
+
+
+def plot_steps(runs: dict) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (big, small) = plt.subplots(1, 2, figsize=(9, 3.4))
+    for name, run in runs.items():
+        w = partbench.follower_step(run, -5.0, 5.0, 1.5e-6, 5e-9, "RL out 0 10k\n")
+        big.plot(w.time * 1e6, w["out"], label=f"out ({name})")
+        w = partbench.follower_step(run, 0.0, 0.01, 0.6e-6, 2e-9)
+        small.plot(w.time * 1e6, w["out"] * 1e3, label=f"out ({name})")
+    w = partbench.follower_step(run_ngspice, -5.0, 5.0, 1.5e-6, 5e-9)
+    big.plot(w.time * 1e6, w["in"], "k:", label="in")
+    w = partbench.follower_step(run_ngspice, 0.0, 0.01, 0.6e-6, 2e-9)
+    small.plot(w.time * 1e6, w["in"] * 1e3, "k:", label="in")
+    big.set(xlabel="time (us)", ylabel="V", title="10 V step: slew 13 V/us")
+    small.set(xlabel="time (us)", ylabel="mV", title="10 mV step: tau = 1/(2 pi 3 MHz)")
+    for ax in (big, small):
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle("TL074 macromodel, unity-gain follower")
+    fig.tight_layout()
+    FIGURE.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(FIGURE, dpi=80)
+    plt.close(fig)
+
+
+def main() -> None:
+    runs = engines()
+    measured = {name: figures(run) for name, run in runs.items()}
+    print("| figure | design | " + " | ".join(runs) + " |")
+    print("|---|---|" + "---|" * len(runs))
+    for key, design in partbench.DESIGN.items():
+        cells = " | ".join(f"{measured[n][key]:.5g}" for n in runs)
+        print(f"| {key} | {design:.4g} | {cells} |")
+    print()
+    heads = [
+        f"{n} {k}: peak (mV), width > 50 mV (us), mean error / mean abs(x) (%)"
+        for n in runs
+        for k in ("ideal", "tl074")
+    ]
+    print("| f (Hz) | slope at crossing (V/ms) | " + " | ".join(heads) + " |")
+    print("|---|---|" + "---|" * len(heads))
+    for f in (10.0, 100.0, 1e3, 1e4):
+        cells = []
+        for run in runs.values():
+            for kind in ("ideal", "tl074"):
+                peak, width, mean = partbench.glitch(run, kind, f)
+                cells.append(f"{peak * 1e3:.3g}, {width * 1e6:.3g}, {mean * 100:.3g}")
+        print(f"| {f:g} | {2 * np.pi * f * 5.0 / 1e3:.3g} | " + " | ".join(cells) + " |")
+    plot_steps(runs)
+    print(f"\nwrote {FIGURE}")
+
+
+if __name__ == "__main__":
+    main()
