@@ -5,7 +5,10 @@ node joined to ground only through a capacitor has an undefined DC voltage, two 
 sources in parallel form a KVL loop, and so on.
 """
 
+import shutil
 import time
+
+import pytest
 
 from circuitsim.netlist.circuit import (
     Capacitor,
@@ -24,6 +27,7 @@ from circuitsim.netlist.circuit import (
     Vcvs,
     VoltageSource,
 )
+from circuitsim.netlist.reader import parse_netlist
 from circuitsim.netlist.topology import Finding, check_circuit
 
 
@@ -207,3 +211,37 @@ def test_large_flat_ladder_is_checked_quickly_and_clean():
     assert check_circuit(c) == []
     # Not a timing assertion: recorded so a regression is visible in -rA output.
     print(f"2000-section ladder checked in {time.perf_counter() - started:.3f} s")
+
+
+# --- ngspice as referee: the electrical findings are exactly the circuits it cannot solve -
+
+
+requires_ngspice = pytest.mark.skipif(
+    shutil.which("ngspice") is None,
+    reason="ngspice is not installed (apt-get install -y ngspice; CI installs it)",
+)
+
+REFEREE = {
+    "no-dc-path": "V1 in 0 DC 1\nR1 in out 1k\nC1 out mid 1u\nR2 mid top 1k\nC2 top 0 1u\n",
+    "current-source-cutset": "V1 in 0 DC 1\nR1 in 0 1k\nI1 0 x DC 1m\nR7 x y 1k\nI2 y 0 DC 1m\n",
+    "voltage-loop": "V1 in 0 DC 1\nR1 in 0 1k\nL1 in a 1m\nE1 a 0 in 0 1\n",
+    "clean": "V1 in 0 DC 1\nR1 in out 1k\nC1 out 0 1u\nL1 out m 1m\nR2 m 0 1k\nI1 0 out DC 1m\n",
+}
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+@pytest.mark.parametrize("kind", sorted(REFEREE))
+def test_findings_agree_with_ngspice_operating_point(kind):
+    from circuitsim.interop.errors import NgspiceError
+    from circuitsim.interop.ngspice import run_ngspice
+
+    text = f"{kind}\n{REFEREE[kind]}.op\n.end\n"
+    kinds = _kinds(check_circuit(parse_netlist(text)))
+    if kind == "clean":
+        assert kinds == []
+        run_ngspice(text)  # solves without error
+    else:
+        assert kinds == [kind]
+        with pytest.raises(NgspiceError, match="singular matrix"):
+            run_ngspice(text)
