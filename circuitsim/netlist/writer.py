@@ -193,6 +193,12 @@ class _Writer:
         self.lines.append(f".ends {sub.name}")
 
     def element(self, element: Element) -> None:
+        letter = _LETTERS.get(type(element))
+        if letter is None or element.letter != letter or not _NAME.fullmatch(element.name):
+            raise NetlistError(
+                f"cannot write element {element.name!r} ({type(element).__name__}): a SPICE "
+                f"name starts with its type letter ({letter}) and has no spaces or ()={{}},;"
+            )
         tokens = [element.name, *self.nodes(element)]
         v = self.value
         if isinstance(element, Resistor):
@@ -295,6 +301,23 @@ class _Writer:
                 v(analysis.fstop),
             ]
         raise NetlistError(f"cannot write the analysis {analysis!r}")
+
+
+_LETTERS: dict[type, str] = {
+    Resistor: "R",
+    Capacitor: "C",
+    Inductor: "L",
+    VoltageSource: "V",
+    CurrentSource: "I",
+    Vcvs: "E",
+    Vccs: "G",
+    Cccs: "F",
+    Ccvs: "H",
+    Diode: "D",
+    Switch: "S",
+    SubcircuitCall: "X",
+}
+_NAME = re.compile(r"[^\s(){}=,;'\"]+")
 
 
 def _nonzero(value: Value) -> bool:

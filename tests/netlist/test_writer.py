@@ -243,3 +243,14 @@ def test_save_netlist_is_atomic(tmp_path):
     # The failed write left the earlier file whole and no temporary file behind.
     assert path.read_text() == write_netlist(_rc(), "ltspice")
     assert [p.name for p in tmp_path.iterdir()] == ["rc.cir"]
+
+
+@pytest.mark.parametrize(
+    "element",
+    [Resistor("X1", "a", "0", 1.0), Capacitor("C 1", "a", "0", 1.0), Diode("D(1)", "a", "0", "d")],
+    ids=["wrong-letter", "space", "parenthesis"],
+)
+def test_names_spice_cannot_read_back_raise(element):
+    c = Circuit(title="names", elements=[element])
+    with pytest.raises(NetlistError, match="cannot write element"):
+        write_netlist(c)
