@@ -1,0 +1,114 @@
+"""Small building blocks shared by the translator: rounding a resistor, summers, switches.
+
+Every resistor the translator places goes through :func:`place_resistor`, which rounds it to
+the chosen series and records a bill-of-materials line with the coefficient it was meant to
+set and the one it sets after rounding.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from circuitsim.netlist.circuit import Circuit, Resistor
+from circuitsim.synthesis.eseries import round_to_series
+from circuitsim.synthesis.opamps import add_opamp
+
+
+@dataclass(frozen=True)
+class BomEntry:
+    """One line of the bill of materials.
+
+    Attributes
+    ----------
+    part : str
+        Element name (``"R31"``, ``"C3"``).
+    value : float
+        Ohms or farads.
+    unit : str
+        ``"ohm"`` or ``"F"``.
+    series : str
+        ``"E96"``, ``"E24"``, ``"exact"`` (resistors) or ``"decade"`` (capacitors).
+    role : str
+        What the part does, in words (``"y -> y_dot integrator (A[y_dot, y])"``).
+    target : float
+        The coefficient the part was meant to set (model units; 1/s for A entries), NaN for
+        parts that set none (capacitors, inverter pairs).
+    realized : float
+        The coefficient set with the rounded value.
+    """
+
+    part: str
+    value: float
+    unit: str
+    series: str
+    role: str
+    target: float = math.nan
+    realized: float = math.nan
+
+    @property
+    def error(self) -> float:
+        """Relative coefficient error realized/target - 1 (NaN when no coefficient)."""
+        if math.isnan(self.target) or self.target == 0:
+            return math.nan
+        return self.realized / self.target - 1.0
+
+
+class Builder:
+    """A circuit under construction plus its bill of materials."""
+
+    def __init__(self, circuit: Circuit, series: str, opamp_kind: str) -> None:
+        self.circuit = circuit
+        self.series = series
+        self.opamp_kind = opamp_kind
+        self.bom: list[BomEntry] = []
+
+    def place_resistor(
+        self,
+        name: str,
+        node_a: str,
+        node_b: str,
+        ideal: float,
+        role: str,
+        target: float = math.nan,
+        series_extra: float = 0.0,
+        series: str | None = None,
+    ) -> float:
+        """Add a resistor whose ideal value is ``ideal`` ohms (total, including
+        ``series_extra``, e.g. a switch's on resistance); returns the realized total.
+
+        The coefficient it sets is taken as proportional to 1/R: realized =
+        target * ideal / (rounded + series_extra).
+        """
+        chosen = series or self.series
+        value = round_to_series(max(ideal - series_extra, 1e-3), chosen)
+        total = value + series_extra
+        self.circuit.add(Resistor(name, node_a, node_b, value))
+        realized = float(target * ideal / total) if not math.isnan(target) else math.nan
+        self.bom.append(BomEntry(name, value, "ohm", chosen, role, float(target), realized))
+        return total
+
+    def summer(
+        self,
+        opamp: str,
+        prefix: str,
+        output: str,
+        inputs: list[tuple[str, str, float, float, str]],
+        r_feedback: float,
+    ) -> None:
+        """Inverting summer: v(output) = -sum_k w_k v(node_k).
+
+        ``inputs`` holds (suffix, node, weight w_k > 0, target coefficient, role); the input
+        resistor R{prefix}_{suffix} = r_feedback / w_k is rounded to the series, the feedback
+        resistor R{prefix}_F is r_feedback exactly (a standard value).
+        """
+        junction = f"{prefix.lower()}_j"
+        for suffix, node, weight, target, role in inputs:
+            self.place_resistor(
+                f"R{prefix}_{suffix}", node, junction, r_feedback / weight, role, target
+            )
+        self.circuit.add(Resistor(f"R{prefix}_F", junction, output, r_feedback))
+        self.bom.append(
+            BomEntry(f"R{prefix}_F", r_feedback, "ohm", "exact", f"feedback of summer {prefix}")
+        )
+        add_opamp(self.circuit, f"X{prefix}", "0", junction, output, self.opamp_kind)

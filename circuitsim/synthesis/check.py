@@ -1,0 +1,600 @@
+"""Proof of the mapping: read a generated netlist back and recompute the model it realizes.
+
+Nothing of the generator's memory is used: the circuit (or the file, parsed again) is walked
+from the scale map's state nodes. For each state the op-amp driving its node is the inverter
+(feedback Rf, input Rin from the integrator output), the op-amp driving that is the integrator
+(capacitor C), and every resistor R into the integrator's summing junction contributes
+
+    dx_i/dt += (Rf/Rin) / (K G_i C) * v_far / R,
+
+with v_far recognized as a state node (+-G_j x_j), a SIN or DC source, or - through a switch -
+a piecewise-linear signal, itself recomputed from its summers and from the precision |x| and
+dead-zone blocks of :mod:`circuitsim.synthesis.nonlinear` (taken as their ideal transfer, after
+checking their resistor ratios are the ideal ones). The recomputed A, forcing gains, constants
+and nonlinear terms are compared with the model's, entry by entry, within the rounding error
+the bill of materials reports for the resistors involved.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from circuitsim.mechanics.system import System
+from circuitsim.netlist.circuit import (
+    Capacitor,
+    Circuit,
+    Diode,
+    Pwl,
+    Resistor,
+    Sin,
+    SubcircuitCall,
+    Switch,
+    VoltageSource,
+)
+from circuitsim.synthesis.blocks import BomEntry
+from circuitsim.synthesis.bom import load_bom
+from circuitsim.synthesis.errors import SynthesisError
+from circuitsim.synthesis.scalemap import ScaleMap
+from circuitsim.synthesis.stability import critical_speed
+
+OPAMP_SUBCIRCUITS = ("opamp_ideal", "tl074")
+
+
+@dataclass
+class Entry:
+    """One compared coefficient."""
+
+    what: str
+    model: float
+    realized: float
+    allowed: float  # allowed |relative error|
+    parts: tuple[str, ...] = ()
+
+    @property
+    def error(self) -> float:
+        if self.model == 0:
+            return abs(self.realized)
+        return self.realized / self.model - 1.0
+
+    @property
+    def ok(self) -> bool:
+        return abs(self.error) <= self.allowed
+
+
+@dataclass
+class MappingReport:
+    """What the netlist realizes, beside the model.
+
+    Attributes
+    ----------
+    A_model, A_realized : ndarray, shape (n, n)
+        Linear part, 1/s of model time.
+    entries : list of Entry
+        Every compared coefficient (A entries, forcing gains and frequencies, constants,
+        nonlinear linear parts, |x| gains and offsets, switch times).
+    problems : list of str
+        Structural problems and out-of-tolerance entries; empty when the check passes.
+    warnings : list of str
+        E.g. rounding moved the realized critical speed across the simulated speed.
+    speed : float or None
+        The simulated speed (the model's speed parameter), if the model names one.
+    critical_speed_model, critical_speed_realized : float or None
+        Critical speed of the model's and of the recomputed linear part (m/s).
+    eigenvalues_model, eigenvalues_realized : ndarray, shape (n,)
+        Of A_model and A_realized (1/s).
+    """
+
+    A_model: np.ndarray
+    A_realized: np.ndarray
+    entries: list[Entry] = field(default_factory=list)
+    problems: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    speed: float | None = None
+    critical_speed_model: float | None = None
+    critical_speed_realized: float | None = None
+    eigenvalues_model: np.ndarray | None = None
+    eigenvalues_realized: np.ndarray | None = None
+
+    @property
+    def ok(self) -> bool:
+        """True when the netlist realizes the model within the reported rounding."""
+        return not self.problems
+
+    @property
+    def max_error(self) -> float:
+        """Largest |relative error| over the compared entries."""
+        return max((abs(e.error) for e in self.entries), default=0.0)
+
+    def summary(self) -> str:
+        """A few lines for people: verdict, worst entry, critical speeds."""
+        lines = [
+            f"mapping check: {'OK' if self.ok else 'FAILED'}, {len(self.entries)} coefficients, "
+            f"largest relative error {self.max_error:.3g}"
+        ]
+        if self.critical_speed_model is not None:
+            lines.append(
+                f"critical speed: model {self.critical_speed_model:.4f}, realized circuit "
+                f"{self.critical_speed_realized:.4f} (simulated at {self.speed:g})"
+            )
+        lines += [f"problem: {p}" for p in self.problems]
+        lines += [f"warning: {w}" for w in self.warnings]
+        return "\n".join(lines)
+
+
+@dataclass
+class _Affine:
+    """vec . x + const + sum coef |row . x + offset|, plus the parts it depends on."""
+
+    vec: np.ndarray
+    const: float = 0.0
+    pieces: list[tuple[float, np.ndarray, float]] = field(default_factory=list)
+    parts: tuple[str, ...] = ()
+
+    def scaled(self, c: float, parts: tuple[str, ...] = ()) -> _Affine:
+        return _Affine(
+            c * self.vec,
+            c * self.const,
+            [(c * g, r, o) for g, r, o in self.pieces],
+            self.parts + parts,
+        )
+
+    def plus(self, other: _Affine) -> _Affine:
+        return _Affine(
+            self.vec + other.vec,
+            self.const + other.const,
+            self.pieces + other.pieces,
+            self.parts + other.parts,
+        )
+
+
+def check_mapping(
+    circuit_or_path: Circuit | str | os.PathLike,
+    scale_map: ScaleMap | str | os.PathLike,
+    system: System,
+    bom: list[BomEntry] | str | os.PathLike | None = None,
+    tolerance: float = 1e-9,
+) -> MappingReport:
+    """Recompute the model a netlist realizes and compare it with ``system``.
+
+    Parameters
+    ----------
+    circuit_or_path : Circuit or path
+        A path is parsed with the netlist reader (the honest check: what is in the file).
+    scale_map : ScaleMap or path
+        The scale file written beside the netlist.
+    system : System
+        The model the netlist should realize.
+    bom : list of BomEntry or path, optional
+        The bill of materials; each coefficient may be off by the sum of the reported
+        |errors| of the resistors that set it. Without it every part must be exact.
+    tolerance : float
+        Added to every allowed relative error (float noise).
+
+    Returns
+    -------
+    MappingReport
+    """
+    if not isinstance(circuit_or_path, Circuit):
+        from circuitsim.netlist.reader import read_netlist
+
+        circuit = read_netlist(circuit_or_path)
+    else:
+        circuit = circuit_or_path
+    if not isinstance(scale_map, ScaleMap):
+        scale_map = ScaleMap.load(scale_map)
+    if bom is not None and not isinstance(bom, list):
+        bom = load_bom(bom)
+    errors = {e.part.lower(): abs(e.error) for e in (bom or []) if not math.isnan(e.error)}
+    return _Checker(circuit, scale_map, system, errors, tolerance).run()
+
+
+class _Checker:
+    def __init__(self, circuit, scale_map, system, errors, tolerance) -> None:
+        self.c = circuit
+        self.sm = scale_map
+        self.sys = system
+        self.errors = errors
+        self.tol = tolerance
+        self.n = system.n
+        self.problems: list[str] = []
+        self.by_node: dict[str, list] = {}
+        for e in circuit.elements:
+            for node in e.nodes:
+                self.by_node.setdefault(node.lower(), []).append(e)
+        self.opamp_by_out: dict[str, SubcircuitCall] = {}
+        for e in circuit.elements:
+            if isinstance(e, SubcircuitCall) and e.subcircuit.lower() in OPAMP_SUBCIRCUITS:
+                self.opamp_by_out[e.connections[-1].lower()] = e
+        self.names = {e.name.lower(): e for e in circuit.elements}
+        self.state_expr: dict[str, _Affine] = {}
+        self.parts_ij: dict[tuple[int, int], tuple[str, ...]] = {}
+        self.forcing: list[tuple] = []  # (state index, gain, model Hz, phase rad, part)
+        self.constants: list[tuple] = []  # (state index, value, part)
+        self.paths: list[tuple] = []  # (state index, _Affine, t_on, switch name)
+
+    # --- helpers ------------------------------------------------------------------------
+
+    def allowed(self, parts) -> float:
+        return sum(self.errors.get(p.lower(), 0.0) for p in parts) + self.tol
+
+    def resistors_at(self, node: str) -> list[Resistor]:
+        return [e for e in self.by_node.get(node, []) if isinstance(e, Resistor)]
+
+    @staticmethod
+    def far(element, node: str) -> str:
+        a, b = (x.lower() for x in element.nodes[:2])
+        return b if a == node else a
+
+    def opamp_inputs(self, out: str) -> tuple[SubcircuitCall, str]:
+        op = self.opamp_by_out.get(out)
+        if op is None:
+            raise SynthesisError(f"no op-amp drives node {out!r}")
+        if op.connections[0] != "0":
+            raise SynthesisError(f"op-amp {op.name}: non-inverting input is not grounded")
+        return op, op.connections[1].lower()
+
+    # --- states -------------------------------------------------------------------------
+
+    def run(self) -> MappingReport:
+        n, sysm = self.n, self.sys
+        A_real = np.zeros((n, n))
+        report = MappingReport(np.asarray(sysm.A, dtype=float), A_real)
+        K = self.sm.time_scale
+        try:
+            missing = [s for s in sysm.states if s not in self.sm.states]
+            if missing:
+                raise SynthesisError(f"scale map lacks state(s) {', '.join(missing)}")
+            integrators = {}
+            for i, state in enumerate(sysm.states):
+                scale = self.sm.states[state]
+                plus = scale.node.lower()
+                _, inv = self.opamp_inputs(plus)
+                rs = self.resistors_at(inv)
+                fb = [r for r in rs if self.far(r, inv) == plus]
+                ins = [r for r in rs if self.far(r, inv) != plus]
+                if len(fb) != 1 or len(ins) != 1:
+                    raise SynthesisError(f"state {state}: node {plus} is not driven by an inverter")
+                minus = self.far(ins[0], inv)
+                ratio = float(fb[0].resistance) / float(ins[0].resistance)
+                e = np.zeros(n)
+                e[i] = scale.volts_per_unit
+                self.state_expr[plus] = _Affine(e.copy())
+                self.state_expr[minus] = _Affine(-e / ratio)
+                integrators[state] = (i, minus, ratio, scale.volts_per_unit)
+            for state, (i, minus, ratio, G) in integrators.items():
+                self.integrator(state, i, minus, ratio, G, K, A_real, report)
+        except SynthesisError as exc:
+            report.problems.append(str(exc))
+            return report
+        for i in range(n):
+            for j in range(n):
+                if sysm.A[i, j] == 0 and A_real[i, j] == 0:
+                    continue
+                parts = self.parts_ij.get((i, j), ())
+                report.entries.append(
+                    Entry(
+                        f"A[{sysm.states[i]}, {sysm.states[j]}]",
+                        float(sysm.A[i, j]),
+                        float(A_real[i, j]),
+                        self.allowed(parts),
+                        parts,
+                    )
+                )
+        self.compare_forcing(report)
+        self.compare_nonlinear(report)
+        report.problems += self.problems
+        report.problems += [
+            f"{e.what}: realized {e.realized:.10g}, model {e.model:.10g} "
+            f"(error {e.error:.3g}, allowed {e.allowed:.3g}; {', '.join(e.parts)})"
+            for e in report.entries
+            if not e.ok
+        ]
+        self.stability(report)
+        return report
+
+    def integrator(self, state, i, minus, ratio, G, K, A_real, report) -> None:
+        _, junction = self.opamp_inputs(minus)
+        caps = [
+            e
+            for e in self.by_node.get(junction, [])
+            if isinstance(e, Capacitor) and self.far(e, junction) == minus
+        ]
+        if len(caps) != 1:
+            raise SynthesisError(f"state {state}: no single integrator capacitor at {junction}")
+        factor = ratio / (K * G * float(caps[0].capacitance))
+        for r in self.resistors_at(junction):
+            node = self.far(r, junction)
+            gain = factor / float(r.resistance)
+            if node in self.state_expr:
+                expr = self.state_expr[node]
+                A_real[i] += gain * expr.vec
+                for j in np.flatnonzero(expr.vec):
+                    self.parts_ij[(i, int(j))] = self.parts_ij.get((i, int(j)), ()) + (r.name,)
+                continue
+            source = self.source_at(node)
+            if source is not None:
+                if isinstance(source.waveform, Sin):
+                    w = source.waveform
+                    self.forcing.append(
+                        (i, gain * float(w.amplitude), float(w.frequency) / K,
+                         math.radians(float(w.phase)), r.name)
+                    )  # fmt: skip
+                elif source.waveform is None:
+                    self.constants.append((i, gain * float(source.dc), r.name))
+                else:
+                    self.problems.append(f"{r.name}: source {source.name} has an unknown waveform")
+                continue
+            switches = [e for e in self.by_node.get(node, []) if isinstance(e, Switch)]
+            if len(switches) == 1:
+                sw = switches[0]
+                signal = self.far(sw, node)
+                model = self.c.models.get(sw.model.lower())
+                ron = float(model.params.get("ron", 1.0)) if model else 1.0
+                total = float(r.resistance) + ron
+                expr = self.signal(signal).scaled(factor / total, (r.name,))
+                self.paths.append((i, expr, self.switch_time(sw, K), sw.name))
+                continue
+            self.problems.append(f"{r.name}: input node {node!r} of {state} is not recognized")
+
+    def source_at(self, node: str) -> VoltageSource | None:
+        for e in self.by_node.get(node, []):
+            if isinstance(e, VoltageSource) and e.negative == "0" and e.positive.lower() == node:
+                return e
+        return None
+
+    def switch_time(self, sw: Switch, K: float) -> float | None:
+        """Model time the switch closes (None: closed throughout)."""
+        control = self.source_at(sw.control_positive.lower())
+        model = self.c.models.get(sw.model.lower())
+        vt = float(model.params.get("vt", 0.0)) if model else 0.0
+        if control is None:
+            self.problems.append(f"switch {sw.name}: control is not a grounded voltage source")
+            return None
+        if isinstance(control.waveform, Pwl):
+            points = [(float(t), float(v)) for t, v in control.waveform.points]
+            for (t0, v0), (t1, v1) in zip(points, points[1:], strict=False):
+                if v0 <= vt < v1:
+                    return (t0 + (vt - v0) / (v1 - v0) * (t1 - t0)) * K
+            return math.inf
+        return None if float(control.dc) > vt else math.inf
+
+    # --- piecewise-linear signals -------------------------------------------------------
+
+    def signal(self, node: str, depth: int = 0) -> _Affine:
+        """The voltage of ``node`` as a function of the states."""
+        if depth > 20:
+            raise SynthesisError(f"signal path through {node!r} is too deep (a loop?)")
+        if node in self.state_expr:
+            return self.state_expr[node]
+        source = self.source_at(node)
+        if source is not None and source.waveform is None:
+            return _Affine(np.zeros(self.n), float(source.dc))
+        op = self.opamp_by_out.get(node)
+        if op is None:
+            raise SynthesisError(f"node {node!r} of a nonlinear signal is not driven by an op-amp")
+        block = self.block_of(op)
+        if block is not None:
+            return block(depth)
+        _, junction = self.opamp_inputs(node)
+        rs = self.resistors_at(junction)
+        fb = [r for r in rs if self.far(r, junction) == node]
+        if len(fb) != 1:
+            raise SynthesisError(f"summer {op.name}: no single feedback resistor")
+        rf = float(fb[0].resistance)
+        total = _Affine(np.zeros(self.n), parts=(fb[0].name,))
+        for r in rs:
+            if r is fb[0]:
+                continue
+            part = self.signal(self.far(r, junction), depth + 1)
+            total = total.plus(part.scaled(-rf / float(r.resistance), (r.name,)))
+        return total
+
+    def block_of(self, op: SubcircuitCall):
+        """A reader for helper D's |x| (``X<p>B``) or dead-zone (``X<p>C``) output op-amp."""
+        name = op.name
+        prefix, last = name[1:-1], name[-1].upper()
+        get = self.names.get
+        r = {k: get(f"r{prefix}_{k}".lower()) for k in range(1, 10)}
+        if last == "B" and get(f"d{prefix}_1".lower()) and r[5] and r[4] and r[1]:
+            return lambda depth: self.abs_block(prefix, r, depth)
+        if last == "C" and get(f"d{prefix}_4".lower()) and r[9] and r[1]:
+            return lambda depth: self.dead_zone_block(prefix, r, depth)
+        return None
+
+    def ratios_ok(self, prefix: str, values: dict[int, float], unit: list[int], half: list[int]):
+        base = values[unit[0]]
+        good = all(math.isclose(values[k], base, rel_tol=1e-12) for k in unit) and all(
+            math.isclose(values[k], base / 2, rel_tol=1e-12) for k in half
+        )
+        if not good:
+            self.problems.append(f"block {prefix}: resistor ratios are not the ideal ones")
+
+    def abs_block(self, prefix, r, depth) -> _Affine:
+        node_in = self.far(r[1], f"{prefix.lower()}_s1")
+        values = {k: float(v.resistance) for k, v in r.items() if v is not None}
+        self.ratios_ok(prefix, values, [k for k in (1, 2, 3, 5, 6, 7) if k in values], [4])
+        bias = self.names.get(f"v{prefix}_b".lower())
+        offset = float(bias.dc) if bias is not None else 0.0
+        catch: Diode = self.names[f"d{prefix}_1".lower()]
+        first_out = self.opamp_by_out_name(f"x{prefix}a")
+        sign = 1.0 if catch.anode.lower() == first_out else -1.0
+        inner = self.signal(node_in, depth + 1)
+        if inner.pieces:
+            raise SynthesisError(f"block {prefix}: input is itself nonlinear")
+        return _Affine(
+            np.zeros(self.n), 0.0, [(sign, inner.vec, inner.const + offset)], inner.parts
+        )
+
+    def dead_zone_block(self, prefix, r, depth) -> _Affine:
+        node_in = self.far(r[1], f"{prefix.lower()}_s1")
+        values = {k: float(v.resistance) for k, v in r.items() if v is not None}
+        self.ratios_ok(prefix, values, [1, 3, 4, 6, 7, 8, 9], [])
+        plus = self.names.get(f"v{prefix}_p".lower())
+        if plus is not None:
+            eta = float(plus.dc) * values[1] / values[5]
+        else:  # bias from the +15 V supply through R5
+            eta = 15.0 * values[1] / values[5]
+        w = self.signal(node_in, depth + 1)
+        if w.pieces:
+            raise SynthesisError(f"block {prefix}: input is itself nonlinear")
+        # dz(w, eta) = w - |w + eta| / 2 + |w - eta| / 2
+        return _Affine(
+            w.vec.copy(), w.const, [(-0.5, w.vec, w.const + eta), (0.5, w.vec, w.const - eta)],
+            w.parts,
+        )  # fmt: skip
+
+    def opamp_by_out_name(self, name: str) -> str:
+        element = self.names.get(name.lower())
+        return element.connections[-1].lower() if element is not None else ""
+
+    # --- comparisons --------------------------------------------------------------------
+
+    def compare_forcing(self, report: MappingReport) -> None:
+        realized = list(self.forcing)
+        for k, force in enumerate(self.sys.forcing, start=1):
+            for i in np.flatnonzero(force.direction):
+                model = float(force.direction[i]) * force.amplitude
+                match = [
+                    f for f in realized
+                    if f[0] == i and math.isclose(f[2], force.frequency, rel_tol=1e-9)
+                ]  # fmt: skip
+                if not match:
+                    self.problems.append(
+                        f"forcing {k} into {self.sys.states[i]}: not in the netlist"
+                    )
+                    continue
+                f = match[0]
+                realized.remove(f)
+                what = f"forcing {k} -> {self.sys.states[i]}"
+                report.entries.append(
+                    Entry(f"{what} gain", model, f[1], self.allowed((f[4],)), (f[4],))
+                )
+                report.entries.append(
+                    Entry(f"{what} frequency", force.frequency, f[2], self.tol, (f[4],))
+                )
+                if not math.isclose(math.sin(f[3] - force.phase), 0, abs_tol=1e-9):
+                    self.problems.append(f"{what}: phase {f[3]} rad, model {force.phase} rad")
+        for f in realized:
+            self.problems.append(f"{f[4]}: a sine input the model does not have")
+        b_real = np.zeros(self.n)
+        parts: dict[int, tuple] = {}
+        for i, value, part in self.constants:
+            b_real[i] += value
+            parts[i] = parts.get(i, ()) + (part,)
+        for i in range(self.n):
+            if self.sys.b0[i] != 0 or b_real[i] != 0:
+                report.entries.append(
+                    Entry(f"b0[{self.sys.states[i]}]", float(self.sys.b0[i]), b_real[i],
+                          self.allowed(parts.get(i, ())), parts.get(i, ()))
+                )  # fmt: skip
+
+    def compare_nonlinear(self, report: MappingReport) -> None:
+        n = self.n
+        lin_model, lin_real = np.zeros((n, n)), np.zeros((n, n))
+        const_model, const_real = np.zeros(n), np.zeros(n)
+        pieces_model: list[tuple[int, float, np.ndarray, float]] = []
+        pieces_real: list[tuple[int, float, np.ndarray, float, tuple]] = []
+        parts_row: dict[int, tuple] = {}
+        t_on_model = {}
+        for term in self.sys.nonlinear:
+            d = np.asarray(term.direction, dtype=float)
+            lin_model += np.outer(d, term.linear)
+            const_model += d * term.constant
+            for i in np.flatnonzero(d):
+                t_on_model[int(i)] = term.t_on
+                for piece in term.abs_terms:
+                    pieces_model.append(
+                        (int(i), d[i] * piece.gain, np.asarray(piece.row, float), piece.offset)
+                    )
+        for i, expr, t_on, switch in self.paths:
+            lin_real[i] += expr.vec
+            const_real[i] += expr.const
+            parts_row[i] = parts_row.get(i, ()) + expr.parts
+            for g, row, off in expr.pieces:
+                pieces_real.append((i, g, row, off, expr.parts))
+            want = t_on_model.get(i, "absent")
+            if want == "absent":
+                self.problems.append(f"switch {switch}: the model has no nonlinear term there")
+            elif (want or 0.0) > 0 or (t_on or 0.0) > 0:
+                report.entries.append(
+                    Entry(f"{switch} closing time", float(want or 0.0), float(t_on or 0.0),
+                          1e-3, (switch,))
+                )  # fmt: skip
+        states = self.sys.states
+        for i in range(n):
+            allowed = self.allowed(parts_row.get(i, ()))
+            for j in range(n):
+                if lin_model[i, j] or lin_real[i, j]:
+                    report.entries.append(
+                        Entry(f"nonlinear linear part [{states[i]}, {states[j]}]",
+                              lin_model[i, j], lin_real[i, j], allowed, parts_row.get(i, ()))
+                    )  # fmt: skip
+            if const_model[i] or const_real[i]:
+                report.entries.append(
+                    Entry(f"nonlinear constant [{states[i]}]", const_model[i], const_real[i],
+                          allowed, parts_row.get(i, ()))
+                )  # fmt: skip
+        # |x| pieces: normalize each row so its largest entry is +1, then match
+        real = [(i, g * abs(lam), row / lam, off / lam, parts)
+                for i, g, row, off, parts in pieces_real
+                for lam in [row[np.argmax(np.abs(row))]]]  # fmt: skip
+        for i, g, row, off in pieces_model:
+            lam = row[np.argmax(np.abs(row))]
+            g, row, off = g * abs(lam), row / lam, off / lam
+            match = [
+                p for p in real
+                if p[0] == i and np.allclose(p[2], row, rtol=1e-9, atol=1e-12)
+                and math.isclose(p[3], off, rel_tol=1e-9, abs_tol=1e-15)
+            ]  # fmt: skip
+            what = f"|x| piece into {states[i]} at offset {off:.6g}"
+            if not match:
+                self.problems.append(f"{what}: not in the netlist")
+                continue
+            total = sum(p[1] for p in match)
+            parts = tuple(sorted({q for p in match for q in p[4]}))
+            for p in match:
+                real.remove(p)
+            report.entries.append(Entry(f"{what} gain", g, total, self.allowed(parts), parts))
+        for p in real:
+            if p[1] != 0:
+                self.problems.append(
+                    f"an |x| piece into {states[p[0]]} (offset {p[3]:.6g}) the model lacks"
+                )
+
+    def stability(self, report: MappingReport) -> None:
+        report.eigenvalues_model = np.linalg.eigvals(report.A_model)
+        report.eigenvalues_realized = np.linalg.eigvals(report.A_realized)
+        hint = (self.sys.circuit_hints or {}).get("speed")
+        if not isinstance(hint, dict):
+            return
+        name = hint.get("parameter", "V")
+        if name not in self.sys.parameters:
+            return
+        index = {s: i for i, s in enumerate(self.sys.states)}
+        entries = [(index[a], index[b]) for a, b in hint.get("entries", [])]
+        speed = float(self.sys.parameters[name])
+        report.speed = speed
+        report.critical_speed_model = critical_speed(report.A_model, entries, speed)
+        report.critical_speed_realized = critical_speed(report.A_realized, entries, speed)
+        vm, vr = report.critical_speed_model, report.critical_speed_realized
+        if vm is not None and vr is not None and (vm - speed) * (vr - speed) < 0:
+            report.warnings.append(
+                f"rounding moves the critical speed across the simulated speed {speed:g}: "
+                f"model {vm:.4f}, realized circuit {vr:.4f} - the circuit's stability differs "
+                "from the model's (use series='exact' or E96)"
+            )
+
+
+def check_files(netlist: str | os.PathLike, system: System) -> MappingReport:
+    """Check ``FILE.cir`` with its ``FILE.scale.json`` and ``FILE.bom.csv`` beside it."""
+    path = Path(netlist)
+    stem = path.with_suffix("")
+    bom = Path(f"{stem}.bom.csv")
+    return check_mapping(
+        path, Path(f"{stem}.scale.json"), system, bom=bom if bom.exists() else None
+    )

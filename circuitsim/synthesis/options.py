@@ -1,0 +1,94 @@
+"""What the translator is asked to do: one frozen options object, validated once."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from circuitsim.synthesis.errors import SynthesisError
+
+#: Peak output swing (V) beyond which a signal is reported as clipping, per op-amp kind.
+SWING_LIMIT = {"ideal": math.inf, "tl074": 13.0}
+
+
+@dataclass(frozen=True)
+class SynthesisOptions:
+    """Translator options.
+
+    Attributes
+    ----------
+    opamp : str
+        ``"ideal"`` (high-gain controlled source) or ``"tl074"`` (macromodel, +/-15 V supplies).
+    nonlinear : str
+        ``"abs"``: each piecewise-linear term literally from precision |x| blocks (the paper's
+        form); ``"deadzone"``: one dead-zone block where the term has that shape.
+    scaling : str
+        ``"auto"``: volts per unit from the direct solution's peaks (or ``ranges``) to ``swing``;
+        ``"unity"``: 1 V per SI unit for every state (the paper's mapping).
+    swing : float
+        Target peak voltage of every state signal in ``auto`` scaling (V).
+    time_scale : float
+        K: one model second takes 1/K circuit seconds (1 = real time).
+    series : str
+        Resistor rounding: ``"E96"``, ``"E24"`` or ``"exact"``.
+    t_stop : float or None
+        Model seconds to simulate (and to take peaks over); None: the model's hint or 5 s.
+    ranges : dict of str to float
+        User-given peak magnitude per state (SI units), overriding the direct solution's peak.
+    r_min, r_max : float
+        Preferred resistor range (ohms); values outside it are warned about.
+    r_unit : float
+        Resistor of the unity-gain stages (inverters, summer feedback), ohms.
+    switch_ron, switch_roff : float
+        The switch model's on and off resistance (ohms); Ron is compensated in the series R.
+    points_per_period : int
+        ``.tran`` maximum step = shortest period of the run / this.
+    """
+
+    opamp: str = "ideal"
+    nonlinear: str = "abs"
+    scaling: str = "auto"
+    swing: float = 5.0
+    time_scale: float = 1.0
+    series: str = "E96"
+    t_stop: float | None = None
+    ranges: dict[str, float] = field(default_factory=dict)
+    r_min: float = 1e3
+    r_max: float = 1e6
+    r_unit: float = 10e3
+    switch_ron: float = 1.0
+    switch_roff: float = 1e12
+    points_per_period: int = 200
+
+    def validated(self) -> SynthesisOptions:
+        """Self, after checking every field; SynthesisError naming the bad option."""
+        choices = {
+            "opamp": ("ideal", "tl074"),
+            "nonlinear": ("abs", "deadzone"),
+            "scaling": ("auto", "unity"),
+        }
+        for key, allowed in choices.items():
+            if getattr(self, key) not in allowed:
+                raise SynthesisError(
+                    f"option {key}={getattr(self, key)!r}: choose one of {', '.join(allowed)}"
+                )
+        if self.series.lower() not in ("e96", "e24", "exact"):
+            raise SynthesisError(f"option series={self.series!r}: choose E96, E24 or exact")
+        positive = ("swing", "time_scale", "r_min", "r_max", "r_unit", "switch_ron")
+        for key in positive:
+            value = getattr(self, key)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                raise SynthesisError(f"option {key}={value!r}: must be a positive number")
+        if self.t_stop is not None and not (math.isfinite(self.t_stop) and self.t_stop > 0):
+            raise SynthesisError(f"option t_stop={self.t_stop!r}: must be a positive number")
+        if self.r_min >= self.r_max:
+            raise SynthesisError("option r_min must be below r_max")
+        for name, peak in self.ranges.items():
+            if not (math.isfinite(peak) and peak > 0):
+                raise SynthesisError(f"option ranges[{name!r}]={peak!r}: must be positive")
+        return self
+
+    @property
+    def series_key(self) -> str:
+        """``"E96"``, ``"E24"`` or ``"exact"``."""
+        return "exact" if self.series.lower() == "exact" else self.series.upper()

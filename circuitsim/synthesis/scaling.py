@@ -1,0 +1,118 @@
+"""Amplitude and time scaling: how many volts stand for one unit of each state.
+
+With node voltage u_i = G_i x_i and circuit time tau = t / K, the model's
+
+    dx_i/dt = sum_j A_ij x_j + ...
+
+becomes du_i/dtau = sum_j (K G_i A_ij / G_j) u_j + ..., so every coefficient the circuit must
+realize is the model's, multiplied by K G_i / G_j. ``auto`` scaling picks G_i so the state's
+peak over the run (from the direct solution, or a user-given range) reaches the target swing;
+``unity`` keeps G_i = 1 V per SI unit, the paper's mapping.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from circuitsim.mechanics.system import System
+from circuitsim.synthesis.errors import SynthesisError
+from circuitsim.synthesis.eseries import floor_to_series
+from circuitsim.synthesis.options import SynthesisOptions
+
+
+@dataclass(frozen=True)
+class Scaling:
+    """The chosen scales.
+
+    Attributes
+    ----------
+    volts_per_unit : ndarray, shape (n,)
+        G_i, volts per SI unit of state i (positive: the mapped node carries +x).
+    peaks : ndarray, shape (n,)
+        Peak magnitude of each state over the run (SI units) that the scales were set from.
+    time_scale : float
+        K.
+    warnings : tuple of str
+    """
+
+    volts_per_unit: np.ndarray
+    peaks: np.ndarray
+    time_scale: float
+    warnings: tuple[str, ...] = ()
+
+
+def direct_solution(system: System, t_stop: float) -> tuple[np.ndarray, np.ndarray]:
+    """Integrate the model over [0, t_stop] for its peaks (not a reference-grade solution).
+
+    Returns
+    -------
+    t : ndarray, shape (m,)
+        Seconds.
+    x : ndarray, shape (n, m)
+        States.
+    """
+    x0 = np.zeros(system.n) if system.x0 is None else np.asarray(system.x0, dtype=float)
+    fastest = max(
+        [abs(f.frequency) for f in system.forcing]
+        + [float(np.max(np.abs(np.linalg.eigvals(system.A)))) / (2 * np.pi)]
+        + [1.0 / t_stop]
+    )
+    result = solve_ivp(
+        system.rhs,
+        (0.0, t_stop),
+        x0,
+        method="RK45",
+        rtol=1e-7,
+        atol=1e-12,
+        max_step=1.0 / (40.0 * fastest),
+    )
+    if not result.success:
+        raise SynthesisError(f"direct solution for the scaling failed: {result.message}")
+    return result.t, result.y
+
+
+def choose_scaling(
+    system: System,
+    options: SynthesisOptions,
+    t_stop: float,
+    trajectory: tuple[np.ndarray, np.ndarray] | None = None,
+) -> Scaling:
+    """Volts per unit for every state, from ``options.scaling`` and ``options.ranges``.
+
+    ``trajectory`` is the direct solution (t, x) if already computed (else it is computed
+    here when peaks are needed).
+    """
+    unknown = set(options.ranges) - set(system.states)
+    if unknown:
+        raise SynthesisError(
+            f"ranges given for unknown state(s) {', '.join(sorted(unknown))}; "
+            f"the model's states are {', '.join(system.states)}"
+        )
+    if options.scaling == "unity":
+        ones = np.ones(system.n)
+        return Scaling(ones, np.full(system.n, math.nan), options.time_scale)
+    warnings: list[str] = []
+    if len(options.ranges) == system.n:
+        peaks = np.array([options.ranges[s] for s in system.states], dtype=float)
+    else:
+        _, x = trajectory if trajectory is not None else direct_solution(system, t_stop)
+        peaks = np.max(np.abs(x), axis=1)
+        for i, name in enumerate(system.states):
+            if name in options.ranges:
+                peaks[i] = options.ranges[name]
+    gains = np.empty(system.n)
+    for i, name in enumerate(system.states):
+        if not peaks[i] > 0:
+            warnings.append(
+                f"state {name} stays at zero over the run; scaled 1 V per unit "
+                "(give its range to choose another scale)"
+            )
+            gains[i] = 1.0
+            continue
+        # a readable scale (E24 value) just below the one that reaches the swing exactly
+        gains[i] = floor_to_series(options.swing / peaks[i], "E24")
+    return Scaling(gains, peaks, options.time_scale, tuple(warnings))
