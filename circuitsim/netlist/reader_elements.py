@@ -322,23 +322,23 @@ def _once(c: Cursor, fields: dict[str, object], key: str, value: object) -> None
     fields[key] = value
 
 
+_NONLINEAR = ("poly", "value", "table", "vol", "cur", "laplace")
+
+
 def _voltage_controlled(cls: type, usage: str, value_name: str) -> Callable[..., Element]:
     def parse(c: Cursor, name: str) -> Element:
-        nodes = [c.node(w) for w in ("node n+", "node n-", "node nc+", "node nc-")]
+        nodes = [c.node("node n+"), c.node("node n-")]
         token = c.peek()
+        following = c.tokens[c.pos + 1] if c.pos + 1 < len(c.tokens) else None
         if (
             token is not None
             and token.kind == "word"
-            and token.text.lower()
-            in (
-                "poly",
-                "value",
-                "table",
-                "vol",
-                "cur",
-            )
+            and token.text.lower() in _NONLINEAR
+            and following is not None
+            and following.kind in ("(", "=")
         ):
             raise c.error(f"nonlinear form {token.text.upper()} is not supported, only linear")
+        nodes += [c.node("node nc+"), c.node("node nc-")]
         gain = c.value(value_name)
         c.finish()
         return cls(name, *nodes, gain)

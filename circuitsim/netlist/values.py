@@ -73,9 +73,15 @@ def parse_value(text: str) -> float:
         raise ValueError(f"not a number: {text!r} (expected e.g. 1.5, 2e-3, 4.7k, 10uF)")
     rest = match["rest"]
     if rest and not (rest.isascii() and rest.isalpha()):
+        # 4k7 means 4000 to ngspice and 4700 to LTspice: refuse rather than guess
+        hint = (
+            f"; write {match['mantissa']}.{rest[1:]}{rest[0]}, not {stripped}"
+            if re.fullmatch(r"[a-zA-Z]\d+", rest) and rest[0].lower() in _POWERS
+            else ""
+        )
         raise ValueError(
             f"not a number: {text!r} (found {rest!r} after the number, where only a scale "
-            "suffix and unit letters may follow, e.g. 4.7k or 10uF; write 4.7k, not 4k7)"
+            f"suffix and unit letters may follow, e.g. 4.7k or 10uF{hint})"
         )
     exponent = int(match["exponent"] or 0)
     if abs(exponent) > _MAX_EXPONENT:
