@@ -9,8 +9,11 @@ each rule (and which rules could not be tried here) are listed in docs/netlists.
 - LTspice (published help, not run here): ``^`` is Boolean XOR, ``**`` is the power operator;
   ``ln``/``log`` natural, ``log10``; switch model parameters written ``Ron Roff Vt Vh``; no
   ``.control`` blocks.
-- Multisim (SPICE3f5/XSPICE based, not run here): ``^`` is the SPICE3 power operator; node names
-  restricted to letters, digits and ``_``; no ``.control`` blocks.
+- Multisim (SPICE3f5/XSPICE based, not run here; NI's "Compatibility Modes" help): ``**`` is
+  the power operator in its default mode (``^`` too, but ``^`` turns into XOR under
+  ``.SYNTAX PS``), ``log`` is natural in ``.param`` but base 10 in B sources and in MS/XS mode,
+  so ``ln`` again; subcircuit instances take PSpice's ``params:`` keyword; node names are kept
+  to letters, digits and ``_``; no ``.control`` blocks.
 """
 
 from __future__ import annotations
@@ -36,6 +39,8 @@ class Dialect:
     model_param_names : dict of (str, str) to str
         ``(model kind, lower-case parameter)`` to the spelling written; others are written in
         lower case.
+    instance_params_keyword : bool
+        Whether ``X`` lines write ``params:`` before their ``name=value`` pairs.
     node_pattern : str
         Regular expression a node name must match in full; others are renamed.
     width : int
@@ -46,6 +51,7 @@ class Dialect:
     power: str
     control_blocks: bool
     model_param_names: dict[tuple[str, str], str] = field(default_factory=dict)
+    instance_params_keyword: bool = False
     node_pattern: str = r"[A-Za-z0-9_.\-+:#!<>\[\]/]+"
     width: int = 80
 
@@ -65,7 +71,7 @@ DIALECTS: dict[str, Dialect] = {
     ),
     "multisim": Dialect(
         name="multisim",
-        power="^",
+        power="**",
         control_blocks=False,
         model_param_names={
             ("SW", "ron"): "RON",
@@ -73,6 +79,7 @@ DIALECTS: dict[str, Dialect] = {
             ("SW", "vt"): "VT",
             ("SW", "vh"): "VH",
         },
+        instance_params_keyword=True,
         node_pattern=r"[A-Za-z0-9_]+",
     ),
 }

@@ -229,6 +229,8 @@ class _Writer:
                 tokens.append(v(element.area))
         elif isinstance(element, SubcircuitCall):
             tokens.append(element.subcircuit)
+            if element.params and self.dialect.instance_params_keyword:
+                tokens.append("params:")
             tokens += [f"{k}={v(val)}" for k, val in element.params.items()]
         else:
             raise NetlistError(f"{element.name}: cannot write a {type(element).__name__}")

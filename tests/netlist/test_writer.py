@@ -135,9 +135,10 @@ def test_expressions_power_and_logarithm_per_dialect():
     c.add(Resistor("R1", "x", "0", Expression("a*b")))
     params = {d: write_netlist(c, d).splitlines()[1:3] for d in DIALECTS}
     assert params["ngspice"] == [".param a={2**3 + 10**2}", ".param b={ln(a) + log10(a) + ln(2)}"]
-    # LTspice reads ^ as Boolean XOR: the power must be **.
+    # LTspice reads ^ as Boolean XOR: the power must be **. Never the ambiguous log.
     assert params["ltspice"] == params["ngspice"]
-    assert params["multisim"] == [".param a={2^3 + 10^2}", ".param b={ln(a) + log10(a) + ln(2)}"]
+    # Multisim: ** is its default-mode power (^ would be XOR under .SYNTAX PS).
+    assert params["multisim"] == params["ngspice"]
 
 
 def test_nested_subcircuit_with_parameters():
@@ -254,3 +255,16 @@ def test_names_spice_cannot_read_back_raise(element):
     c = Circuit(title="names", elements=[element])
     with pytest.raises(NetlistError, match="cannot write element"):
         write_netlist(c)
+
+
+def test_instance_parameters_keyword_only_for_multisim():
+    c = Circuit(title="x", elements=[SubcircuitCall("X1", ("a", "b"), "blk", {"r": 1e3})])
+    lines = {d: write_netlist(c, d).splitlines()[1] for d in DIALECTS}
+    assert lines["ngspice"] == lines["ltspice"] == "X1 a b blk r=1k"
+    assert lines["multisim"] == "X1 a b blk params: r=1k"
+    assert (
+        write_netlist(
+            Circuit(title="x", elements=[SubcircuitCall("X2", ("a",), "b")]), "multisim"
+        ).splitlines()[1]
+        == "X2 a b"
+    )
