@@ -14,9 +14,11 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from circuitsim.netlist.circuit import Circuit, Pwl, Sin, Transient, VoltageSource
+from circuitsim.netlist.circuit import Circuit, Pwl, Resistor, Sin, Transient, VoltageSource
 from circuitsim.netlist.library import LIBRARY_PATH
 from circuitsim.solver.waveforms import Waveforms
+from circuitsim.synthesis.nonlinear import add_dead_zone, add_precision_abs
+from circuitsim.synthesis.opamps import add_opamp
 
 Run = Callable[[str], Waveforms]
 
@@ -136,6 +138,11 @@ def _crossing(t: np.ndarray, v: np.ndarray, level: float) -> float:
 
 BLOCK_R = 10e3
 """Resistance the block benches use, ohms."""
+FULL_SCALE = 10.0
+"""The ramp benches sweep -FULL_SCALE .. +FULL_SCALE volts."""
+ETA = 2.0
+"""Dead-zone half-width of the block benches, volts (the abs form then sees up to 12 V,
+inside the TL074 block's range, docs/parts.md)."""
 
 
 def ramp_circuit(span: float = 10.0, duration: float = 10e-3) -> Circuit:
@@ -182,8 +189,6 @@ def glitch(
         Time-average of |v(out) - |v(in)|| over that of |v(in)| (what an integrator fed by
         the block sees), dimensionless.
     """
-    from circuitsim.synthesis.nonlinear import add_precision_abs
-
     circuit = sine_circuit(amplitude, frequency)
     add_precision_abs(circuit, "ABS1", "in", "out", BLOCK_R, kind)
     waves = run_circuit(circuit)
@@ -200,3 +205,64 @@ def glitch(
 def _integral(t: np.ndarray, y: np.ndarray) -> float:
     """Trapezoid integral of samples ``y`` over times ``t``."""
     return float(np.sum(np.diff(t) * (y[1:] + y[:-1]) / 2.0))
+
+
+def _abs(circuit, kind):
+    add_precision_abs(circuit, "ABS1", "in", "out", BLOCK_R, kind)
+    return np.abs
+
+
+def _abs_negative(circuit, kind):
+    add_precision_abs(circuit, "ABS1", "in", "out", BLOCK_R, kind, sign=-1)
+    return lambda x: -np.abs(x)
+
+
+def _abs_offset(circuit, kind):
+    add_precision_abs(circuit, "ABS1", "in", "out", BLOCK_R, kind, offset_volts=-1.5)
+    return lambda x: np.abs(x - 1.5)
+
+
+def _dead_zone(circuit, kind):
+    add_dead_zone(circuit, "DZ1", "in", "out", ETA, BLOCK_R, kind)
+    return lambda x: dead_zone(x, ETA)
+
+
+def _dead_zone_supplies(circuit, kind):
+    add_dead_zone(circuit, "DZ1", "in", "out", ETA, BLOCK_R, kind, bias="supplies")
+    return lambda x: dead_zone(x, ETA)
+
+
+def _flange_from_two_abs(circuit, kind):
+    # y - |y + eta| / 2 + |y - eta| / 2 with an inverting summer fed -y, +|y+eta| and
+    # -|y-eta|: the paper's form of the flange force (divided by k).
+    add_precision_abs(circuit, "ABS1", "in", "a1", BLOCK_R, kind, offset_volts=ETA)
+    add_precision_abs(circuit, "ABS2", "in", "a2", BLOCK_R, kind, offset_volts=-ETA, sign=-1)
+    circuit.add(
+        Resistor("RS1", "nin", "sum", BLOCK_R),
+        Resistor("RS2", "a1", "sum", 2 * BLOCK_R),
+        Resistor("RS3", "a2", "sum", 2 * BLOCK_R),
+        Resistor("RS4", "sum", "out", BLOCK_R),
+    )
+    add_opamp(circuit, "XSUM", "0", "sum", "out", kind)
+    return lambda x: dead_zone(x, ETA)
+
+
+BLOCKS = {
+    "abs": _abs,
+    "abs_negative": _abs_negative,
+    "abs_offset": _abs_offset,
+    "dead_zone": _dead_zone,
+    "dead_zone_supplies": _dead_zone_supplies,  # tl074 only
+    "flange_from_two_abs": _flange_from_two_abs,
+}
+"""Block benches: name -> build(circuit, kind) that adds the block from ``in`` (and ``nin``
+= -in) to ``out`` and returns the reference function of v(in)."""
+
+
+def transfer_curve(run_circuit: Callable[[Circuit], Waveforms], block: str, kind: str):
+    """The slow-ramp transfer curve of ``block``: (v(in), v(out), reference), V, shape (m,)."""
+    circuit = ramp_circuit(FULL_SCALE)
+    reference = BLOCKS[block](circuit, kind)
+    waves = run_circuit(circuit)
+    x = waves["in"]
+    return x, waves["out"], reference(x)

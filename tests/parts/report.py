@@ -20,6 +20,7 @@ from circuitsim.interop.ngspice import run_ngspice  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 FIGURE = ROOT / "docs" / "figures" / "tl074_step.png"
+KINDS = ("ideal", "tl074")
 
 
 def engines() -> dict:
@@ -100,6 +101,19 @@ def main() -> None:
                 peak, width, mean = partbench.glitch(run, kind, f)
                 cells.append(f"{peak * 1e3:.3g}, {width * 1e6:.3g}, {mean * 100:.3g}")
         print(f"| {f:g} | {2 * np.pi * f * 5.0 / 1e3:.3g} | " + " | ".join(cells) + " |")
+    print()
+    print("| block | " + " | ".join(f"{n} {k} max error (mV)" for n in runs for k in KINDS) + " |")
+    print("|---|" + "---|" * (2 * len(runs)))
+    for block in partbench.BLOCKS:
+        cells = []
+        for run in runs.values():
+            for kind in KINDS:
+                if block == "dead_zone_supplies" and kind != "tl074":
+                    cells.append("-")
+                    continue
+                x, y, reference = partbench.transfer_curve(run, block, kind)
+                cells.append(f"{np.max(np.abs(y - reference)) * 1e3:.3g}")
+        print(f"| {block} | " + " | ".join(cells) + " |")
     plot_steps(runs)
     print(f"\nwrote {FIGURE}")
 
