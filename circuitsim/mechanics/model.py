@@ -129,9 +129,9 @@ class Model:
         try:
             return item.expression(dict(env))
         except ExpressionError as exc:
-            raise self._fail(
-                item.key, f"bad expression (with coefficient set {coefficients!r}): {exc}"
-            ) from None
+            named = list(self.spec.coefficient_sets) != ["default"]
+            where = f" (with coefficient set {coefficients!r})" if named else ""
+            raise self._fail(item.key, f"bad expression{where}: {exc}") from None
 
     def _switches(self, given, defaults: dict[str, bool], what: str) -> dict[str, bool]:
         chosen = dict(defaults)
