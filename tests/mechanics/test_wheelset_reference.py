@@ -1,5 +1,6 @@
 """The wheelset against MODEL.md's reference numbers (computed independently, rtol 1e-11)."""
 
+import numpy as np
 import pytest
 
 from circuitsim.mechanics import load_model, solve
@@ -51,3 +52,41 @@ def test_free_response_decays_below_and_grows_above_critical_speed(wheelset, spe
     )
     result = solve(system, t_span=(0, 10))
     assert result.max_abs("y", 9.0, 10.0) == pytest.approx(expected, rel=1e-2)
+
+
+def test_plain_force_equals_track_displacement_times_k_y(wheelset):
+    # MODEL.md: F0 = k_y * a; the 'force' group written with F0 must give the same motion
+    track = wheelset.system(parameters={"f": 5, "a": 0.01})
+    force = wheelset.system(
+        parameters={"f": 5, "F0": 4.81e6 * 0.01}, forcing={"track": False, "force": True}
+    )
+    assert np.allclose(track.forcing[0].direction * 0.01, force.forcing[0].direction * 4.81e4)
+    t = np.linspace(0, 1, 201)
+    a, b = solve(track, (0, 1)).sol(t), solve(force, (0, 1)).sol(t)
+    assert np.max(np.abs(a - b)) < 1e-9 * np.max(np.abs(a))
+
+
+def test_wheelset_state_matrix_is_equation_5(wheelset):
+    # equation (5) written out by hand at V = 55 m/s
+    V = 55.0
+    expected = np.array(
+        [
+            [0, 0, 1, 0],
+            [0, 0, 0, 1],
+            [-4.81e6 / 1500, 7.24e6 / 1500, -7.24e6 / V / 1500, 0],
+            [-4.02e6 / 1200, -3.07e6 / 1200, 0, -4.36e6 / V / 1200],
+        ]
+    )
+    system = wheelset.system(parameters={"V": V})
+    assert np.allclose(system.A, expected, rtol=1e-14, atol=0)
+    flange = system.nonlinear[0]
+    # F_t(y) = k y - (k/2)(|y + eta| - |y - eta|) on the left of the lateral equation
+    for y, expected_force in [
+        (0.0, 0.0),
+        (0.005, 0.0),
+        (0.012, 1.7e7 * 0.003),
+        (-0.02, -1.7e7 * 0.011),
+    ]:
+        x = np.array([y, 0, 0, 0])
+        assert flange.value(x) == pytest.approx(expected_force, abs=1e-6)
+    assert np.allclose(flange.direction, [0, 0, -1 / 1500, 0])
