@@ -40,6 +40,8 @@ _ERROR_LINE = re.compile(
     r"|unknown subckt|could not find|unable to find definition|no such vector|not found",
     re.IGNORECASE,
 )
+# ngspice prints tables of node values ("out   1.5"); a node called "error" is not an error.
+_TABLE_ROW = re.compile(r"^\s*\S+\s+[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*$")
 _MAX_LOG_LINES = 40
 
 
@@ -270,7 +272,9 @@ def _error_lines(log: str) -> str:
     lines = log.splitlines()
     picked: dict[str, None] = {}
     for index, line in enumerate(lines):
-        if line.startswith("Circuit:") or not _ERROR_LINE.search(line):
+        if line.startswith("Circuit:") or _TABLE_ROW.match(line):
+            continue
+        if not _ERROR_LINE.search(line):
             continue
         for extra in lines[index : index + 2]:
             if extra.strip():

@@ -138,3 +138,16 @@ def test_parse_ascii_raw_by_hand():
         parse_ascii_raw(text.replace("No. Points: 2", "No. Points: 3"))
     with pytest.raises(NgspiceError, match="complex"):
         parse_ascii_raw(text.replace("Flags: real", "Flags: complex"))
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+def test_words_like_error_in_names_are_not_failures():
+    # ngspice echoes the title and prints node tables; neither is an error report.
+    text = (
+        "Error and singular matrix in the title\n"
+        "V1 error 0 PULSE(0 1 0 1u 1u 1m 2m)\nR1 error singular 1k\nC1 singular 0 1u\n"
+        ".tran 10u 1m\n.end\n"
+    )
+    waves = run_ngspice(text)
+    assert waves.names == ["v(error)", "v(singular)", "i(v1)"]
