@@ -7,12 +7,13 @@ The model file's ``[circuit]`` table (``System.circuit_hints``) may name parts::
     inverters = { y = "U1B", ... }        # ... and of its inverter
     capacitors = { y = "C1", ... }        # integrator capacitor
     switches = { flange = "S1" }          # the switch of a piecewise-linear term
-    sources = { forcing1 = "XFG1" }       # the generator of the k-th enabled forcing (1-based)
+    sources = { track = "XFG1" }          # the generator of a forcing term
     [circuit.resistors]                   # input resistors, by integrator then input
-    y_dot = { y = "R31", flange = "R3", forcing1 = "R17" }
+    y_dot = { y = "R31", flange = "R3", track = "R17" }
 
-Inputs are keyed by a state name (linear term), a piecewise-linear term's name, ``forcing<k>``
-or ``constant``. Without a hint the same rule generates a name, with states numbered from 1:
+Inputs are keyed by a state name (linear term), a piecewise-linear term's name, a forcing
+term's name (``forcing<k>`` for an unnamed k-th enabled forcing, 1-based) or ``constant``.
+Without a hint the same rule generates a name, with states numbered from 1:
 ``R<i><j>`` for state j into integrator i (``R<i>_<j>`` past 9 states), ``R<i>F<k>`` for forcing
 k, ``R<i>N<t>`` for nonlinear term t, ``R<i>B`` for the constant, ``C<i>``, op-amp sections
 ``U<p><A-D>`` two per state in order (integrator, inverter), ``S<t>`` (``S<t>_<i>`` when a
@@ -100,8 +101,9 @@ class PartNames:
     def linear_resistor(self, target: str, source: str) -> str:
         return self.input_resistor(target, source, f"R{self._pair(target, self._number(source))}")
 
-    def forcing_resistor(self, target: str, k: int) -> str:
-        return self.input_resistor(target, f"forcing{k}", f"R{self._pair(target, f'F{k}')}")
+    def forcing_resistor(self, target: str, k: int, key: str) -> str:
+        """Resistor of forcing number k (1-based), hinted under ``key`` (its name)."""
+        return self.input_resistor(target, key, f"R{self._pair(target, f'F{k}')}")
 
     def nonlinear_resistor(self, target: str, term: str, t: int) -> str:
         return self.input_resistor(target, term, f"R{self._pair(target, f'N{t}')}")
@@ -131,8 +133,9 @@ class PartNames:
             name = f"S{t}{suffix}"
         return self._claim(_with_letter("S", name), f"switch of {term} into {target}")
 
-    def forcing_source(self, k: int, negated: bool = False) -> str:
-        hint = self.hints.get("sources", {}).get(f"forcing{k}") or f"FG{k}"
+    def forcing_source(self, k: int, key: str, negated: bool = False) -> str:
+        """Generator of forcing number k (1-based), hinted under ``key`` (its name)."""
+        hint = self.hints.get("sources", {}).get(key) or f"FG{k}"
         name = _with_letter("V", str(hint)) + ("N" if negated else "")
         return self._claim(name, f"generator of forcing {k}")
 

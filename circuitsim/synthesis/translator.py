@@ -191,12 +191,13 @@ def _add_forcing(system, circuit, names, nodes, inputs, G, K, options) -> None:
         amplitude = volts_per_unit * force.amplitude
         if abs(amplitude) > options.swing and options.scaling == "auto":
             amplitude = math.copysign(options.swing, amplitude)
+        key = getattr(force, "name", "") or f"forcing{k}"
         first_sign = np.sign(direction[used[0]])
         sources = {}
         for sign in (first_sign, -first_sign):
             if not np.any(np.sign(direction[used]) == sign):
                 continue
-            name = names.forcing_source(k, negated=sign != first_sign)
+            name = names.forcing_source(k, key, negated=sign != first_sign)
             node = name.lower()
             circuit.add(
                 VoltageSource(
@@ -215,7 +216,7 @@ def _add_forcing(system, circuit, names, nodes, inputs, G, K, options) -> None:
             entry = float(direction[i]) * force.amplitude
             inputs[target].append(
                 _Input(
-                    names.forcing_resistor(target, k),
+                    names.forcing_resistor(target, k, key),
                     sources[np.sign(direction[i])],
                     K * G[i] * abs(entry) / abs(amplitude),
                     float(direction[i]),
