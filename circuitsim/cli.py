@@ -81,6 +81,12 @@ def _add_stability(sub: argparse._SubParsersAction) -> None:
         help="speed interval (m/s) searched for the loss of stability (default: 1 1000)",
     )
     parser.add_argument(
+        "--parameter",
+        metavar="NAME",
+        help="parameter to sweep instead of the speed (for user models; --speed and --bracket "
+        "are then in its unit); default: the model's [options] speed (wheelset: V)",
+    )
+    parser.add_argument(
         "--json",
         action="store_true",
         help="print one JSON object: critical_speed (m/s), hunting_frequency (Hz), speed "
@@ -95,7 +101,13 @@ def _run_stability(args: argparse.Namespace) -> int:
     from circuitsim.mechanics import critical_speed, eigenvalues, load_model
 
     model = load_model(args.model)
-    speed_parameter = model.option_parameters({"speed": 0.0}).popitem()[0]
+    if args.parameter:
+        speed_parameter = args.parameter
+        if speed_parameter not in model.parameters:
+            # eigenvalues() raises the ModelError naming the file and the known parameters
+            eigenvalues(model, speed_parameter, [0.0])
+    else:
+        speed_parameter = model.option_parameters({"speed": 0.0}).popitem()[0]
     speed = model.parameters[speed_parameter] if args.speed is None else args.speed
     coefficients = args.coeffs or model.default_coefficients
     value, frequency = critical_speed(
@@ -114,9 +126,11 @@ def _run_stability(args: argparse.Namespace) -> int:
         print(json.dumps(report))
         return 0
     print(f"model {model.name}, coefficient set {coefficients}")
-    print(f"critical speed     {value:.4f} m/s")
+    unit = model.parameter_info[speed_parameter].unit
+    label = f"critical {speed_parameter}" if args.parameter else "critical speed"
+    print(f"{label:18s} {value:.4f} {unit}")
     print(f"hunting frequency  {frequency:.4f} Hz")
-    print(f"eigenvalues at {speed_parameter} = {speed:g} m/s (1/s):")
+    print(f"eigenvalues at {speed_parameter} = {speed:g} {unit} (1/s):")
     for v in lam:
         print(f"  {v.real:+.6g} {v.imag:+.6g}j")
     return 0
@@ -333,6 +347,166 @@ def _run_check(args: argparse.Namespace) -> int:
 
 
 COMMANDS.append(_add_check)
+
+
+def _add_scenario_options(parser: argparse.ArgumentParser) -> None:
+    """--speed, --freq, --amplitude, --flange/--no-flange and --param: the run's scenario.
+
+    Shared by the verbs that build a System from a model file (see ``_scenario_system``).
+    """
+    parser.add_argument("--speed", type=float, metavar="V", help="forward speed, m/s (default 55)")
+    parser.add_argument(
+        "--freq", type=float, metavar="F", help="excitation frequency, Hz (default 3)"
+    )
+    parser.add_argument(
+        "--amplitude",
+        type=float,
+        metavar="A",
+        help="excitation amplitude as a lateral track displacement, m (default 0.040)",
+    )
+    parser.add_argument(
+        "--flange",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="switch the piecewise-linear terms (wheelset: the flange force, switch S1) on or "
+        "off; default: as the model file says (wheelset: on)",
+    )
+    parser.add_argument(
+        "--param",
+        type=_parameter_assignment,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="set any model parameter in its SI unit (repeatable), e.g. --param eta=0.01",
+    )
+
+
+def _scenario_system(args: argparse.Namespace):
+    """The System of ``--model``/``--coeffs`` and the scenario options."""
+    from circuitsim.mechanics import load_model
+
+    model = load_model(args.model)
+    parameters = model.option_parameters(
+        {"speed": args.speed, "freq": args.freq, "amplitude": args.amplitude}
+    )
+    parameters.update(dict(args.param))
+    nonlinear = None
+    if args.flange is not None:
+        nonlinear = {name: args.flange for name in model.nonlinear_terms}
+    return model.system(args.coeffs, parameters, nonlinear)
+
+
+def _state_range(text: str) -> tuple[str, float]:
+    name, sep, value = text.partition("=")
+    try:
+        if not sep or not name.strip() or float(value) <= 0:
+            raise ValueError
+        return name.strip(), float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected STATE=PEAK with a positive number, got {text!r}"
+        ) from None
+
+
+def _add_generate(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "generate",
+        help="write the model's op-amp analog-computer netlist, scale file and BOM",
+        description=(
+            "Translate the model into an op-amp circuit (one integrator and one inverter per "
+            "state, |x| or dead-zone blocks for the piecewise-linear terms, the paper's part "
+            "names for the wheelset) and write FILE.cir, FILE.scale.json (how node voltages "
+            "map back to states) and FILE.bom.csv (parts, rounding errors). The written "
+            "netlist is read back and its coefficients checked against the model. See "
+            "docs/translator.md."
+        ),
+    )
+    _add_model_options(parser)
+    _add_scenario_options(parser)
+    parser.add_argument(
+        "--opamp", choices=("ideal", "tl074"), default="ideal", help="op-amp model (default ideal)"
+    )
+    parser.add_argument(
+        "--nonlinear",
+        choices=("abs", "deadzone"),
+        default="abs",
+        help="piecewise-linear terms from |x| blocks (the paper's form, default) or one "
+        "dead-zone block",
+    )
+    parser.add_argument(
+        "--scaling",
+        choices=("auto", "unity"),
+        default="auto",
+        help="auto: volts per unit from the direct solution's peaks to --swing (default); "
+        "unity: 1 V per SI unit (the paper's mapping)",
+    )
+    parser.add_argument(
+        "--swing", type=float, default=5.0, metavar="VOLTS", help="target peak, V (default 5)"
+    )
+    parser.add_argument(
+        "--range",
+        type=_state_range,
+        action="append",
+        default=[],
+        metavar="STATE=PEAK",
+        help="expected peak of a state in SI units, instead of the direct solution's (repeatable)",
+    )
+    parser.add_argument(
+        "--time-scale",
+        type=float,
+        default=1.0,
+        metavar="K",
+        help="one model second takes 1/K circuit seconds (default 1, real time)",
+    )
+    parser.add_argument(
+        "--series",
+        choices=("E96", "E24", "exact"),
+        default="E96",
+        help="resistor values (default E96)",
+    )
+    parser.add_argument(
+        "--dialect",
+        choices=("ngspice", "ltspice", "multisim"),
+        default="ngspice",
+        help="netlist dialect (default ngspice)",
+    )
+    parser.add_argument(
+        "--tstop", type=float, metavar="T", help="model seconds to simulate (default 5)"
+    )
+    parser.add_argument(
+        "--switch-at",
+        type=float,
+        metavar="T",
+        help="close the nonlinear switches (S1) at model time T instead of from the start",
+    )
+    parser.add_argument("-o", "--output", required=True, metavar="FILE.cir", help="netlist file")
+    parser.set_defaults(func=_run_generate)
+
+
+def _run_generate(args: argparse.Namespace) -> int:
+    from circuitsim.synthesis.generate import generate, switch_at
+    from circuitsim.synthesis.options import SynthesisOptions
+
+    system = switch_at(_scenario_system(args), args.switch_at)
+    options = SynthesisOptions(
+        opamp=args.opamp,
+        nonlinear=args.nonlinear,
+        scaling=args.scaling,
+        swing=args.swing,
+        time_scale=args.time_scale,
+        series=args.series,
+        t_stop=args.tstop,
+        ranges=dict(args.range),
+    )
+    result = generate(system, args.output, options, args.dialect)
+    for warning in result.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    print(f"wrote {result.netlist}, {result.scale_file}, {result.bom_file}")
+    print(result.report.summary())
+    return 0 if result.report.ok else 1
+
+
+COMMANDS.append(_add_generate)
 
 
 # --- end of verbs ---

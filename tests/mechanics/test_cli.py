@@ -123,3 +123,20 @@ def test_user_model_through_the_cli(tmp_path, capsys):
     assert main(argv) == 0
     out = capsys.readouterr().out
     assert "+0.05" in out and "0 kink crossings" in out
+
+
+def test_stability_of_a_user_model_in_another_parameter(tmp_path, capsys):
+    # x'' + (c - mu) x' + k x = 0: critical mu = c = 0.3, frequency sqrt(k) / (2 pi) Hz
+    path = tmp_path / "osc.toml"
+    path.write_text(
+        '[model]\nname = "osc"\nkind = "second_order"\n[coordinates]\nnames = ["x"]\n'
+        "[parameters]\nmu = 0.0\nc = 0.3\nk = 16.0\n"
+        '[matrices]\nM = [[1]]\nC = [["c - mu"]]\nK = [["k"]]\n'
+    )
+    argv = ["stability", "--model", str(path), "--parameter", "mu", "--bracket", "0.01", "10"]
+    assert main(argv + ["--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["critical_speed"] == pytest.approx(0.3, rel=1e-9)
+    assert report["hunting_frequency"] == pytest.approx(4 / (2 * np.pi), rel=1e-9)
+    assert main(["stability", "--model", str(path)]) == 1
+    assert "no parameter for --speed" in capsys.readouterr().err
