@@ -125,7 +125,7 @@ def mutated_corpus(draw):
 
 
 @given(mutated_corpus())
-@settings(FUZZ, max_examples=1200)
+@settings(FUZZ, max_examples=1000)
 def test_mutated_corpus(text):
     run(text)
 
@@ -155,7 +155,7 @@ def random_lines(draw):
 
 
 @given(random_lines())
-@settings(FUZZ, max_examples=800)
+@settings(FUZZ, max_examples=600)
 def test_random_lines(text):
     run(text)
 
@@ -196,7 +196,7 @@ def subcircuit_graphs(draw):
 
 
 @given(subcircuit_graphs())
-@settings(FUZZ, max_examples=500)
+@settings(FUZZ, max_examples=400)
 def test_subcircuit_graphs(text):
     run(text)
 
