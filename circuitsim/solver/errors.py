@@ -42,3 +42,10 @@ class ConvergenceError(SolverError):
 
 class SingularMatrixError(SolverError):
     """The MNA matrix is singular: a floating node, a source loop or similar."""
+
+
+class CircuitInputError(SolverError, ValueError):
+    """The circuit cannot be simulated as given: a bad value, a missing model, a bad option.
+
+    The message names the element, model or option and what is wrong with it.
+    """

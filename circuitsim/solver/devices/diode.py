@@ -1,0 +1,162 @@
+"""Junction diodes (SPICE level 1): Shockley current, depletion and diffusion charge.
+
+Model parameters: IS, N, RS, CJO (alias CJ0), VJ, M, FC, TT; ``area`` scales IS, CJO and 1/RS.
+BV (reverse breakdown) is not modelled. Every junction has gmin in parallel. Newton steps of
+the junction voltage are limited with SPICE's ``pnjlim`` so Newton converges from any start;
+a limited iterate is never declared converged. The nominal temperature is 27 C.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from circuitsim.netlist.circuit import Diode
+from circuitsim.solver.context import Stamps, StepContext
+from circuitsim.solver.devices.base import DeviceFamily, find_model, model_params, number
+from circuitsim.solver.layout import (
+    VectorPattern,
+    conductance_values,
+    two_terminal_pattern,
+)
+
+BOLTZMANN = 1.38064852e-23  # J/K, the constants ngspice uses
+CHARGE = 1.6021766208e-19  # C
+TEMPERATURE = 300.15  # K (27 C)
+THERMAL_VOLTAGE = BOLTZMANN * TEMPERATURE / CHARGE
+
+DEFAULTS = {
+    "is": 1e-14,
+    "n": 1.0,
+    "rs": 0.0,
+    "cjo": 0.0,
+    "cj0": 0.0,
+    "vj": 1.0,
+    "m": 0.5,
+    "fc": 0.5,
+    "tt": 0.0,
+}
+
+
+def pnjlim(vnew: np.ndarray, vold: np.ndarray, vt: np.ndarray, vcrit: np.ndarray):
+    """SPICE's junction-voltage limiting (DEVpnjlim), vectorized.
+
+    Returns
+    -------
+    v : ndarray
+        The limited junction voltages, volts.
+    limited : ndarray of bool
+        Where a limit was applied.
+    """
+    big = (vnew > vcrit) & (np.abs(vnew - vold) > 2 * vt)
+    arg = 1 + (vnew - vold) / vt
+    with np.errstate(invalid="ignore", divide="ignore"):
+        from_positive = np.where(arg > 0, vold + vt * np.log(np.maximum(arg, 1e-300)), vcrit)
+        from_negative = vt * np.log(np.maximum(vnew / vt, 1e-300))
+    forward = np.where(vold > 0, from_positive, from_negative)
+    floor = np.where(vold > 0, -vold - 1, 2 * vold - 1)
+    reverse = ~big & (vnew < 0) & (vnew < floor)
+    v = np.where(big, forward, np.where(reverse, floor, vnew))
+    return v, big | reverse
+
+
+class DiodeFamily(DeviceFamily):
+    """All diodes; RS > 0 adds a private node between RS and the junction."""
+
+    element_types = (Diode,)
+    nonlinear = True
+
+    def __init__(self, elements, circuit, layout, options):
+        super().__init__(elements, circuit, layout, options)
+        models = [find_model(circuit, e.model, "D", e.name) for e in elements]
+        par = model_params(models, DEFAULTS, self.names)
+        area = np.array([number(e.area, e.name, "area") for e in elements])
+        self.isat = par["is"] * area
+        self.vte = par["n"] * THERMAL_VOLTAGE
+        self.vcrit = self.vte * np.log(self.vte / (np.sqrt(2) * self.isat))
+        self.cjo = np.where(par["cjo"] > 0, par["cjo"], par["cj0"]) * area
+        self.vj, self.fc, self.tt = par["vj"], par["fc"], par["tt"]
+        self.m = np.minimum(par["m"], 0.9999)  # M = 1 would divide by zero in the charge
+        self.gmin = options.gmin
+        anode = layout.nodes([e.anode for e in elements])
+        self.cathode = layout.nodes([e.cathode for e in elements])
+        rs = par["rs"] / area
+        self.junction = anode.copy()
+        series = np.flatnonzero(rs > 0)
+        for i in series:
+            self.junction[i] = layout.add_internal_node(f"{elements[i].name}#internal")
+        self.series = series
+        self.series_g = 1.0 / rs[series] if series.size else np.zeros(0)
+        self.series_pattern = two_terminal_pattern(anode[series], self.junction[series])
+        self.pattern = two_terminal_pattern(self.junction, self.cathode)
+        self.rows = VectorPattern(np.stack([self.junction, self.cathode]))
+        self.has_charge = bool(np.any(self.cjo > 0) or np.any(self.tt > 0))
+        self.slots = layout.add_charges(len(elements)) if self.has_charge else None
+        m = len(elements)
+        self.vd = np.zeros(m)  # linearization point of the last load
+        self.cd = np.zeros(m)  # total junction current there, A
+        self.gd = np.zeros(m)  # its conductance, S
+        self.vd_accepted = np.zeros(m)
+
+    def stamp_linear(self, stamps: Stamps) -> None:
+        if self.series.size:
+            stamps.add(self.series_pattern, conductance_values(self.series_g))
+
+    def _junction_voltage(self, x_ext: np.ndarray) -> np.ndarray:
+        return x_ext[self.junction] - x_ext[self.cathode]
+
+    def load(self, x_ext: np.ndarray, ctx: StepContext, stamps: Stamps, rhs: np.ndarray) -> None:
+        if ctx.init_junction:
+            vd = self.vcrit.copy()
+        else:
+            vold = self.vd_accepted if ctx.first_iteration else self.vd
+            vd, limited = pnjlim(self._junction_voltage(x_ext), vold, self.vte, self.vcrit)
+            ctx.noncon += int(limited.any())
+        cd, gd = self._current(vd)
+        if self.has_charge:
+            q, c = self._charge(vd, cd, gd)
+            icap, gcap = ctx.integrate(self.slots, q, c)
+            cd = cd + icap
+            gd = gd + gcap
+        self.vd, self.cd, self.gd = vd, cd, gd
+        stamps.add(self.pattern, conductance_values(gd))
+        ieq = cd - gd * vd
+        self.rows.add(rhs, np.stack([-ieq, ieq]))
+
+    def _current(self, vd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Static current (A) and conductance (S) with gmin, as SPICE's dioload."""
+        vte, isat = self.vte, self.isat
+        forward = vd >= -3 * vte
+        ex = np.exp(np.minimum(vd / vte, 700.0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            arg = (3 * vte / (vd * np.e)) ** 3
+        cd = np.where(forward, isat * (ex - 1), -isat * (1 + arg))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            gd = np.where(forward, isat * ex / vte, isat * 3 * arg / vd)
+        return cd + self.gmin * vd, gd + self.gmin
+
+    def _charge(self, vd, cd, gd) -> tuple[np.ndarray, np.ndarray]:
+        """Depletion plus diffusion charge (C) and capacitance (F)."""
+        vj, m, fc, cjo = self.vj, self.m, self.fc, self.cjo
+        knee = fc * vj
+        below = vd < knee
+        arg = np.where(below, 1 - vd / vj, 1.0)
+        sarg = np.exp(-m * np.log(arg))
+        q_low = vj * cjo * (1 - arg * sarg) / (1 - m)
+        c_low = cjo * sarg
+        f1 = vj * (1 - (1 - fc) ** (1 - m)) / (1 - m)
+        f2 = (1 - fc) ** (1 + m)
+        f3 = 1 - fc * (1 + m)
+        q_high = cjo * f1 + cjo / f2 * (f3 * (vd - knee) + m / (2 * vj) * (vd**2 - knee**2))
+        c_high = cjo / f2 * (f3 + m * vd / vj)
+        q = np.where(below, q_low, q_high) + self.tt * cd
+        c = np.where(below, c_low, c_high) + self.tt * gd
+        return q, c
+
+    def converged(self, x_ext: np.ndarray, ctx: StepContext) -> bool:
+        cdhat = self.cd + self.gd * (self._junction_voltage(x_ext) - self.vd)
+        tol = self.options.reltol * np.maximum(np.abs(cdhat), np.abs(self.cd))
+        return bool(np.all(np.abs(cdhat - self.cd) <= tol + self.options.abstol))
+
+    def accept(self, x_ext: np.ndarray, ctx: StepContext) -> bool:
+        self.vd_accepted = self._junction_voltage(x_ext)
+        return False

@@ -1,0 +1,138 @@
+"""Values of independent sources over time: DC, SIN, PULSE, PWL, evaluated per kind in bulk.
+
+SPICE defaults that depend on the analysis follow ngspice (vsrcload.c semantics): a PULSE rise
+or fall time of 0 means ``tstep``, its width and period default to ``tstop``; a SIN frequency of
+0 means ``1/tstop``. For a stand-alone ``.op`` a source uses its DC value when one was given
+(non-zero) and otherwise its waveform at t = 0; the operating point before ``.tran`` uses the
+waveform at t = 0.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from circuitsim.netlist.circuit import Pulse, Pwl, Sin
+from circuitsim.solver.devices.base import number
+from circuitsim.solver.errors import CircuitInputError
+
+MAX_BREAKPOINTS = 1_000_000
+
+
+class SourceValues:
+    """Time functions of m independent sources.
+
+    Parameters
+    ----------
+    elements : list of VoltageSource or CurrentSource
+        Each with ``dc`` and optional ``waveform``.
+    """
+
+    def __init__(self, elements):
+        m = len(elements)
+        self.dc = np.array([number(e.dc, e.name, "DC value") for e in elements])
+        self.has_waveform = np.array([e.waveform is not None for e in elements], dtype=bool)
+        self.sin_index = [i for i, e in enumerate(elements) if isinstance(e.waveform, Sin)]
+        self.pulse_index = [i for i, e in enumerate(elements) if isinstance(e.waveform, Pulse)]
+        self.pwl: list[tuple[int, np.ndarray, np.ndarray]] = []
+        for i, e in enumerate(elements):
+            if isinstance(e.waveform, Pwl):
+                pts = [
+                    (number(t, e.name, "PWL time"), number(v, e.name, "PWL value"))
+                    for t, v in e.waveform.points
+                ]
+                if not pts:
+                    raise CircuitInputError(f"{e.name}: PWL without points")
+                t, v = np.array(pts).T
+                if np.any(np.diff(t) < 0):
+                    raise CircuitInputError(f"{e.name}: PWL times must not decrease")
+                self.pwl.append((i, t, v))
+        s = [elements[i] for i in self.sin_index]
+        self.sin = {
+            key: np.array([number(getattr(e.waveform, key), e.name, f"SIN {key}") for e in s])
+            for key in ("offset", "amplitude", "frequency", "delay", "damping", "phase")
+        }
+        p = [elements[i] for i in self.pulse_index]
+        self.pulse = {
+            key: np.array([_pulse_value(e, key) for e in p])
+            for key in ("initial", "pulsed", "delay", "rise", "fall", "width", "period")
+        }
+        self.size = m
+        self.set_timing(1.0, 1.0)
+
+    def set_timing(self, tstep: float, tstop: float) -> None:
+        """Fill the analysis-dependent defaults (see module docstring)."""
+        pu = self.pulse
+        self.rise = np.where(pu["rise"] > 0, pu["rise"], tstep)
+        self.fall = np.where(pu["fall"] > 0, pu["fall"], tstep)
+        finite_w = np.isfinite(pu["width"]) & (pu["width"] > 0)
+        self.width = np.where(finite_w, pu["width"], tstop)
+        finite_p = np.isfinite(pu["period"]) & (pu["period"] > 0)
+        self.period = np.where(finite_p, pu["period"], tstop)
+        f = self.sin["frequency"]
+        self.frequency = np.where(f != 0, f, 1.0 / tstop)
+
+    def values(self, time: float, dc_op: bool = False) -> np.ndarray:
+        """Source values at ``time`` (s), shape (m,); ``dc_op`` for a stand-alone ``.op``."""
+        out = self.dc.copy()
+        if self.sin_index:
+            s = self.sin
+            td = s["delay"]
+            phase = np.deg2rad(s["phase"])
+            tau = np.maximum(time - td, 0.0)
+            wave = s["offset"] + s["amplitude"] * np.sin(
+                2 * np.pi * self.frequency * tau + phase
+            ) * np.exp(-s["damping"] * tau)
+            out[self.sin_index] = wave
+        if self.pulse_index:
+            out[self.pulse_index] = self._pulse(time)
+        for i, t, v in self.pwl:
+            out[i] = np.interp(time, t, v)
+        if dc_op:
+            keep_dc = ~self.has_waveform | (self.dc != 0)
+            out[keep_dc] = self.dc[keep_dc]
+        return out
+
+    def _pulse(self, time: float) -> np.ndarray:
+        pu = self.pulse
+        v1, v2 = pu["initial"], pu["pulsed"]
+        tr, tf, pw, per = self.rise, self.fall, self.width, self.period
+        tau = time - pu["delay"]
+        tau = np.where(tau > per, tau - per * np.floor(tau / per), tau)
+        rising = v1 + (v2 - v1) * tau / tr
+        falling = v2 + (v1 - v2) * (tau - tr - pw) / tf
+        return np.select(
+            [(tau <= 0) | (tau >= tr + pw + tf), (tau >= tr) & (tau <= tr + pw), tau < tr],
+            [v1, v2, rising],
+            falling,
+        )
+
+    def breakpoints(self, tstop: float) -> np.ndarray:
+        """Waveform corners in [0, tstop], seconds, unsorted."""
+        out = []
+        if self.sin_index:
+            td = self.sin["delay"]
+            out.append(td[(td > 0) & (td < tstop)])
+        for k in range(len(self.pulse_index)):
+            td, per = self.pulse["delay"][k], self.period[k]
+            corners = np.array(
+                [
+                    0.0,
+                    self.rise[k],
+                    self.rise[k] + self.width[k],
+                    self.rise[k] + self.width[k] + self.fall[k],
+                ]
+            )
+            count = int(min(max(np.ceil((tstop - td) / per), 0) + 1, MAX_BREAKPOINTS))
+            starts = td + per * np.arange(count)
+            points = (starts[:, None] + corners[None, :]).ravel()
+            out.append(points[(points >= 0) & (points <= tstop)])
+        for _, t, _ in self.pwl:
+            out.append(t[(t >= 0) & (t <= tstop)])
+        return np.concatenate(out) if out else np.zeros(0)
+
+
+def _pulse_value(element, key: str) -> float:
+    raw = getattr(element.waveform, key)
+    if raw is None:
+        return np.inf
+    return number(raw, element.name, f"PULSE {key}")

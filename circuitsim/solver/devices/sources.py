@@ -1,0 +1,72 @@
+"""Independent voltage and current sources (DC, SIN, PULSE, PWL)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from circuitsim.netlist.circuit import CurrentSource, VoltageSource
+from circuitsim.solver.context import Stamps
+from circuitsim.solver.devices.base import DeviceFamily
+from circuitsim.solver.devices.source_waveforms import SourceValues
+from circuitsim.solver.layout import MatrixPattern, VectorPattern
+
+
+class VoltageSourceFamily(DeviceFamily):
+    """All V sources: a branch current each, v(n+) - v(n-) = V(t).
+
+    Their branch currents are outputs, ``i(vname)``, flowing from n+ through the source to n-.
+    """
+
+    element_types = (VoltageSource,)
+
+    def __init__(self, elements, circuit, layout, options):
+        super().__init__(elements, circuit, layout, options)
+        self.p = layout.nodes([e.positive for e in elements])
+        self.n = layout.nodes([e.negative for e in elements])
+        self.branch = np.array([layout.add_branch(e.name) for e in elements], dtype=np.intp)
+        self.values = SourceValues(elements)
+
+    def stamp_linear(self, stamps: Stamps) -> None:
+        b, p, n = self.branch, self.p, self.n
+        one = np.ones(len(b))
+        stamps.add(
+            MatrixPattern(np.stack([p, n, b, b]), np.stack([b, b, p, n])),
+            np.stack([one, -one, one, -one]),
+        )
+
+    def output_signals(self) -> dict[str, int]:
+        return {
+            f"i({name.lower()})": int(b) for name, b in zip(self.names, self.branch, strict=True)
+        }
+
+    def set_timing(self, tstep: float, tstop: float) -> None:
+        self.values.set_timing(tstep, tstop)
+
+    def source_rhs(self, time: float, scale: float, rhs: np.ndarray, dc: bool) -> None:
+        rhs[self.branch] += scale * self.values.values(time, dc)
+
+    def breakpoints(self, tstop: float) -> np.ndarray:
+        return self.values.breakpoints(tstop)
+
+
+class CurrentSourceFamily(DeviceFamily):
+    """All I sources: current I(t) leaves n+ through the source and enters n-."""
+
+    element_types = (CurrentSource,)
+
+    def __init__(self, elements, circuit, layout, options):
+        super().__init__(elements, circuit, layout, options)
+        p = layout.nodes([e.positive for e in elements])
+        n = layout.nodes([e.negative for e in elements])
+        self.rows = VectorPattern(np.stack([p, n]))
+        self.values = SourceValues(elements)
+
+    def set_timing(self, tstep: float, tstop: float) -> None:
+        self.values.set_timing(tstep, tstop)
+
+    def source_rhs(self, time: float, scale: float, rhs: np.ndarray, dc: bool) -> None:
+        i = scale * self.values.values(time, dc)
+        self.rows.add(rhs, np.stack([-i, i]))
+
+    def breakpoints(self, tstop: float) -> np.ndarray:
+        return self.values.breakpoints(tstop)

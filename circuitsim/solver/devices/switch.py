@@ -1,0 +1,112 @@
+"""Voltage-controlled switches with ngspice's SW model: VT, VH, RON, ROFF.
+
+The switch is a resistor of RON (on) or ROFF (off). It turns on when the control voltage
+v(nc+) - v(nc-) exceeds VT + VH and off when it falls below VT - VH; in between it keeps the
+state of the last accepted time point (hysteresis). As in ngspice, the state is re-decided at
+every Newton iteration against the last *accepted* state, and a change forces another
+iteration. ROFF defaults to 1/gmin, RON to 1 ohm. An ``ON``/``OFF`` keyword sets the state for
+the operating point (default off when the control voltage is inside the hysteresis band).
+Negative VH (ngspice's smooth transition) is not modelled.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from circuitsim.netlist.circuit import Switch
+from circuitsim.solver.context import Stamps, StepContext
+from circuitsim.solver.devices.base import DeviceFamily, find_model, model_params
+from circuitsim.solver.errors import CircuitInputError
+from circuitsim.solver.layout import conductance_values, two_terminal_pattern
+
+# Fraction of the remaining distance to the threshold that one step may cover, plus a floor
+# (volts) so that the step does not shrink without bound right at the threshold.
+APPROACH_FRACTION = 0.75
+APPROACH_FLOOR = 0.05
+
+
+class SwitchFamily(DeviceFamily):
+    """All voltage-controlled switches."""
+
+    element_types = (Switch,)
+    discrete = True
+
+    def __init__(self, elements, circuit, layout, options):
+        super().__init__(elements, circuit, layout, options)
+        models = [find_model(circuit, e.model, "SW", e.name) for e in elements]
+        defaults = {
+            "vt": 0.0,
+            "vh": 0.0,
+            "ron": 1.0,
+            "roff": 1.0 / options.gmin if options.gmin > 0 else 1e12,
+        }
+        par = model_params(models, defaults, self.names)
+        if np.any(par["ron"] <= 0) or np.any(par["roff"] <= 0):
+            raise CircuitInputError("switch model: RON and ROFF must be > 0")
+        self.vh = np.abs(par["vh"])
+        self.on_above = par["vt"] + self.vh
+        self.off_below = par["vt"] - self.vh
+        self.g_on, self.g_off = 1.0 / par["ron"], 1.0 / par["roff"]
+        p = layout.nodes([e.positive for e in elements])
+        n = layout.nodes([e.negative for e in elements])
+        self.cp = layout.nodes([e.control_positive for e in elements])
+        self.cn = layout.nodes([e.control_negative for e in elements])
+        self.pattern = two_terminal_pattern(p, n)
+        for e in elements:
+            if e.initial not in (None, "on", "off"):
+                raise CircuitInputError(f"{e.name}: initial state {e.initial!r}, expected on/off")
+        self.initial = np.array([e.initial == "on" for e in elements])
+        self.accepted = self.initial.copy()
+        self.state = self.initial.copy()
+        self.version = 0
+
+    def control(self, x_ext: np.ndarray) -> np.ndarray:
+        """Control voltages, shape (m,), volts."""
+        return x_ext[self.cp] - x_ext[self.cn]
+
+    def update_state(self, x_ext: np.ndarray, ctx: StepContext) -> None:
+        if ctx.init_junction:
+            new = self.accepted.copy()
+        else:
+            vc = self.control(x_ext)
+            # Inside the band the state is kept: the accepted one at the first iteration of
+            # a time point, then the one of the previous iteration (ngspice's swload).
+            keep = self.accepted if ctx.first_iteration else self.state
+            new = np.where(vc > self.on_above, True, np.where(vc < self.off_below, False, keep))
+        if np.any(new != self.state):
+            self.state = new
+            self.version += 1
+            ctx.noncon += 1
+
+    def state_key(self) -> object:
+        return ("switch", self.version)
+
+    def stamp_state(self, stamps: Stamps) -> None:
+        stamps.add(self.pattern, conductance_values(np.where(self.state, self.g_on, self.g_off)))
+
+    def truncate(self, x_ext: np.ndarray, x_prev_ext: np.ndarray, h_prev: float) -> float:
+        vc = self.control(x_ext)
+        rate = (vc - self.control(x_prev_ext)) / h_prev
+        threshold = np.where(self.accepted, self.off_below, self.on_above)
+        distance = threshold - vc
+        approaching = (rate * distance > 0) & (distance != 0)
+        if not approaching.any():
+            return np.inf
+        allowed = (APPROACH_FRACTION * np.abs(distance) + APPROACH_FLOOR) / np.abs(rate)
+        return float(np.min(allowed[approaching]))
+
+    def transition_fraction(self, x_ext: np.ndarray, x_prev_ext: np.ndarray) -> float:
+        toggled = self.state != self.accepted
+        if not toggled.any():
+            return 1.0
+        vc, vc_prev = self.control(x_ext)[toggled], self.control(x_prev_ext)[toggled]
+        threshold = np.where(self.state[toggled], self.on_above[toggled], self.off_below[toggled])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            fraction = (threshold - vc_prev) / (vc - vc_prev)
+        fraction = np.where(np.isfinite(fraction), np.clip(fraction, 0.0, 1.0), 1.0)
+        return float(fraction.min())
+
+    def accept(self, x_ext: np.ndarray, ctx: StepContext) -> bool:
+        toggled = bool(np.any(self.state != self.accepted))
+        self.accepted = self.state.copy()
+        return toggled

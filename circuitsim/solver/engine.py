@@ -1,0 +1,120 @@
+"""Public entry points: simulate, operating_point, transient.
+
+Each accepts any Circuit: subcircuits are flattened (``circuitsim.netlist.flatten``) and
+expressions evaluated before assembly. Results are :class:`Waveforms` with ``v(node)`` for
+every node of the flattened circuit, subcircuit-internal nodes included under their flattened
+names (``v(x1.n3)``), and ``i(vname)`` for every independent voltage source (SPICE sign:
+current from n+ through the source to n-). Device-private nodes (a diode's series-resistance
+node) are not reported.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from collections.abc import Callable
+
+import numpy as np
+
+from circuitsim.netlist.circuit import Circuit, Expression, SubcircuitCall
+from circuitsim.solver.dc import operating_point_solution
+from circuitsim.solver.options import SimulationOptions
+from circuitsim.solver.system import MnaSystem
+from circuitsim.solver.transient import run_transient
+from circuitsim.solver.waveforms import Waveforms
+
+
+def flat_circuit(circuit: Circuit) -> Circuit:
+    """``circuit`` with subcircuits expanded and every value a float (no-op if already flat)."""
+    from circuitsim.netlist.flatten import flatten
+
+    return flatten(circuit)
+
+
+def _needs_flatten(circuit: Circuit) -> bool:
+    if circuit.subcircuits or circuit.params:
+        return True
+    for element in circuit.elements:
+        if isinstance(element, SubcircuitCall):
+            return True
+        if any(isinstance(v, Expression) for v in vars(element).values()):
+            return True
+    return False
+
+
+def build_system(circuit: Circuit, options: SimulationOptions | None) -> MnaSystem:
+    """Flatten if needed, read ``.options`` unless options are given, and assemble."""
+    flat = flat_circuit(circuit) if _needs_flatten(circuit) else circuit
+    if options is None:
+        options = SimulationOptions.from_circuit(flat)
+    return MnaSystem(flat, options)
+
+
+def _waveforms(system: MnaSystem, times: np.ndarray, solutions: np.ndarray, stats: dict):
+    signals = {}
+    for name, index in system.signals.items():
+        signals[name] = solutions[:, index] if index >= 0 else np.zeros(len(times))
+    stats["factorizations"] = system.factorizations
+    stats["unknowns"] = system.size
+    stats["method"] = system.options.method
+    return Waveforms(time=times, signals=signals, engine="builtin", stats=stats)
+
+
+def operating_point(circuit: Circuit, options: SimulationOptions | None = None) -> Waveforms:
+    """DC operating point (``.op``): one time point at t = 0.
+
+    Raises
+    ------
+    ConvergenceError, SingularMatrixError, CircuitInputError
+    """
+    started = _time.perf_counter()
+    system = build_system(circuit, options)
+    stats: dict = {"analysis": "op", "newton_iterations": 0}
+    x, _ = operating_point_solution(system, dc_op=True, clamp_ic=False, stats=stats)
+    stats["wall_time_s"] = _time.perf_counter() - started
+    return _waveforms(system, np.zeros(1), x[None, :], stats)
+
+
+def transient(
+    circuit: Circuit,
+    tstep: float,
+    tstop: float,
+    tstart: float = 0.0,
+    tmax: float | None = None,
+    uic: bool = False,
+    options: SimulationOptions | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> Waveforms:
+    """Transient analysis (``.tran tstep tstop [tstart [tmax]] [uic]``), seconds.
+
+    Returns the solution on the solver's own accepted time points (t >= tstart).
+    ``stats``: accepted, rejected, newton_iterations, factorizations, wall_time_s.
+
+    Raises
+    ------
+    ConvergenceError, SingularMatrixError, CircuitInputError
+    """
+    started = _time.perf_counter()
+    system = build_system(circuit, options)
+    stats: dict = {"analysis": "tran", "newton_iterations": 0}
+    times, solutions = run_transient(
+        system, tstep, tstop, tstart, tmax, uic, progress=progress, stats=stats
+    )
+    stats["wall_time_s"] = _time.perf_counter() - started
+    return _waveforms(system, times, solutions, stats)
+
+
+def simulate(
+    circuit: Circuit,
+    options: SimulationOptions | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> Waveforms:
+    """Run the circuit's first ``.tran``, or its ``.op`` if it has no ``.tran``.
+
+    ``options`` default to ngspice's, overridden by the circuit's ``.options``.
+    """
+    tran = circuit.transient
+    if tran is None:
+        return operating_point(circuit, options)
+    return transient(
+        circuit, tran.tstep, tran.tstop, tran.tstart, tran.tmax, tran.uic, options, progress
+    )

@@ -1,0 +1,90 @@
+"""Integration methods: charge history -> companion coefficients, and truncation error.
+
+Each method gives, for order 1 or 2 and the last step sizes, coefficients such that
+
+    dq/dt (t_n) = a0 q_n + a1 q_{n-1} + a2 q_{n-2} + b1 dq/dt (t_{n-1})
+
+and the factor of its local truncation error (ngspice's trapCoeff / gearCoeff). Order 1 is
+backward Euler for both methods. The time-step proposal follows ngspice's CKTterr: the
+(order+1)-th divided difference of each charge against a tolerance built from reltol, abstol
+and chgtol, scaled by trtol.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from circuitsim.solver.options import SimulationOptions
+
+
+@dataclass(frozen=True)
+class Method:
+    """An integration method: name and error constants for orders 1 and 2."""
+
+    name: str
+    error_constants: tuple[float, float]
+
+    def coefficients(self, order: int, h: float, h_prev: float) -> tuple[float, ...]:
+        """(a0, a1, a2, b1) for a step ``h`` after a step ``h_prev`` (seconds)."""
+        if order == 1:
+            return 1.0 / h, -1.0 / h, 0.0, 0.0
+        if self.name == "trap":
+            return 2.0 / h, -2.0 / h, 0.0, -1.0
+        # BDF2 on a variable grid.
+        a0 = (2 * h + h_prev) / (h * (h + h_prev))
+        a1 = -(h + h_prev) / (h * h_prev)
+        a2 = h / (h_prev * (h + h_prev))
+        return a0, a1, a2, 0.0
+
+
+METHODS = {
+    "trap": Method("trap", (0.5, 1.0 / 12.0)),
+    "gear": Method("gear", (0.5, 2.0 / 9.0)),
+}
+
+
+def truncation_step(
+    method: Method,
+    order: int,
+    times: list[float],
+    charges: list[np.ndarray],
+    currents: list[np.ndarray],
+    options: SimulationOptions,
+) -> float:
+    """Largest step (s) the charges' truncation error allows, ngspice's CKTterr rule.
+
+    Parameters
+    ----------
+    method : Method
+    order : int
+        1 or 2; needs ``order + 2`` points.
+    times : list of float
+        t_n, t_{n-1}, ... (newest first), seconds.
+    charges : list of ndarray, shape (n_charges,)
+        Charges (C) or fluxes (Wb) at those times, newest first.
+    currents : list of ndarray, shape (n_charges,)
+        Their derivatives at t_n and t_{n-1}.
+    options : SimulationOptions
+    """
+    if charges[0].size == 0:
+        return np.inf
+    h = times[0] - times[1]
+    diff = list(charges[: order + 2])
+    for level in range(1, order + 2):
+        diff = [
+            (diff[i] - diff[i + 1]) / (times[i] - times[i + level]) for i in range(len(diff) - 1)
+        ]
+    volttol = options.abstol + options.reltol * np.maximum(np.abs(currents[0]), np.abs(currents[1]))
+    chargetol = (
+        options.reltol
+        * np.maximum(np.maximum(np.abs(charges[0]), np.abs(charges[1])), options.chgtol)
+        / h
+    )
+    tol = np.maximum(volttol, chargetol)
+    factor = method.error_constants[order - 1]
+    step = options.trtol * tol / np.maximum(options.abstol, factor * np.abs(diff[0]))
+    if order == 2:
+        step = np.sqrt(step)
+    return float(np.min(step))

@@ -1,0 +1,73 @@
+"""LU factorization and solve: LAPACK for small dense systems, SuperLU past a size.
+
+Small systems go straight to LAPACK ``dgetrf``/``dgetrs`` (no argument checking, no copies
+beyond the one factor), which is several times cheaper than ``scipy.linalg.lu_factor`` for the
+20-100 unknowns of an op-amp circuit. OpenBLAS factors such matrices on one thread whatever its
+thread setting, so no thread pool control is needed (see docs/solver.md for the measurement).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.linalg import get_lapack_funcs
+from scipy.sparse.linalg import splu
+
+_GETRF, _GETRS = get_lapack_funcs(("getrf", "getrs"), dtype=np.float64)
+
+
+class SingularPivot(Exception):
+    """Raised by a factorization: ``index`` is the unknown whose pivot vanished (or None)."""
+
+    def __init__(self, index: int | None):
+        super().__init__(index)
+        self.index = index
+
+
+class DenseLU:
+    """LU factors of a dense (n, n) matrix (the matrix is left untouched)."""
+
+    def __init__(self, matrix: np.ndarray):
+        lu, piv, info = _GETRF(matrix, overwrite_a=False)
+        if info > 0:
+            raise SingularPivot(info - 1)
+        if info < 0 or not np.all(np.isfinite(np.diagonal(lu))):
+            raise SingularPivot(None)
+        self._lu, self._piv = lu, piv
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """x with A x = rhs, shape (n,)."""
+        x, _ = _GETRS(self._lu, self._piv, rhs)
+        return x
+
+
+class SparseLU:
+    """SuperLU factors of a sparse (n, n) matrix."""
+
+    def __init__(self, matrix: sp.spmatrix):
+        try:
+            self._lu = splu(sp.csc_matrix(matrix))
+        except RuntimeError:
+            raise SingularPivot(_empty_line(matrix)) from None
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """x with A x = rhs, shape (n,)."""
+        return self._lu.solve(rhs)
+
+
+def _empty_line(matrix: sp.spmatrix) -> int | None:
+    """An all-zero column (or row) of ``matrix``, the likeliest floating unknown, or None."""
+    csc = sp.csc_matrix(matrix)
+    csc.eliminate_zeros()
+    for counts in (np.diff(csc.indptr), np.diff(sp.csr_matrix(csc).indptr)):
+        empty = np.flatnonzero(counts == 0)
+        if empty.size:
+            return int(empty[0])
+    return None
+
+
+def factor(matrix) -> DenseLU | SparseLU:
+    """Factor a dense ndarray with LAPACK or a scipy sparse matrix with SuperLU."""
+    if isinstance(matrix, np.ndarray):
+        return DenseLU(matrix)
+    return SparseLU(matrix)

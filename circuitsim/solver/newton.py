@@ -1,0 +1,68 @@
+"""Newton-Raphson on the MNA system: a plain function returning (converged, iterations, x)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from circuitsim.solver.context import StepContext
+from circuitsim.solver.system import MnaSystem
+
+
+def newton(
+    system: MnaSystem,
+    x0: np.ndarray,
+    ctx: StepContext,
+    rhs0: np.ndarray,
+    max_iterations: int,
+    clamp_ic: bool = False,
+) -> tuple[bool, int, np.ndarray]:
+    """Iterate x <- solve(linearization at x) until SPICE's convergence test passes.
+
+    A converged iterate needs: no device limited its voltage or changed a discrete state while
+    producing it (``ctx.noncon == 0``), every unknown within reltol/vntol/abstol of the
+    previous iterate, and every nonlinear device's current check passed. As in SPICE, at least
+    two iterations are taken unless the circuit has no nonlinear or discrete devices (then the
+    first solve is exact).
+
+    Parameters
+    ----------
+    system : MnaSystem
+    x0 : ndarray, shape (n,)
+        Starting iterate (volts, amperes).
+    ctx : StepContext
+        Analysis state; ``init_junction`` applies to the first iteration only.
+    rhs0 : ndarray, shape (n,)
+        The x-independent right-hand side (``system.source_vector``).
+    max_iterations : int
+    clamp_ic : bool
+        Hold ``.ic`` nodes (the transient's operating point).
+
+    Returns
+    -------
+    converged : bool
+    iterations : int
+    x : ndarray, shape (n,)
+        The last iterate. The one before it is left in ``ctx.x_previous`` (to name the worst
+        unknown when Newton fails).
+    """
+    x = x0
+    init_junction = ctx.init_junction
+    for iteration in range(1, max_iterations + 1):
+        ctx.first_iteration = iteration == 1
+        ctx.init_junction = init_junction and iteration == 1
+        ctx.noncon = 0
+        x_new = system.solve_linearized(x, ctx, rhs0, clamp_ic)
+        if not np.all(np.isfinite(x_new)):
+            ctx.init_junction = False
+            ctx.x_previous = x
+            return False, iteration, x_new
+        if system.is_linear:
+            done = ctx.noncon == 0
+        else:
+            done = ctx.noncon == 0 and iteration > 1 and system.converged(x_new, x, ctx)
+        ctx.x_previous, x = x, x_new
+        if done:
+            ctx.init_junction = False
+            return True, iteration, x
+    ctx.init_junction = False
+    return False, max_iterations, x

@@ -1,0 +1,118 @@
+"""Simulation tolerances and limits, with ngspice's defaults, read from ``.options``."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+from circuitsim.netlist.circuit import Circuit, Expression
+from circuitsim.solver.errors import CircuitInputError
+
+METHODS = ("trap", "gear")
+
+
+@dataclass
+class SimulationOptions:
+    """Tolerances, iteration limits and integration settings of one run.
+
+    The defaults are ngspice's. ``.options`` keys of the same (lower-case) name override them
+    through :meth:`from_circuit`; unknown ``.options`` keys are ignored, as ngspice ignores
+    options it does not use for a given analysis.
+
+    Attributes
+    ----------
+    reltol : float
+        Relative tolerance of node voltages, branch currents, charges (dimensionless).
+    abstol : float
+        Absolute current tolerance, amperes.
+    vntol : float
+        Absolute voltage tolerance, volts.
+    chgtol : float
+        Absolute charge tolerance, coulombs (LTE control).
+    trtol : float
+        Factor by which the local truncation error may exceed the tolerances (ngspice: 7).
+    gmin : float
+        Conductance in parallel with every junction, siemens.
+    method : str
+        ``"trap"`` (trapezoidal) or ``"gear"`` (BDF).
+    maxord : int
+        Highest integration order (1 or 2; 1 makes both methods backward Euler).
+    itl1 : int
+        Newton iteration limit of the operating point.
+    itl4 : int
+        Newton iteration limit of one transient time point.
+    gminsteps : int
+        Number of gmin stepping decades tried (0 skips gmin stepping).
+    srcsteps : int
+        Source-stepping effort (0 skips source stepping).
+    fixed_step : float or None
+        If set, seconds: the transient takes exactly this step (breakpoints still hit, no LTE
+        control). For order studies; not an ngspice option.
+    dense_limit : int
+        Up to this many unknowns the engine uses dense LU (LAPACK); above it sparse LU.
+    max_steps : int
+        Bound on attempted time steps (accepted + rejected); past it the run fails with a
+        ConvergenceError instead of running on.
+    """
+
+    reltol: float = 1e-3
+    abstol: float = 1e-12
+    vntol: float = 1e-6
+    chgtol: float = 1e-14
+    trtol: float = 7.0
+    gmin: float = 1e-12
+    method: str = "trap"
+    maxord: int = 2
+    itl1: int = 100
+    itl4: int = 10
+    gminsteps: int = 10
+    srcsteps: int = 10
+    fixed_step: float | None = None
+    dense_limit: int = 300
+    max_steps: int = 2_000_000
+
+    def __post_init__(self) -> None:
+        self.method = str(self.method).lower()
+        if self.method in ("trapezoidal",):
+            self.method = "trap"
+        if self.method not in METHODS:
+            raise CircuitInputError(
+                f"option method={self.method!r}: expected one of {', '.join(METHODS)}"
+            )
+        for name in ("reltol", "abstol", "vntol", "chgtol", "trtol"):
+            if not getattr(self, name) > 0:
+                raise CircuitInputError(f"option {name}={getattr(self, name)!r} must be > 0")
+        if self.gmin < 0:
+            raise CircuitInputError(f"option gmin={self.gmin!r} must be >= 0")
+        if self.maxord not in (1, 2):
+            # Gear orders above 2 are not implemented; ngspice accepts up to 6.
+            self.maxord = max(1, min(int(self.maxord), 2))
+        if self.fixed_step is not None and not self.fixed_step > 0:
+            raise CircuitInputError(f"fixed_step={self.fixed_step!r} must be > 0")
+
+    @classmethod
+    def from_circuit(cls, circuit: Circuit, **overrides) -> SimulationOptions:
+        """Defaults, then the circuit's ``.options``, then ``overrides`` (keyword arguments)."""
+        known = {f.name: f for f in dataclasses.fields(cls)}
+        values: dict = {}
+        for key, raw in circuit.options.items():
+            key = key.lower()
+            if key not in known or key in ("fixed_step", "dense_limit", "max_steps"):
+                continue
+            values[key] = _option_value(key, raw, known[key].type)
+        values.update(overrides)
+        return cls(**values)
+
+
+def _option_value(key: str, raw, annotation) -> object:
+    """Convert one ``.options`` value to the field's type, or raise naming the option."""
+    if key == "method":
+        text = raw.text if isinstance(raw, Expression) else str(raw)
+        return text.strip().lower()
+    if isinstance(raw, bool) or isinstance(raw, Expression):
+        raise CircuitInputError(f".options {key}: expected a number, got {raw!s}")
+    try:
+        number = float(raw)
+    except (TypeError, ValueError):
+        raise CircuitInputError(f".options {key}: expected a number, got {raw!r}") from None
+    return int(number) if str(annotation) == "int" else number

@@ -1,0 +1,260 @@
+"""The assembled MNA system of one flat circuit: matrices, right-hand side, linear solves.
+
+The constant conductance matrix G and the linear charge matrices are assembled once. For each
+Newton iteration the engine needs ``base + nonlinear stamps``, where ``base = G + a0 E Q +
+gshunt + discrete stamps`` depends only on (a0, gshunt, discrete states): bases and, for
+circuits without nonlinear devices, their LU factors are cached under that key, so a linear
+circuit at a fixed step costs one triangular solve per time point.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+
+import numpy as np
+import scipy.sparse as sp
+
+from circuitsim.netlist.circuit import Circuit
+from circuitsim.solver.context import Stamps, StepContext
+from circuitsim.solver.devices import FAMILIES, DeviceFamily
+from circuitsim.solver.errors import CircuitInputError, SingularMatrixError
+from circuitsim.solver.layout import Layout
+from circuitsim.solver.linalg import SingularPivot, factor
+from circuitsim.solver.options import SimulationOptions
+
+IC_CONDUCTANCE = 1e10  # siemens: holds .ic nodes at their value during the transient's .op
+CACHE_SIZE = 8
+
+
+def build_families(
+    circuit: Circuit, layout: Layout, options: SimulationOptions
+) -> list[DeviceFamily]:
+    """One family per element kind present, in ``FAMILIES`` order."""
+    by_type = {t: family for family in FAMILIES for t in family.element_types}
+    groups: dict[type, list] = {}
+    for element in circuit.elements:
+        family = by_type.get(type(element))
+        if family is None:
+            raise CircuitInputError(
+                f"{element.name}: the engine has no model for {type(element).__name__}"
+            )
+        groups.setdefault(family, []).append(element)
+    return [
+        family(groups[family], circuit, layout, options) for family in FAMILIES if family in groups
+    ]
+
+
+class MnaSystem:
+    """Matrices and unknowns of a flat circuit.
+
+    Parameters
+    ----------
+    circuit : Circuit
+        Flat: no subcircuit calls, every value a float.
+    options : SimulationOptions
+    """
+
+    def __init__(self, circuit: Circuit, options: SimulationOptions):
+        self.circuit = circuit
+        self.options = options
+        layout = Layout(circuit.node_names())
+        self.families = build_families(circuit, layout, options)
+        for family in self.families:
+            family.bind(layout)
+        self.layout = layout
+        n = self.size = layout.size
+        if n == 0:
+            raise CircuitInputError("the circuit has no nodes besides ground")
+        self.dense = n <= options.dense_limit
+        self.nonlinear = [f for f in self.families if f.nonlinear]
+        self.discrete = [f for f in self.families if f.discrete]
+        self.is_linear = not self.nonlinear and not self.discrete
+        self.voltage = np.array(layout.is_voltage)
+        self.abs_tol = np.where(self.voltage, options.vntol, options.abstol)
+
+        stamps = Stamps()
+        for family in self.families:
+            family.stamp_linear(stamps)
+        self.G = self._matrix(stamps)
+        charges, incidence = Stamps(), Stamps()
+        for family in self.families:
+            family.stamp_charges(charges, incidence)
+        nq = self.n_charges = layout.n_charges
+        r, c, v = charges.triplets()
+        self.Q = sp.csr_matrix((v, (r, c)), shape=(nq, n))
+        self.linear_slots = np.unique(r)
+        self.Q_linear = self.Q[self.linear_slots]
+        r, c, v = incidence.triplets()
+        self.E = sp.csr_matrix((v, (r, c)), shape=(n, nq))
+        reactive = (self.E @ self.Q).tocsr()
+        self.M = reactive.toarray() if self.dense else reactive
+        self.node_index = np.flatnonzero(self.voltage)
+        self.ic_nodes, self.ic_values = self._initial_conditions()
+        self._bases: OrderedDict = OrderedDict()
+        self._factors: OrderedDict = OrderedDict()
+        self.factorizations = 0
+        self.signals = {f"v({name.lower()})": layout.node(name) for name in layout.external_nodes}
+        for family in self.families:
+            self.signals.update(family.output_signals())
+
+    # --- assembly -------------------------------------------------------------------------
+
+    def _matrix(self, stamps: Stamps):
+        r, c, v = stamps.triplets()
+        n = self.size
+        if self.dense:
+            flat = np.bincount(r * n + c, weights=v, minlength=n * n)
+            return flat.reshape(n, n)
+        return sp.csc_matrix((v, (r, c)), shape=(n, n))
+
+    def _initial_conditions(self) -> tuple[np.ndarray, np.ndarray]:
+        nodes, values = [], []
+        for name, value in self.circuit.initial_conditions.items():
+            try:
+                value = float(value)
+            except (TypeError, ValueError):
+                raise CircuitInputError(f".ic v({name}): value {value!r} is not a number") from None
+            index = self.layout.node(name)
+            if index >= 0:
+                nodes.append(index)
+                values.append(value)
+        return np.array(nodes, dtype=np.intp), np.array(values)
+
+    def base_matrix(self, ctx: StepContext, clamp_ic: bool):
+        """G + a0 M + gshunt + discrete stamps (+ .ic clamps), cached by its key."""
+        key = (ctx.a0, ctx.gshunt, clamp_ic, tuple(f.state_key() for f in self.discrete))
+        base = self._bases.get(key)
+        if base is not None:
+            self._bases.move_to_end(key)
+            return key, base
+        base = self.G + ctx.a0 * self.M if ctx.a0 else self.G.copy()
+        extra = Stamps()
+        for family in self.discrete:
+            family.stamp_state(extra)
+        r, c, v = extra.triplets()
+        diag_nodes = self.node_index
+        if ctx.gshunt:
+            r = np.concatenate([r, diag_nodes])
+            c = np.concatenate([c, diag_nodes])
+            v = np.concatenate([v, np.full(diag_nodes.size, ctx.gshunt)])
+        if clamp_ic and self.ic_nodes.size:
+            r = np.concatenate([r, self.ic_nodes])
+            c = np.concatenate([c, self.ic_nodes])
+            v = np.concatenate([v, np.full(self.ic_nodes.size, IC_CONDUCTANCE)])
+        base = self._add(base, r, c, v)
+        self._bases[key] = base
+        if len(self._bases) > CACHE_SIZE:
+            self._bases.popitem(last=False)
+        return key, base
+
+    def _add(self, matrix, r, c, v):
+        if not len(v):
+            return matrix
+        if self.dense:
+            out = matrix.copy()
+            np.add.at(out.ravel(), r * self.size + c, v)
+            return out
+        return (matrix + sp.csc_matrix((v, (r, c)), shape=matrix.shape)).tocsc()
+
+    def source_vector(self, ctx: StepContext, dc_op: bool, clamp_ic: bool) -> np.ndarray:
+        """Right-hand side independent of x: sources, charge history, .ic clamps."""
+        rhs = np.zeros(self.size)
+        for family in self.families:
+            family.source_rhs(ctx.time, ctx.source_scale, rhs, dc_op)
+        if not ctx.dc and self.linear_slots.size:
+            rhs -= self.E @ ctx.hist
+        if clamp_ic and self.ic_nodes.size:
+            rhs[self.ic_nodes] += IC_CONDUCTANCE * self.ic_values * ctx.source_scale
+        return rhs
+
+    # --- one Newton iteration ---------------------------------------------------------------
+
+    def solve_linearized(
+        self, x: np.ndarray, ctx: StepContext, rhs0: np.ndarray, clamp_ic: bool = False
+    ) -> np.ndarray:
+        """Linearize every device at x, solve, and return the next iterate, shape (n,)."""
+        x_ext = np.append(x, 0.0)
+        for family in self.discrete:
+            family.update_state(x_ext, ctx)
+        key, base = self.base_matrix(ctx, clamp_ic)
+        if self.nonlinear:
+            rhs = rhs0.copy()
+            stamps = Stamps()
+            for family in self.nonlinear:
+                family.load(x_ext, ctx, stamps, rhs)
+            r, c, v = stamps.triplets()
+            lu = self._factor(self._add(base, r, c, v))
+        else:
+            rhs = rhs0
+            lu = self._factors.get(key)
+            if lu is None:
+                lu = self._factor(base)
+                self._factors[key] = lu
+                if len(self._factors) > CACHE_SIZE:
+                    self._factors.popitem(last=False)
+        return lu.solve(rhs)
+
+    def _factor(self, matrix):
+        self.factorizations += 1
+        try:
+            return factor(matrix)
+        except SingularPivot as exc:
+            raise SingularMatrixError(self.describe_singular(exc.index)) from None
+
+    def describe_singular(self, index: int | None) -> str:
+        """A message naming the unknown whose pivot vanished and the topology findings."""
+        parts = ["singular MNA matrix"]
+        if index is not None and 0 <= index < self.size:
+            label = self.layout.unknowns[index]
+            what = "node" if self.voltage[index] else "branch"
+            parts.append(
+                f"at {what} {label} (a floating node, or a loop of voltage sources "
+                "/ inductors, or a cut set of current sources / capacitors)"
+            )
+        findings = _topology_findings(self.circuit)
+        if findings:
+            parts.append("topology check: " + "; ".join(findings))
+        return ", ".join(parts)
+
+    # --- convergence ------------------------------------------------------------------------
+
+    def tolerance(self, x_new: np.ndarray, x_old: np.ndarray) -> np.ndarray:
+        """SPICE's per-unknown tolerance: reltol * max(|new|, |old|) + vntol or abstol."""
+        return self.options.reltol * np.maximum(np.abs(x_new), np.abs(x_old)) + self.abs_tol
+
+    def converged(self, x_new: np.ndarray, x_old: np.ndarray, ctx: StepContext) -> bool:
+        """Every unknown within tolerance and every nonlinear device's current check passed."""
+        if np.any(np.abs(x_new - x_old) > self.tolerance(x_new, x_old)):
+            return False
+        if not self.nonlinear:
+            return True
+        x_ext = np.append(x_new, 0.0)
+        return all(family.converged(x_ext, ctx) for family in self.nonlinear)
+
+    def worst_unknown(self, x_new: np.ndarray, x_old: np.ndarray) -> str:
+        """Name of the unknown with the largest update relative to its tolerance."""
+        ratio = np.abs(x_new - x_old) / self.tolerance(x_new, x_old)
+        ratio = np.where(np.isfinite(ratio), ratio, np.inf)
+        label = self.layout.unknowns[int(np.argmax(ratio))]
+        return label[2:-1] if label.startswith("v(") else label
+
+    # --- charges ------------------------------------------------------------------------------
+
+    def linear_charges(self, x: np.ndarray, ctx: StepContext) -> None:
+        """Write q and dq/dt of the linear charges for solution x into ctx."""
+        if self.linear_slots.size:
+            q = self.Q_linear @ x
+            ctx.q[self.linear_slots] = q
+            ctx.qdot[self.linear_slots] = ctx.a0 * q + ctx.hist[self.linear_slots]
+
+
+def _topology_findings(circuit: Circuit) -> list[str]:
+    """Messages of the netlist room's topology checks, when that module is available."""
+    try:
+        from circuitsim.netlist.topology import check_circuit
+    except ImportError:
+        return []
+    try:
+        return [str(getattr(f, "message", f)) for f in check_circuit(circuit)]
+    except Exception:  # noqa: BLE001 - a failing check must not hide the singular matrix
+        return []

@@ -1,0 +1,212 @@
+"""Transient analysis: variable-step trapezoidal / Gear-2 with ngspice's step control.
+
+The loop follows ngspice's dctran: start from the operating point (or the ``uic`` initial
+conditions) with a step of min(tstop/100, tstep)/10; at each breakpoint (t = 0, source corners,
+switch transitions) drop to order 1 and shrink the step to a tenth of the distance to the next
+breakpoint; land exactly on breakpoints; after each converged step estimate the truncation
+error of every charge and flux (CKTterr), reject the step if the allowed step is below 0.9 h,
+otherwise accept and let the step at most double; try order 2 when order 1 is comfortable.
+A Newton failure divides the step by 8 and drops to order 1. The step never exceeds TMAX
+(default min(tstep, (tstop - tstart)/50), as ngspice) and a step below 1e-11 TMAX is an error.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from circuitsim.solver.context import StepContext
+from circuitsim.solver.dc import initial_condition_solution, operating_point_solution
+from circuitsim.solver.errors import CircuitInputError, ConvergenceError
+from circuitsim.solver.integration import METHODS, truncation_step
+from circuitsim.solver.newton import newton
+from circuitsim.solver.system import MnaSystem
+
+TRANSITION_OVERSHOOT = 0.02  # fraction of a step a switch transition may land past its crossing
+HISTORY = 4  # accepted points kept: order 2 truncation needs t_n+1 and three before
+
+
+def run_transient(
+    system: MnaSystem,
+    tstep: float,
+    tstop: float,
+    tstart: float = 0.0,
+    tmax: float | None = None,
+    uic: bool = False,
+    progress: Callable[[str], None] | None = None,
+    stats: dict | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Integrate from 0 to ``tstop``.
+
+    Returns
+    -------
+    times : ndarray, shape (m,)
+        Accepted time points >= tstart, seconds.
+    solutions : ndarray, shape (m, n)
+        The unknowns at those points.
+    """
+    if not (tstep > 0 and tstop > 0 and 0 <= tstart < tstop):
+        raise CircuitInputError(
+            f".tran {tstep:g} {tstop:g} {tstart:g}: need tstep > 0 and 0 <= tstart < tstop"
+        )
+    if tmax is not None and not tmax > 0:
+        raise CircuitInputError(f".tran tmax {tmax:g} must be > 0")
+    options = system.options
+    stats = stats if stats is not None else {}
+    stats.update(accepted=0, rejected=0, newton_iterations=stats.get("newton_iterations", 0))
+    method = METHODS[options.method]
+    fixed = options.fixed_step
+    max_step = tmax if tmax else min(tstep, (tstop - tstart) / 50)
+    min_step = 1e-11 * max_step
+    for family in system.families:
+        family.set_timing(tstep, tstop)
+    corners = [family.breakpoints(tstop) for family in system.families]
+    breaks = np.unique(np.concatenate([*corners, [tstop]]))
+    breaks = breaks[breaks > min_step]
+
+    if uic:
+        x, ctx0 = initial_condition_solution(system)
+    else:
+        x, ctx0 = operating_point_solution(system, dc_op=False, clamp_ic=True, stats=stats)
+    times = [0.0]  # newest first, at most HISTORY
+    xs = [x]
+    charges = [ctx0.q.copy()]
+    currents = [np.zeros(system.n_charges)]
+    out_t, out_x = [0.0], [x]
+
+    t, order = 0.0, 1
+    h = fixed if fixed else min(tstop / 100, tstep) / 10
+    saved_h = tstop / 50
+    at_break, first = True, True
+    bi = 0
+    attempts = 0
+    report_every, next_report = tstop / 10, tstop / 10
+
+    while tstop - t > min_step:
+        while bi < len(breaks) - 1 and breaks[bi] <= t + min_step:
+            bi += 1
+        next_break = breaks[bi]
+        if fixed:
+            h = fixed
+            if at_break:
+                order = 1
+        elif at_break:
+            order = 1
+            h = min(h, 0.1 * min(saved_h, next_break - t))
+            if first:
+                h /= 10
+        at_break = False
+        h = min(h, max_step) if not fixed else h
+        landing = False
+        if t + h >= next_break - min_step:
+            saved_h = h
+            h = next_break - t
+            landing = True
+
+        while True:  # attempts at this time point
+            attempts += 1
+            if attempts > options.max_steps:
+                raise ConvergenceError(
+                    f"more than {options.max_steps} time steps attempted", time=t, step=h
+                )
+            h_prev = times[0] - times[1] if len(times) > 1 else h
+            a0, a1, a2, b1 = method.coefficients(order, h, h_prev)
+            hist = a1 * charges[0] + b1 * currents[0]
+            if a2:
+                hist += a2 * charges[1]
+            ctx = StepContext(system.n_charges, time=t + h, dc=False, a0=a0, hist=hist)
+            rhs = system.source_vector(ctx, dc_op=False, clamp_ic=False)
+            if len(xs) > 1:
+                x_guess = xs[0] + (h / h_prev) * (xs[0] - xs[1])
+            else:
+                x_guess = xs[0]
+            ok, iterations, x_new = newton(system, x_guess, ctx, rhs, options.itl4)
+            stats["newton_iterations"] += iterations
+            if not ok:
+                stats["rejected"] += 1
+                if fixed:
+                    raise _failure(system, "Newton failed at the fixed step", t + h, h, ctx, x_new)
+                h /= 8
+                order = 1
+                landing = False
+                if h < min_step:
+                    raise _failure(system, "time step too small", t + h, h, ctx, x_new)
+                continue
+            system.linear_charges(x_new, ctx)
+            if not fixed and system.discrete:
+                # A switch toggled inside the step: cut the step to just past the crossing,
+                # so the transition lands near where the control crosses its threshold.
+                x_ext, x_prev_ext = np.append(x_new, 0.0), np.append(xs[0], 0.0)
+                fraction = min(f.transition_fraction(x_ext, x_prev_ext) for f in system.discrete)
+                if fraction < 1 - TRANSITION_OVERSHOOT and h * fraction > 10 * min_step:
+                    stats["rejected"] += 1
+                    h *= fraction + TRANSITION_OVERSHOOT
+                    landing = False
+                    continue
+            new_h = h if fixed else 2 * h
+            if not fixed and not first:
+                step_times = [t + h, *times]
+                step_q = [ctx.q, *charges]
+                step_i = [ctx.qdot, currents[0]]
+                if len(step_times) >= order + 2:
+                    new_h = min(
+                        new_h, truncation_step(method, order, step_times, step_q, step_i, options)
+                    )
+                x_ext, x_prev_ext = np.append(x_new, 0.0), np.append(xs[0], 0.0)
+                for family in system.discrete:
+                    new_h = min(new_h, family.truncate(x_ext, x_prev_ext, h))
+                if new_h > 0.9 * h:
+                    if order == 1 and options.maxord > 1 and len(step_times) >= 4:
+                        trial = min(
+                            2 * h, truncation_step(method, 2, step_times, step_q, step_i, options)
+                        )
+                        for family in system.discrete:
+                            trial = min(trial, family.truncate(x_ext, x_prev_ext, h))
+                        new_h = trial
+                        if trial > 1.05 * h:
+                            order = 2
+                else:
+                    stats["rejected"] += 1
+                    h = new_h
+                    landing = False
+                    if h < min_step:
+                        raise _failure(
+                            system, "time step too small (truncation error)", t + h, h, ctx, x_new
+                        )
+                    continue
+            break
+
+        t = next_break if landing else t + h
+        x_ext = np.append(x_new, 0.0)
+        toggled = [family.accept(x_ext, ctx) for family in system.families]
+        times.insert(0, t)
+        xs.insert(0, x_new)
+        charges.insert(0, ctx.q.copy())
+        currents.insert(0, ctx.qdot.copy())
+        del times[HISTORY:], xs[HISTORY:], charges[HISTORY:], currents[HISTORY:]
+        out_t.append(t)
+        out_x.append(x_new)
+        stats["accepted"] += 1
+        if fixed and order < options.maxord:
+            order += 1
+        if landing or any(toggled):
+            at_break = True
+        first = False
+        h = new_h
+        if progress is not None and t >= next_report:
+            progress(f"transient: t = {t:.4g} s of {tstop:.4g} s, {stats['accepted']} steps")
+            next_report += report_every
+
+    out_t = np.array(out_t)
+    out_x = np.array(out_x)
+    keep = out_t >= tstart - min_step
+    return out_t[keep], out_x[keep]
+
+
+def _failure(system, message, time, step, ctx: StepContext, x_new) -> ConvergenceError:
+    previous = ctx.x_previous
+    node = None
+    if previous is not None and np.all(np.isfinite(x_new)):
+        node = system.worst_unknown(x_new, previous)
+    return ConvergenceError(message, time=time, step=step, node=node)

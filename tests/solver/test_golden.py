@@ -1,0 +1,67 @@
+"""Golden netlists simulated by our engine and by ngspice live, compared point by point.
+
+Deviation of a signal = max |ours - ngspice| over ngspice's time points (ours interpolated
+linearly onto them), divided by the signal's range (max - min in ngspice's run). Limits from
+the solver issue: 1e-3 for linear circuits, 1e-2 with diodes or switches; every netlist sets
+``.options reltol=1e-6`` so both engines run tight.
+"""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from circuitsim.netlist.reader import read_netlist
+from circuitsim.solver import simulate
+from tests.solver.conftest import requires_ngspice
+
+GOLDEN = Path(__file__).parent / "golden"
+
+# netlist -> (limit, which signals): all signals, or node voltages only where a branch current
+# jumps at a switch transition (a jump misplaced by one ngspice step is a full-range error in
+# any pointwise metric, so those currents say nothing about accuracy).
+CASES = {
+    "rc.cir": (1e-3, "all"),
+    "rlc.cir": (1e-3, "all"),
+    "nested.cir": (1e-3, "all"),
+    "controlled.cir": (1e-3, "all"),
+    "integrator.cir": (1e-3, "all"),
+    "halfwave.cir": (1e-2, "all"),
+    "precision_rectifier.cir": (1e-2, "all"),
+    "switch.cir": (1e-2, "voltages"),
+}
+
+
+def deviations(ours, reference, which: str) -> dict[str, float]:
+    """Per-signal deviation relative to the reference signal's range."""
+    out = {}
+    for name in reference.names:
+        if name not in ours.signals or (which == "voltages" and not name.startswith("v(")):
+            continue
+        ref = reference[name]
+        span = max(float(np.ptp(ref)), 1e-12)
+        out[name] = float(np.max(np.abs(np.interp(reference.time, ours.time, ours[name]) - ref)))
+        out[name] /= span
+    return out
+
+
+def test_every_golden_netlist_has_a_case():
+    assert sorted(p.name for p in GOLDEN.glob("*.cir")) == sorted(CASES)
+
+
+@requires_ngspice
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_golden_against_ngspice(name):
+    from circuitsim.interop.ngspice import run_ngspice
+
+    limit, which = CASES[name]
+    path = GOLDEN / name
+    ours = simulate(read_netlist(path))
+    reference = run_ngspice(path)
+    devs = deviations(ours, reference, which)
+    assert devs, "no common signals"
+    # every node voltage ngspice reports must be among ours
+    missing = [n for n in reference.names if n.startswith("v(") and n not in ours.signals]
+    assert not missing
+    worst = max(devs, key=devs.get)
+    assert devs[worst] <= limit, f"{name}: {worst} deviates {devs[worst]:.3g} of its range"
