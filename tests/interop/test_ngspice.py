@@ -151,3 +151,12 @@ def test_words_like_error_in_names_are_not_failures():
     )
     waves = run_ngspice(text)
     assert waves.names == ["v(error)", "v(singular)", "i(v1)"]
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+def test_timeout_stops_ngspice_and_raises():
+    # A billion time steps: far longer than the half-second allowed.
+    text = "slow\nV1 a 0 SIN(0 1 1meg)\nR1 a 0 1k\n.tran 1p 1m 0 1p\n.end\n"
+    with pytest.raises(NgspiceError, match="did not finish within 0.5 s"):
+        run_ngspice(text, timeout=0.5)

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from circuitsim.netlist.circuit import (
     AcSweep,
@@ -241,3 +243,80 @@ def test_corpus_written_for_ngspice_runs_the_same(path, tmp_path):
         got = np.interp(original.time, rewritten.time, rewritten[name])
         scale = max(np.max(np.abs(want)), 1e-12)
         assert np.max(np.abs(got - want)) <= 1e-6 * scale, name
+
+
+# --- random circuits: any finite float, any element kind, any dialect ---------------------
+
+_FLOATS = st.floats(allow_nan=False, allow_infinity=False)
+_NODES = st.sampled_from(["0", "a", "b", "n_1", "out"])
+
+
+# PWL times: not decreasing (the reader refuses others, as ngspice does).
+_pwl_points = st.lists(st.tuples(_FLOATS.map(abs), _FLOATS), min_size=1, max_size=30).map(
+    lambda pts: tuple(sorted(pts, key=lambda p: p[0]))
+)
+
+
+@st.composite
+def _elements(draw, index: int):
+    kind = draw(st.sampled_from("RCLVIEGFHDSX"))
+    n1, n2, n3, n4 = (draw(_NODES) for _ in range(4))
+    x = draw(_FLOATS)
+    name = f"{kind}{index}"
+    if kind == "R":
+        return Resistor(name, n1, n2, x)
+    if kind in "CL":
+        cls = Capacitor if kind == "C" else Inductor
+        return cls(name, n1, n2, x, ic=draw(st.none() | _FLOATS))
+    if kind in "VI":
+        cls = VoltageSource if kind == "V" else CurrentSource
+        shape = draw(
+            st.none()
+            | st.builds(Sin, _FLOATS, _FLOATS, _FLOATS, _FLOATS, _FLOATS, _FLOATS)
+            | st.builds(Pulse, _FLOATS, _FLOATS, _FLOATS, _FLOATS, _FLOATS, _FLOATS, _FLOATS)
+            | st.builds(Pulse, _FLOATS, _FLOATS, _FLOATS, _FLOATS, _FLOATS, _FLOATS)
+            | st.builds(Pwl, _pwl_points)
+        )
+        return cls(
+            name, n1, n2, dc=x, waveform=shape, ac_magnitude=draw(_FLOATS), ac_phase=draw(_FLOATS)
+        )
+    if kind in "EG":
+        return (Vcvs if kind == "E" else Vccs)(name, n1, n2, n3, n4, x)
+    if kind in "FH":
+        return (Cccs if kind == "F" else Ccvs)(name, n1, n2, "Vc", x)
+    if kind == "D":
+        return Diode(name, n1, n2, "dm", area=x)
+    if kind == "S":
+        return Switch(
+            name, n1, n2, n3, n4, model="sm", initial=draw(st.sampled_from([None, "on", "off"]))
+        )
+    return SubcircuitCall(name, (n1, n2), "blk", {"p": x})
+
+
+@st.composite
+def _circuits(draw):
+    c = Circuit(title=draw(st.sampled_from(["t", "random circuit", "R1 looks like an element"])))
+    c.elements = [draw(_elements(k)) for k in range(draw(st.integers(1, 8)))]
+    c.models = {
+        "dm": Model("dm", "D", {"is": draw(_FLOATS)}),
+        "sm": Model("sm", "SW", {"vt": draw(_FLOATS), "vh": draw(_FLOATS)}),
+    }
+    c.subcircuits = {
+        "blk": Subcircuit(
+            "blk",
+            ("p1", "p2"),
+            [Resistor("R1", "p1", "p2", Expression("p"))],
+            params={"p": draw(_FLOATS)},
+        )
+    }
+    c.initial_conditions = {"a": draw(_FLOATS)}
+    return c
+
+
+@pytest.mark.parametrize("dialect", DIALECTS)
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(c=_circuits())
+def test_random_circuits_round_trip_bit_for_bit(dialect, c):
+    back = parse_netlist(write_netlist(c, dialect))
+    back.source = None
+    assert back == c
