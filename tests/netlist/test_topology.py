@@ -245,3 +245,24 @@ def test_findings_agree_with_ngspice_operating_point(kind):
         assert kinds == [kind]
         with pytest.raises(NgspiceError, match="singular matrix"):
             run_ngspice(text)
+
+
+def test_electrical_findings_inside_subcircuit_instances_use_flat_names():
+    # A capacitor-coupled internal node: no DC path, once per instance.
+    body = [Capacitor("C1", "a", "m", 1e-9), Resistor("R1", "m", "k", 1e3)]
+    body.append(Capacitor("C2", "k", "b", 1e-9))
+    c = _rc()
+    c.subcircuits["blk"] = Subcircuit("blk", ("a", "b"), body)
+    c.add(SubcircuitCall("X1", ("out", "0"), "blk"), SubcircuitCall("X2", ("in", "0"), "blk"))
+    findings = check_circuit(c)
+    assert _kinds(findings) == ["no-dc-path", "no-dc-path"]
+    assert [f.nodes for f in findings] == [("x1.k", "x1.m"), ("x2.k", "x2.m")]
+    assert set(findings[0].elements) == {"C.X1.C1", "C.X1.C2"}
+
+
+def test_circuit_that_cannot_be_flattened_is_reported():
+    c = _rc()
+    c.subcircuits["blk"] = Subcircuit("blk", ("a",), [Resistor("RB", "a", "0", 1.0)])
+    c.add(SubcircuitCall("X1", ("out",), "blk", {"nosuch": 1.0}))
+    [finding] = check_circuit(c)
+    assert finding.kind == "unflattenable" and "nosuch" in finding.message
