@@ -60,8 +60,9 @@ def run_ngspice(
     Parameters
     ----------
     netlist : Circuit, str or path-like
-        A circuit (written with the ngspice dialect), SPICE text (a ``str``), or a netlist file
-        (a ``Path``/path-like; relative ``.include``/``.lib`` files are found beside it).
+        A circuit (written with the ngspice dialect), SPICE text (a ``str``; a one-line
+        ``str`` naming an existing file is that file), or a netlist file (a path-like;
+        relative ``.include``/``.lib`` files are found beside it).
     probes : list of str, optional
         Signals to return (``"out"`` or ``"v(out)"``, ``"i(v1)"``); all of them when None.
     timeout : float
@@ -199,7 +200,7 @@ def _deck_text(netlist: Circuit | str | os.PathLike) -> tuple[str, str | None]:
         from circuitsim.netlist.writer import write_netlist
 
         return write_netlist(dataclasses.replace(netlist, control=[]), "ngspice"), None
-    if isinstance(netlist, str):
+    if isinstance(netlist, str) and ("\n" in netlist or not os.path.isfile(netlist)):
         return netlist, None
     path = Path(netlist)
     try:

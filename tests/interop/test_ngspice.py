@@ -83,6 +83,7 @@ def test_file_with_relative_include_and_own_control_block(tmp_path):
     )
     waves = run_ngspice(tmp_path / "main.cir")
     assert waves["out"][0] == pytest.approx(1.0, rel=1e-9)
+    assert run_ngspice(str(tmp_path / "main.cir"))["out"][0] == waves["out"][0]
 
 
 @requires_ngspice
