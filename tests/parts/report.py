@@ -2,7 +2,7 @@
 
 Run from the repository root: ``python tests/parts/report.py`` (prints Markdown tables and
 writes ``docs/figures/tl074_step.png``). Uses every engine that is available: ngspice and,
-once it runs these benches, our solver (``circuitsim.solver.simulate``).
+our solver (``circuitsim.solver.simulate``).
 """
 
 from __future__ import annotations
@@ -23,33 +23,6 @@ FIGURE = ROOT / "docs" / "figures" / "tl074_step.png"
 KINDS = ("ideal", "tl074")
 GLITCH_CASES = [(5.0, 10.0), (5.0, 100.0), (5.0, 1e3), (5.0, 1e4), (0.05, 10.0)]
 """(sine amplitude V, frequency Hz); 50 mV is the size of the paper's unscaled (1 V = 1 m) y."""
-
-
-def engines() -> dict:
-    """Name -> run(text or Circuit) -> Waveforms, for every engine that can run."""
-    found = {"ngspice": run_ngspice}
-    try:
-        from engines import run_builtin  # the test helper that reads text into our solver
-
-        found["builtin"] = run_builtin
-    except ImportError:
-        pass
-    return found
-
-
-def figures(run) -> dict[str, float]:
-    """Every datasheet figure of the TL074 macromodel measured with ``run``."""
-    rising, falling = partbench.slew_rate(run)
-    high, low = partbench.swing(run)
-    return {
-        "dc_gain": partbench.dc_gain(run),
-        "unity_gain_hz": partbench.unity_gain_frequency(run),
-        "slew_v_per_us": min(rising, falling),
-        "swing_pos_v": high,
-        "swing_neg_v": low,
-        "output_ohm": partbench.output_resistance(run),
-        "input_ohm": partbench.input_resistance(run),
-    }
 
 
 def plot_steps(runs: dict) -> None:
@@ -81,8 +54,8 @@ def plot_steps(runs: dict) -> None:
 
 
 def main() -> None:
-    runs = engines()
-    measured = {name: figures(run) for name, run in runs.items()}
+    runs = partbench.engines()
+    measured = {name: partbench.figures(run) for name, run in runs.items()}
     print("| figure | design | " + " | ".join(runs) + " |")
     print("|---|---|" + "---|" * len(runs))
     for key, design in partbench.DESIGN.items():

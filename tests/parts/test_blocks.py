@@ -72,13 +72,20 @@ def test_bad_block_requests(call, match):
         call(Circuit("t"))
 
 
-@partbench.requires_ngspice
+ENGINES = [
+    pytest.param("ngspice", marks=partbench.requires_ngspice),
+    pytest.param("builtin"),
+]
+RUN = {"ngspice": run_ngspice, "builtin": partbench.run_builtin}
+
+
+@pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("kind", OPAMP_KINDS)
 @pytest.mark.parametrize("block", list(partbench.BLOCKS))
-def test_transfer_curve_from_slow_ramp(block, kind):
+def test_transfer_curve_from_slow_ramp(block, kind, engine):
     if block == "dead_zone_supplies" and kind != "tl074":
         pytest.skip("the supply bias needs real op-amps")
-    x, y, reference = partbench.transfer_curve(run_ngspice, block, kind)
+    x, y, reference = partbench.transfer_curve(RUN[engine], block, kind)
     assert np.ptp(x) == pytest.approx(2 * partbench.FULL_SCALE)
     assert np.max(np.abs(y - reference)) < 0.01 * partbench.FULL_SCALE
 
@@ -89,3 +96,12 @@ def test_glitch_grows_with_frequency_and_is_small_at_the_papers_rates():
     assert peaks[0] < peaks[1] < peaks[2]
     # 10 Hz (the paper's excitation range, real time): under 0.5 % of the 5 V amplitude
     assert peaks[0] < 0.005 * 5.0
+
+
+@partbench.requires_ngspice
+def test_glitch_same_on_both_engines():
+    # 1000 steps a period (the report uses 4000); the engines see the same grid
+    ours = partbench.glitch(partbench.run_builtin, "tl074", 1e3, points=1000)
+    theirs = partbench.glitch(run_ngspice, "tl074", 1e3, points=1000)
+    assert ours[0] == pytest.approx(theirs[0], rel=0.02)  # peak error
+    assert ours[2] == pytest.approx(theirs[2], rel=0.05)  # mean error ratio
