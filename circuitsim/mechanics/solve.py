@@ -3,8 +3,13 @@
 A piecewise-linear term is smooth except where one of its ``|row . x + offset|`` arguments
 crosses zero. A Runge-Kutta step that straddles such a kink loses its order there (and its
 error estimate lies), so each argument is a terminal event: integration stops exactly at the
-crossing and restarts from it, and every step sees one smooth (linear) vector field. Times at
-which a term switches on (``t_on``) end a segment the same way.
+crossing and restarts from it. Between two crossings the field is affine (each ``|g|`` is
+``side * g``), and that affine piece is what is integrated, so every step, including the
+trial steps that reach past the next kink before the event cuts them back, sees one smooth
+vector field. Times at which a term switches on (``t_on``) end a segment the same way.
+
+Like any event location, a crossing and re-crossing of the same kink within one step is not
+seen; ``max_step`` bounds how short such an excursion can be.
 """
 
 from __future__ import annotations

@@ -90,3 +90,27 @@ def test_wheelset_state_matrix_is_equation_5(wheelset):
         x = np.array([y, 0, 0, 0])
         assert flange.value(x) == pytest.approx(expected_force, abs=1e-6)
     assert np.allclose(flange.direction, [0, 0, -1 / 1500, 0])
+
+
+def test_no_step_straddles_a_kink(wheelset):
+    # between consecutive kinks every solver point lies on one side of each |y -+ eta|
+    result = solve(wheelset.system(parameters={"f": 5}), t_span=(0, 2))
+    edges = np.concatenate(([0.0], result.kinks, [2.0]))
+    y = result.state("y")
+    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+        inside = (result.t > lo) & (result.t < hi)
+        for offset in (0.009, -0.009):
+            signs = np.sign(y[inside] + offset)
+            assert np.all(signs == signs[0])
+
+
+def test_circuit_table_is_passed_through(tmp_path):
+    text = (
+        '[model]\nname = "s"\nkind = "first_order"\n[states]\nnames = ["x"]\n'
+        "[matrices]\nA = [[-1]]\n"
+        '[circuit]\nintegrators = { x = "U1A" }\nnotes = ["R1 sets 1/RC"]\n'
+    )
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    system = load_model(path).system()
+    assert system.circuit_hints == {"integrators": {"x": "U1A"}, "notes": ["R1 sets 1/RC"]}
