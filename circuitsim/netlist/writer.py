@@ -107,8 +107,8 @@ class _Writer:
                     for node, value in circuit.initial_conditions.items()
                 ]
             )
-        if circuit.options:
-            options = [self.option(k, v) for k, v in circuit.options.items()]
+        options = [self.option(k, v) for k, v in circuit.options.items()]
+        if any(options):
             self.emit([".options"] + [o for o in options if o])
         for analysis in circuit.analyses:
             self.emit(self.analysis(analysis))
