@@ -546,20 +546,23 @@ class _Checker:
         for i, g, row, off in pieces_model:
             lam = row[np.argmax(np.abs(row))]
             g, row, off = g * abs(lam), row / lam, off / lam
-            match = [
-                p for p in real
-                if p[0] == i and np.allclose(p[2], row, rtol=1e-9, atol=1e-12)
-                and math.isclose(p[3], off, rel_tol=1e-9, abs_tol=1e-15)
-            ]  # fmt: skip
+            # the nearest realized kink into the same state (rounded argument summers move it)
+            candidates = [p for p in real if p[0] == i]
             what = f"|x| piece into {states[i]} at offset {off:.6g}"
-            if not match:
+            if not candidates:
                 self.problems.append(f"{what}: not in the netlist")
                 continue
-            total = sum(p[1] for p in match)
-            parts = tuple(sorted({q for p in match for q in p[4]}))
-            for p in match:
-                real.remove(p)
-            report.entries.append(Entry(f"{what} gain", g, total, self.allowed(parts), parts))
+            scale = max(abs(off), 1e-300)
+            p = min(candidates, key=lambda p: np.sum(np.abs(p[2] - row)) + abs(p[3] - off) / scale)
+            real.remove(p)
+            allowed = self.allowed(p[4])
+            report.entries.append(Entry(f"{what} gain", g, p[1], allowed, p[4]))
+            report.entries.append(Entry(f"{what} offset", off, p[3], allowed, p[4]))
+            for j in np.flatnonzero(row):
+                if j != np.argmax(np.abs(row)):
+                    report.entries.append(
+                        Entry(f"{what} row [{states[j]}]", row[j], p[2][j], allowed, p[4])
+                    )
         for p in real:
             if p[1] != 0:
                 self.problems.append(

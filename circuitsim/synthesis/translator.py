@@ -38,6 +38,7 @@ from circuitsim.netlist.circuit import (
     VoltageSource,
 )
 from circuitsim.synthesis.blocks import BomEntry, Builder
+from circuitsim.synthesis.errors import SynthesisError
 from circuitsim.synthesis.eseries import CAPACITOR_DECADES
 from circuitsim.synthesis.naming import PartNames, node_name
 from circuitsim.synthesis.opamps import add_opamp
@@ -117,6 +118,12 @@ def synthesize(system: System, options: SynthesisOptions | None = None) -> Synth
     hints = system.circuit_hints or {}
     t_stop = float(options.t_stop or hints.get("t_stop", 5.0))
     K = options.time_scale
+    unknown = sorted(set(options.ranges) - set(system.states))
+    if unknown:
+        raise SynthesisError(
+            f"ranges given for unknown state(s) {', '.join(unknown)}; "
+            f"the model's states are {', '.join(system.states)}"
+        )
     trajectory = direct_solution(system, t_stop)
     scaling = choose_scaling(system, options, t_stop, trajectory)
     G = scaling.volts_per_unit
