@@ -13,8 +13,8 @@ import pytest
 
 from circuitsim.mechanics import load_model
 from circuitsim.netlist.circuit import Capacitor, Resistor, Sin, SubcircuitCall, Switch
-from circuitsim.synthesis.eseries import E96
 from circuitsim.synthesis.errors import SynthesisError
+from circuitsim.synthesis.eseries import E96
 from circuitsim.synthesis.options import SynthesisOptions
 from circuitsim.synthesis.translator import synthesize
 
