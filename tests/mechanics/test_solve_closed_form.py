@@ -203,3 +203,35 @@ def test_switch_on_time_ends_a_segment(tmp_path):
     tau = 0.2
     expected = 0.1 + 0.15 * math.cos(5 * tau) + (0.5 / 5) * math.sin(5 * tau)
     assert result.sol(0.5 + tau)[0] == pytest.approx(expected, rel=1e-9)
+
+
+FIRST_ORDER_KINK = """
+# x' = c - |x| from x(0) = -1: x = e^t - c for x < 0, crossing zero at t = ln(c) ...
+[model]
+name = "kinked_decay"
+kind = "first_order"
+[states]
+names = ["x"]
+[parameters]
+c = 2.0
+[matrices]
+A = [[0]]
+b = ["c"]
+[nonlinear.v]
+enters = { x = 1 }
+abs = [{ gain = -1, row = [1] }]
+[initial]
+x = -1
+"""
+
+
+def test_first_order_kink_closed_form(tmp_path):
+    model = load_model(write(tmp_path, "kink.toml", FIRST_ORDER_KINK))
+    result = solve(model.system(), t_span=(0, 3))
+    crossing = math.log(2.0)
+    assert len(result.kinks) == 1
+    assert result.kinks[0] == pytest.approx(crossing, abs=1e-10)  # rtol 1e-10, x ~ 1
+    t = np.linspace(0, 3, 301)
+    # ... then x' = c - x: x = c (1 - e^-(t - ln c))
+    exact = np.where(t < crossing, np.exp(t) - 2.0, 2.0 * (1.0 - np.exp(-(t - crossing))))
+    assert np.max(np.abs(result.sol(t)[0] - exact)) < 1e-9
