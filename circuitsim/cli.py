@@ -509,6 +509,76 @@ def _run_generate(args: argparse.Namespace) -> int:
 COMMANDS.append(_add_generate)
 
 
+def _add_simulate(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "simulate",
+        help="run a netlist's .tran (or .op) with our MNA engine or ngspice",
+        description=(
+            "Simulate FILE.cir: its first .tran, or its .op if it has no .tran, with the "
+            "built-in MNA engine (default) or ngspice. Writes every node voltage and every "
+            "voltage-source current (or only --probe signals) on the engine's own time points."
+        ),
+    )
+    parser.add_argument("netlist", metavar="FILE.cir", help="netlist to simulate")
+    parser.add_argument("--engine", choices=("builtin", "ngspice"), default="builtin")
+    parser.add_argument("--csv", metavar="FILE", help="write time,v(node),...,i(vsource),...")
+    parser.add_argument("--plot", metavar="FILE", help="save a figure (.png, .pdf, .svg)")
+    parser.add_argument(
+        "--probe", nargs="+", metavar="SIGNAL", help="only these signals, e.g. v(out) i(v1)"
+    )
+    parser.set_defaults(func=_run_simulate)
+
+
+def _run_simulate(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from circuitsim.netlist.reader import read_netlist
+
+    if args.engine == "ngspice":
+        from circuitsim.interop.ngspice import run_ngspice
+
+        waves = run_ngspice(Path(args.netlist), probes=args.probe)
+    else:
+        from circuitsim.solver import simulate
+
+        waves = simulate(read_netlist(args.netlist), progress=_progress)
+        if args.probe:
+            missing = [p for p in args.probe if p not in waves]
+            if missing:
+                print(
+                    f"circuitsim simulate: error: no signal {', '.join(missing)}; "
+                    f"have {', '.join(waves.names)}",
+                    file=sys.stderr,
+                )
+                return 1
+            waves = waves.select(args.probe)
+    stats = waves.stats
+    summary = f"{args.netlist}: {args.engine}, {len(waves.time)} time point(s)"
+    if "accepted" in stats:
+        summary += (
+            f", {stats['accepted']} accepted / {stats['rejected']} rejected steps, "
+            f"{stats['newton_iterations']} Newton iterations"
+        )
+    if "wall_time_s" in stats:
+        summary += f", {stats['wall_time_s']:.3g} s"
+    print(summary)
+    if args.csv:
+        waves.to_csv(args.csv)
+        print(f"wrote {args.csv}")
+    if args.plot:
+        from circuitsim.solver.plotting import plot_waveforms
+
+        plot_waveforms(waves, args.plot, title=Path(args.netlist).name)
+        print(f"wrote {args.plot}")
+    if not args.csv and not args.plot:
+        for name in waves.names:
+            print(f"  {name} = {waves[name][-1]:.6g}  (at t = {waves.time[-1]:.6g} s)")
+    return 0
+
+
+COMMANDS.append(_add_simulate)
+
+
 # --- end of verbs ---
 
 

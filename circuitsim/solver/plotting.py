@@ -1,0 +1,42 @@
+"""A quick figure of simulation results: one panel for voltages, one for currents."""
+
+from __future__ import annotations
+
+import os
+
+from circuitsim.solver.waveforms import Waveforms
+
+
+def plot_waveforms(waves: Waveforms, path: str | os.PathLike, title: str = "") -> None:
+    """Save a PNG/PDF/SVG (by ``path``'s suffix) of every signal in ``waves`` against time.
+
+    Voltages (``v(...)``) share the top panel, currents (``i(...)``) the bottom one; a panel
+    with no signals is left out.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    groups = [
+        ("voltage (V)", [n for n in waves.names if n.startswith("v(")]),
+        ("current (A)", [n for n in waves.names if not n.startswith("v(")]),
+    ]
+    groups = [g for g in groups if g[1]]
+    fig, axes = plt.subplots(
+        len(groups) or 1, 1, sharex=True, figsize=(8, 3 * max(len(groups), 1)), squeeze=False
+    )
+    for ax, (label, names) in zip(axes[:, 0], groups, strict=False):
+        for name in names:
+            ax.plot(
+                waves.time, waves[name], label=name, marker="." if len(waves.time) < 3 else None
+            )
+        ax.set_ylabel(label)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize="small", loc="best")
+    axes[-1, 0].set_xlabel("time (s)")
+    if title:
+        axes[0, 0].set_title(title)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)

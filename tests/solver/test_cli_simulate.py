@@ -1,0 +1,53 @@
+"""`circuitsim simulate`: CSV on the solver's time points, probes, plots, clear failures."""
+
+from pathlib import Path
+
+import numpy as np
+
+from circuitsim.cli import main
+from circuitsim.solver.waveforms import Waveforms
+from tests.solver.conftest import requires_ngspice
+
+GOLDEN = Path(__file__).parent / "golden"
+
+
+def test_csv_header_and_rc_values(tmp_path, capsys):
+    out = tmp_path / "rc.csv"
+    assert main(["simulate", str(GOLDEN / "rc.cir"), "--csv", str(out)]) == 0
+    assert out.read_text().splitlines()[0] == "time,v(in),v(out),i(v1)"
+    w = Waveforms.from_csv(out)
+    # after the pulse edge at 0.1 ms (rise 1 us) v(out) follows 1 - exp(-t/RC), RC = 1 ms
+    t = w.time
+    late = (t > 0.2e-3) & (t < 2.1e-3)
+    exact = 1 - np.exp(-(t[late] - 0.1e-3 - 0.5e-6) / 1e-3)
+    assert np.max(np.abs(w["v(out)"][late] - exact)) < 1e-3
+    assert np.all(np.diff(t) > 0) and len(t) > 100
+    assert "accepted" in capsys.readouterr().out
+
+
+def test_probe_and_plot(tmp_path):
+    csv, png = tmp_path / "n.csv", tmp_path / "n.png"
+    args = ["simulate", str(GOLDEN / "nested.cir"), "--probe", "v(out)", "i(v1)"]
+    assert main([*args, "--csv", str(csv), "--plot", str(png)]) == 0
+    assert csv.read_text().splitlines()[0] == "time,v(out),i(v1)"
+    assert png.stat().st_size > 1000
+
+
+def test_unknown_probe_fails(capsys):
+    assert main(["simulate", str(GOLDEN / "rc.cir"), "--probe", "v(nowhere)"]) == 1
+    assert "v(nowhere)" in capsys.readouterr().err
+
+
+def test_singular_circuit_is_one_line_and_exit_1(tmp_path, capsys):
+    bad = tmp_path / "bad.cir"
+    bad.write_text("floating\nV1 a 0 1\nR1 a 0 1k\nC1 a b 1n\nC2 b 0 1n\n.op\n.end\n")
+    assert main(["simulate", str(bad)]) == 1
+    err = capsys.readouterr().err
+    assert "singular" in err and "v(b)" in err
+
+
+@requires_ngspice
+def test_ngspice_engine(tmp_path):
+    out = tmp_path / "ng.csv"
+    assert main(["simulate", str(GOLDEN / "rc.cir"), "--engine", "ngspice", "--csv", str(out)]) == 0
+    assert Waveforms.from_csv(out)["v(out)"].size > 100
