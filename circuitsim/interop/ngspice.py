@@ -14,8 +14,12 @@ analyses and writes the chosen analysis' vectors to an ASCII rawfile, which this
 ngspice's exit status is not trusted (a failed run may still exit 0): a run counts as failed
 when the rawfile is missing or empty, or when the log holds error lines ("Error", "singular
 matrix", "Timestep too small", "doAnalyses: ...", "simulation(s) aborted"); the error then
-carries those lines. Results are ``.tran`` (time plus signals) or ``.op`` (one point at t = 0).
-``.ac`` is refused with a clear error: its complex vectors do not fit :class:`Waveforms`.
+carries those lines.
+
+Results: ``.tran`` (time plus signals), ``.op`` (one point at t = 0), or ``.ac`` as magnitude
+and phase: the "time" axis holds the frequencies (Hz) and each complex vector becomes two real
+ones, ``vm(node)``/``vp(node)`` (volts, degrees) and ``im(vname)``/``ip(vname)`` (amperes,
+degrees), the names ngspice's own ``.print ac`` uses.
 """
 
 from __future__ import annotations
@@ -54,6 +58,7 @@ def run_ngspice(
     netlist: Circuit | str | os.PathLike,
     probes: list[str] | None = None,
     timeout: float = 300.0,
+    analysis: str | None = None,
 ) -> Waveforms:
     """Run ``ngspice -b`` on ``netlist`` and return its waveforms.
 
@@ -67,14 +72,19 @@ def run_ngspice(
         Signals to return (``"out"`` or ``"v(out)"``, ``"i(v1)"``); all of them when None.
     timeout : float
         Seconds before ngspice is stopped and NgspiceError raised.
+    analysis : {"tran", "op", "ac"}, optional
+        Which of the deck's analyses to return; by default the ``.tran`` if there is one,
+        else the ``.op``, else the ``.ac``.
 
     Returns
     -------
     Waveforms
         ``engine="ngspice"``; ``time`` in seconds, shape (m,), ``v(node)`` volts and
         ``i(name)`` amperes with lower-case SPICE names (subcircuit nodes as ``v(x1.node)``);
-        an operating point is one point at t = 0. ``stats["wall_time_s"]`` is ngspice's
-        wall-clock time including start-up, ``stats["analysis"]`` ``"tran"`` or ``"op"``.
+        an operating point is one point at t = 0; an ``.ac`` sweep has frequencies (Hz) as
+        ``time`` and ``vm``/``vp``/``im``/``ip`` signals. ``stats["wall_time_s"]`` is
+        ngspice's wall-clock time including start-up, ``stats["analysis"]`` ``"tran"``,
+        ``"op"`` or ``"ac"``.
 
     Raises
     ------
@@ -83,7 +93,7 @@ def run_ngspice(
         no ``.tran``/``.op``, or a probe is not among the results.
     """
     deck, cwd = _deck_text(netlist)
-    analysis = _chosen_analysis(deck)
+    analysis = _chosen_analysis(deck, analysis)
     binary = shutil.which("ngspice")
     if binary is None:
         raise NgspiceError("ngspice is not installed or not on PATH (apt-get install -y ngspice)")
@@ -130,12 +140,15 @@ def run_ngspice(
 
 
 def parse_ascii_raw(text: str) -> Waveforms:
-    """The first plot of an ngspice ASCII rawfile as Waveforms (real data only).
+    """The first plot of an ngspice ASCII rawfile as Waveforms.
+
+    Complex plots (``.ac``) give magnitude and phase signals over the frequency axis (see the
+    module docstring).
 
     Raises
     ------
     NgspiceError
-        The file is not an ASCII rawfile, holds complex data, or is cut short.
+        The file is not an ASCII rawfile or is cut short.
     """
     lines = text.splitlines()
     header: dict[str, str] = {}
@@ -151,8 +164,7 @@ def parse_ascii_raw(text: str) -> Waveforms:
         points = int(header["no. points"])
     except (KeyError, ValueError):
         raise NgspiceError("ngspice's rawfile has no variable/point counts", text[:400]) from None
-    if "complex" in header.get("flags", "").lower():
-        raise NgspiceError("complex (.ac) results are not supported by the ngspice runner")
+    is_complex = "complex" in header.get("flags", "").lower()
     for line in lines[row + 1 : row + 1 + count]:
         fields = line.split()
         names.append(fields[1])
@@ -161,9 +173,14 @@ def parse_ascii_raw(text: str) -> Waveforms:
     if values_at >= len(lines) or not lines[values_at].startswith("Values:"):
         raise NgspiceError("ngspice's rawfile has no Values section", text[:400])
     tokens = " ".join(lines[values_at + 1 :]).split()
-    # Each point is its index followed by one number per variable.
+    # Each point is its index followed by one number per variable ("re,im" when complex).
     try:
-        data = np.array(tokens[: points * (count + 1)], dtype=float)
+        wanted = tokens[: points * (count + 1)]
+        if is_complex:
+            values = [complex(*map(float, z.split(","))) if "," in z else float(z) for z in wanted]
+            data = np.array(values, dtype=complex)
+        else:
+            data = np.array(wanted, dtype=float)
         data = data.reshape(points, count + 1)[:, 1:]
     except ValueError:
         raise NgspiceError(
@@ -173,10 +190,15 @@ def parse_ascii_raw(text: str) -> Waveforms:
     time_axis = np.zeros(1)
     for column, (name, kind) in enumerate(zip(names, kinds, strict=True)):
         key = _signal_name(name, kind)
-        if key == "time":
-            time_axis = data[:, column].copy()
+        values = data[:, column]
+        if key in ("time", "frequency"):
+            time_axis = np.real(values).astype(float)
+        elif is_complex:
+            inner = key[1:]  # "(node)"
+            signals[key[0] + "m" + inner] = np.abs(values).astype(float)
+            signals[key[0] + "p" + inner] = np.degrees(np.angle(values)).astype(float)
         else:
-            signals[key] = data[:, column].copy()
+            signals[key] = values.astype(float)
     if points == 1 and "operating point" in header.get("plotname", "").lower():
         time_axis = np.zeros(1)
     return Waveforms(time=time_axis, signals=signals, engine="ngspice")
@@ -185,7 +207,7 @@ def parse_ascii_raw(text: str) -> Waveforms:
 def _signal_name(name: str, kind: str) -> str:
     """ngspice's vector name in our spelling: ``v(node)``, ``i(vname)``, ``time``."""
     name = name.lower()
-    if name == "time" or name.startswith(("v(", "i(")):
+    if name in ("time", "frequency") or name.startswith(("v(", "i(")):
         return name
     if name.endswith("#branch"):
         return f"i({name[: -len('#branch')]})"
@@ -221,8 +243,8 @@ def _logical_lines(deck: str) -> list[str]:
     return joined
 
 
-def _chosen_analysis(deck: str) -> str:
-    """``"tran"`` if the deck has a ``.tran``, else ``"op"``; NgspiceError otherwise."""
+def _chosen_analysis(deck: str, wanted: str | None = None) -> str:
+    """``wanted`` if the deck has it; by default ``"tran"``, else ``"op"``, else ``"ac"``."""
     found = set()
     in_control = False
     for line in _logical_lines(deck)[1:]:
@@ -233,15 +255,17 @@ def _chosen_analysis(deck: str) -> str:
             in_control = False
         elif not in_control and word in (".tran", ".op", ".ac"):
             found.add(word[1:])
-    if "tran" in found:
-        return "tran"
-    if "op" in found:
-        return "op"
-    if "ac" in found:
-        raise NgspiceError(
-            "the ngspice runner returns .tran and .op results only; this deck has only .ac"
-        )
-    raise NgspiceError("the netlist has no .tran or .op analysis for ngspice to run")
+    if wanted is not None:
+        if wanted not in ("tran", "op", "ac"):
+            raise NgspiceError(f"unknown analysis {wanted!r}; choose tran, op or ac")
+        if wanted not in found:
+            have = ", ".join(f".{a}" for a in sorted(found)) or "none"
+            raise NgspiceError(f"the netlist has no .{wanted} analysis (it has: {have})")
+        return wanted
+    for kind in ("tran", "op", "ac"):
+        if kind in found:
+            return kind
+    raise NgspiceError("the netlist has no .tran, .op or .ac analysis for ngspice to run")
 
 
 def _with_control(deck: str, analysis: str, raw: Path) -> str:

@@ -106,14 +106,33 @@ def test_singular_circuit_raises_even_though_ngspice_may_exit_0():
     assert "singular matrix" in info.value.log.lower()
 
 
-def test_deck_without_tran_or_op_is_refused_before_running():
+def test_deck_without_analysis_or_with_another_is_refused_before_running():
     c = _rc_step()
     c.analyses = []
-    with pytest.raises(NgspiceError, match="no .tran or .op analysis"):
+    with pytest.raises(NgspiceError, match="no .tran, .op or .ac analysis"):
         run_ngspice(c)
     c.analyses = [AcSweep("dec", 10, 1.0, 1e3)]
-    with pytest.raises(NgspiceError, match=r"\.tran and \.op results only"):
-        run_ngspice(c)
+    with pytest.raises(NgspiceError, match=r"no \.tran analysis \(it has: \.ac\)"):
+        run_ngspice(c, analysis="tran")
+    with pytest.raises(NgspiceError, match="unknown analysis 'dc'"):
+        run_ngspice(c, analysis="dc")
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+def test_ac_sweep_is_magnitude_and_phase_of_the_rc_lowpass():
+    c = _rc_step()
+    c.element("V1").ac_magnitude = 1.0
+    c.analyses.append(AcSweep("dec", 5, 10.0, 1e5))
+    assert run_ngspice(c).stats["analysis"] == "tran"  # .tran first by default
+    waves = run_ngspice(c, analysis="ac")
+    f = waves.time
+    assert f[0] == pytest.approx(10.0) and f[-1] == pytest.approx(1e5) and len(f) == 21
+    h = 1.0 / (1.0 + 2j * np.pi * f * R * C)
+    assert np.allclose(waves["vm(out)"], np.abs(h), rtol=1e-9)
+    assert np.allclose(waves["vp(out)"], np.degrees(np.angle(h)), atol=1e-7)
+    assert np.allclose(waves["vm(in)"], 1.0) and np.allclose(waves["vp(in)"], 0.0)
+    assert waves.names == ["vm(in)", "vp(in)", "vm(out)", "vp(out)", "im(v1)", "ip(v1)"]
 
 
 def test_missing_binary_gives_a_clear_error(monkeypatch, tmp_path):
@@ -137,8 +156,16 @@ def test_parse_ascii_raw_by_hand():
     assert waves.signals["i(v1)"].tolist() == [-2e-3, -1e-3]
     with pytest.raises(NgspiceError, match="cut short"):
         parse_ascii_raw(text.replace("No. Points: 2", "No. Points: 3"))
-    with pytest.raises(NgspiceError, match="complex"):
-        parse_ascii_raw(text.replace("Flags: real", "Flags: complex"))
+    complex_text = (
+        text.replace("Flags: real", "Flags: complex")
+        .replace("time\ttime", "frequency\tfrequency grid=3")
+        .replace("1.5e+00", "0,2")
+        .replace("-2e-03", "-3e-3,0")
+    )
+    ac = parse_ascii_raw(complex_text)
+    assert ac.signals["vm(out)"].tolist() == [2.0, 2.5]
+    assert ac.signals["vp(out)"].tolist() == [90.0, 0.0]
+    assert ac.signals["ip(v1)"].tolist() == [180.0, 180.0]
 
 
 @requires_ngspice
