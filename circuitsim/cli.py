@@ -158,7 +158,9 @@ def _add_ode(sub: argparse._SubParsersAction) -> None:
         description=(
             "Direct solution of the model (default: the wheelset, paper coefficients, V = 55 m/s, "
             "a = 0.040 m, f = 3 Hz, zero initial state, 0-5 s, flange on). Prints max |.| and "
-            "the final value of every state (SI units); writes a CSV and a figure on request."
+            "the final value of every state (SI units); writes a CSV and a figure on request. "
+            "For a user model, --speed/--freq/--amplitude/--y0 set the parameters its [options] "
+            "table names (--y0 sets the first state if it names none); --param sets any."
         ),
     )
     _add_model_options(parser)
