@@ -2,10 +2,11 @@
 
 The netlist (a :class:`~circuitsim.netlist.circuit.Circuit`, written in the ngspice dialect, or
 SPICE text, or a file) gets its own ``.control`` blocks replaced by one that runs the deck's
-analyses and writes the chosen analysis' vectors to an ASCII rawfile, which this module parses::
+analyses and writes the chosen analysis' vectors to a rawfile, which
+:mod:`circuitsim.interop.rawfile` parses (binary: exact doubles, and fast)::
 
     .control
-    set filetype=ascii
+    set filetype=binary
     run
     setplot tran1
     write <tmp>/out.raw
@@ -33,9 +34,10 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 from circuitsim.interop.errors import NgspiceError
+from circuitsim.interop.rawfile import parse_ascii_raw, parse_rawfile
+
+__all__ = ["ngspice_available", "run_ngspice", "parse_rawfile", "parse_ascii_raw"]
 from circuitsim.netlist.circuit import Circuit
 from circuitsim.solver.waveforms import Waveforms
 
@@ -124,7 +126,7 @@ def run_ngspice(
             raise NgspiceError(
                 f"ngspice wrote no results (exit status {done.returncode})", _tail(log)
             )
-        waves = parse_ascii_raw(raw.read_text(errors="replace"))
+        waves = parse_rawfile(raw.read_bytes())
     waves.stats["wall_time_s"] = wall
     waves.stats["analysis"] = analysis
     if probes is not None:
@@ -137,83 +139,6 @@ def run_ngspice(
         waves = waves.select(probes)
         waves.stats = {"wall_time_s": wall, "analysis": analysis}
     return waves
-
-
-def parse_ascii_raw(text: str) -> Waveforms:
-    """The first plot of an ngspice ASCII rawfile as Waveforms.
-
-    Complex plots (``.ac``) give magnitude and phase signals over the frequency axis (see the
-    module docstring).
-
-    Raises
-    ------
-    NgspiceError
-        The file is not an ASCII rawfile or is cut short.
-    """
-    lines = text.splitlines()
-    header: dict[str, str] = {}
-    names: list[str] = []
-    kinds: list[str] = []
-    row = 0
-    while row < len(lines) and not lines[row].startswith("Variables:"):
-        key, _, value = lines[row].partition(":")
-        header[key.strip().lower()] = value.strip()
-        row += 1
-    try:
-        count = int(header["no. variables"])
-        points = int(header["no. points"])
-    except (KeyError, ValueError):
-        raise NgspiceError("ngspice's rawfile has no variable/point counts", text[:400]) from None
-    is_complex = "complex" in header.get("flags", "").lower()
-    for line in lines[row + 1 : row + 1 + count]:
-        fields = line.split()
-        names.append(fields[1])
-        kinds.append(fields[2] if len(fields) > 2 else "")
-    values_at = row + 1 + count
-    if values_at >= len(lines) or not lines[values_at].startswith("Values:"):
-        raise NgspiceError("ngspice's rawfile has no Values section", text[:400])
-    tokens = " ".join(lines[values_at + 1 :]).split()
-    # Each point is its index followed by one number per variable ("re,im" when complex).
-    try:
-        wanted = tokens[: points * (count + 1)]
-        if is_complex:
-            values = [complex(*map(float, z.split(","))) if "," in z else float(z) for z in wanted]
-            data = np.array(values, dtype=complex)
-        else:
-            data = np.array(wanted, dtype=float)
-        data = data.reshape(points, count + 1)[:, 1:]
-    except ValueError:
-        raise NgspiceError(
-            f"ngspice's rawfile is cut short: expected {points} points of {count} values"
-        ) from None
-    signals: dict[str, np.ndarray] = {}
-    time_axis = np.zeros(1)
-    for column, (name, kind) in enumerate(zip(names, kinds, strict=True)):
-        key = _signal_name(name, kind)
-        values = data[:, column]
-        if key in ("time", "frequency"):
-            time_axis = np.real(values).astype(float)
-        elif is_complex:
-            inner = key[1:]  # "(node)"
-            signals[key[0] + "m" + inner] = np.abs(values).astype(float)
-            signals[key[0] + "p" + inner] = np.degrees(np.angle(values)).astype(float)
-        else:
-            signals[key] = values.astype(float)
-    if points == 1 and "operating point" in header.get("plotname", "").lower():
-        time_axis = np.zeros(1)
-    return Waveforms(time=time_axis, signals=signals, engine="ngspice")
-
-
-def _signal_name(name: str, kind: str) -> str:
-    """ngspice's vector name in our spelling: ``v(node)``, ``i(vname)``, ``time``."""
-    name = name.lower()
-    if name in ("time", "frequency") or name.startswith(("v(", "i(")):
-        return name
-    if name.endswith("#branch"):
-        return f"i({name[: -len('#branch')]})"
-    if kind.lower() == "current":
-        return f"i({name})"
-    return f"v({name})"
 
 
 def _deck_text(netlist: Circuit | str | os.PathLike) -> tuple[str, str | None]:
@@ -282,7 +207,7 @@ def _with_control(deck: str, analysis: str, raw: Path) -> str:
             kept.append(line)
     kept += [
         ".control",
-        "set filetype=ascii",
+        "set filetype=binary",
         "run",
         f"setplot {analysis}1",
         f"write {raw}",

@@ -1,0 +1,147 @@
+"""ngspice rawfiles (``write out.raw``), binary or ASCII, to :class:`Waveforms`.
+
+Layout (both kinds): text header lines ``Key: value`` (``Plotname``, ``Flags: real|complex``,
+``No. Variables``, ``No. Points``), then ``Variables:`` with one ``index name type`` line per
+vector, then either
+
+- ``Binary:`` and the points as native float64: per point one number per vector (two, real
+  and imaginary, per vector of a complex plot, the axis included); or
+- ``Values:`` and per point its index followed by one number per vector (``re,im`` when
+  complex), whitespace separated. ngspice prints 16 significant digits here, so ASCII values
+  are rounded where binary ones are exact, and reading them is some 100 times slower.
+
+Only the first plot of a file is read. Names are turned into ours: ``v(node)``,
+``i(vname)`` (``vname#branch`` -> ``i(vname)``), lower case. Complex vectors (an ``.ac``
+sweep) become magnitude and phase in degrees, ``vm(node)``/``vp(node)`` and
+``im(vname)``/``ip(vname)``, over the frequency axis, which takes the place of ``time``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from circuitsim.interop.errors import NgspiceError
+from circuitsim.solver.waveforms import Waveforms
+
+_BINARY = b"Binary:\n"
+_VALUES = b"Values:\n"
+
+
+def parse_rawfile(data: bytes) -> Waveforms:
+    """The first plot of an ngspice rawfile (binary or ASCII) as Waveforms.
+
+    Raises
+    ------
+    NgspiceError
+        Not a rawfile, or cut short.
+    """
+    binary_at, values_at = data.find(_BINARY), data.find(_VALUES)
+    starts = [at for at in (binary_at, values_at) if at >= 0]
+    if not starts:
+        raise NgspiceError("not an ngspice rawfile: no Binary: or Values: section", _head(data))
+    start = min(starts)
+    header = data[:start].decode("utf-8", errors="replace")
+    names, kinds, points, is_complex, plotname = _header(header)
+    count = len(names)
+    width = 2 if is_complex else 1
+    body = start + len(_BINARY if start == binary_at else _VALUES)
+    if start == binary_at:
+        needed = points * count * width
+        if (len(data) - body) // 8 < needed:
+            raise _cut_short(points, count)
+        flat = np.frombuffer(data, dtype=np.float64, count=needed, offset=body)
+        table = flat.reshape(points, count * width)
+        table = table[:, 0::2] + 1j * table[:, 1::2] if is_complex else table
+    else:
+        table = _ascii_values(data[body:].decode("ascii", errors="replace"), points, count)
+    return _waveforms(names, kinds, table, is_complex, plotname)
+
+
+def parse_ascii_raw(text: str) -> Waveforms:
+    """The first plot of an ngspice ASCII rawfile, given as text."""
+    return parse_rawfile(text.encode("utf-8"))
+
+
+def _head(data: bytes) -> str:
+    return data[:400].decode("utf-8", errors="replace")
+
+
+def _cut_short(points: int, count: int) -> NgspiceError:
+    return NgspiceError(
+        f"ngspice's rawfile is cut short: expected {points} points of {count} values"
+    )
+
+
+def _header(text: str) -> tuple[list[str], list[str], int, bool, str]:
+    lines = text.splitlines()
+    fields: dict[str, str] = {}
+    row = 0
+    while row < len(lines) and not lines[row].startswith("Variables:"):
+        key, _, value = lines[row].partition(":")
+        fields[key.strip().lower()] = value.strip()
+        row += 1
+    try:
+        count = int(fields["no. variables"])
+        points = int(fields["no. points"])
+    except (KeyError, ValueError):
+        raise NgspiceError("ngspice's rawfile has no variable/point counts", text[:400]) from None
+    names, kinds = [], []
+    for line in lines[row + 1 : row + 1 + count]:
+        parts = line.split()
+        if len(parts) < 2:
+            raise NgspiceError(f"ngspice's rawfile has a bad variable line: {line!r}")
+        names.append(parts[1])
+        kinds.append(parts[2] if len(parts) > 2 else "")
+    if len(names) != count:
+        raise NgspiceError(f"ngspice's rawfile lists {len(names)} of its {count} variables")
+    is_complex = "complex" in fields.get("flags", "").lower()
+    return names, kinds, points, is_complex, fields.get("plotname", "")
+
+
+def _ascii_values(text: str, points: int, count: int) -> np.ndarray:
+    # Each point is its index followed by one number per variable ("re,im" when complex).
+    tokens = text.split()[: points * (count + 1)]
+    if len(tokens) < points * (count + 1):
+        raise _cut_short(points, count)
+    try:
+        if any("," in token for token in tokens[: count + 1]):
+            values = [complex(*map(float, z.split(","))) if "," in z else float(z) for z in tokens]
+            table = np.array(values, dtype=complex)
+        else:
+            table = np.array(tokens, dtype=float)
+    except (TypeError, ValueError):
+        raise NgspiceError("ngspice's rawfile has a value that is not a number") from None
+    return table.reshape(points, count + 1)[:, 1:]
+
+
+def _waveforms(
+    names: list[str], kinds: list[str], table: np.ndarray, is_complex: bool, plotname: str
+) -> Waveforms:
+    signals: dict[str, np.ndarray] = {}
+    axis = np.zeros(1)
+    for column, (name, kind) in enumerate(zip(names, kinds, strict=True)):
+        key = signal_name(name, kind)
+        values = table[:, column]
+        if key in ("time", "frequency"):
+            axis = np.ascontiguousarray(np.real(values), dtype=float)
+        elif is_complex:
+            inner = key[1:]  # "(node)"
+            signals[key[0] + "m" + inner] = np.abs(values).astype(float)
+            signals[key[0] + "p" + inner] = np.degrees(np.angle(values)).astype(float)
+        else:
+            signals[key] = np.ascontiguousarray(values, dtype=float)
+    if "operating point" in plotname.lower():
+        axis = np.zeros(1)
+    return Waveforms(time=axis, signals=signals, engine="ngspice")
+
+
+def signal_name(name: str, kind: str) -> str:
+    """ngspice's vector name in our spelling: ``v(node)``, ``i(vname)``, ``time``."""
+    name = name.lower()
+    if name in ("time", "frequency") or name.startswith(("v(", "i(")):
+        return name
+    if name.endswith("#branch"):
+        return f"i({name[: -len('#branch')]})"
+    if kind.lower() == "current":
+        return f"i({name})"
+    return f"v({name})"
