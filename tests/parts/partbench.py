@@ -180,9 +180,9 @@ ETA = 2.0
 inside the TL074 block's range, docs/parts.md)."""
 
 
-def ramp_circuit(span: float = 10.0, duration: float = 10e-3) -> Circuit:
+def ramp_circuit(span: float = 10.0, duration: float = 10e-3, points: int = 1000) -> Circuit:
     """A circuit with a slow ramp from -span to +span (V) at node ``in`` (and its negative
-    at ``nin``) and a ``.tran`` sampling it every 1/1000 of ``duration``."""
+    at ``nin``) and a ``.tran`` with at most ``duration / points`` between time points."""
     circuit = Circuit("block ramp bench")
     ramp = Pwl(((0.0, -span), (duration, span)))
     back = Pwl(((0.0, span), (duration, -span)))
@@ -190,7 +190,7 @@ def ramp_circuit(span: float = 10.0, duration: float = 10e-3) -> Circuit:
         VoltageSource("VIN", "in", "0", waveform=ramp),
         VoltageSource("VNIN", "nin", "0", waveform=back),
     )
-    step = duration / 1000
+    step = duration / points
     circuit.analyses.append(Transient(step, duration, tmax=step))
     return circuit
 
@@ -303,9 +303,15 @@ BLOCKS = {
 = -in) to ``out`` and returns the reference function of v(in)."""
 
 
-def transfer_curve(run_circuit: Callable[[Circuit], Waveforms], block: str, kind: str):
-    """The slow-ramp transfer curve of ``block``: (v(in), v(out), reference), V, shape (m,)."""
-    circuit = ramp_circuit(FULL_SCALE)
+def transfer_curve(
+    run_circuit: Callable[[Circuit], Waveforms], block: str, kind: str, points: int = 1000
+):
+    """The slow-ramp transfer curve of ``block``: (v(in), v(out), reference), V, shape (m,).
+
+    ``points``: time-step limit of the ramp (duration / points); the tests use 1000 for speed,
+    which under-samples the short glitches at the kinks, the report 4000.
+    """
+    circuit = ramp_circuit(FULL_SCALE, points=points)
     reference = BLOCKS[block](circuit, kind)
     waves = run_circuit(circuit)
     x = waves["in"]

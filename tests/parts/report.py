@@ -34,9 +34,10 @@ def plot_steps(runs: dict) -> None:
     fig, (big, small) = plt.subplots(1, 2, figsize=(9, 3.4))
     for name, run in runs.items():
         w = partbench.follower_step(run, -5.0, 5.0, 1.5e-6, 5e-9, "RL out 0 10k\n")
-        big.plot(w.time * 1e6, w["out"], label=f"out ({name})")
+        style = "-" if name == "ngspice" else "--"
+        big.plot(w.time * 1e6, w["out"], style, label=f"out ({name})")
         w = partbench.follower_step(run, 0.0, 0.01, 0.6e-6, 2e-9)
-        small.plot(w.time * 1e6, w["out"] * 1e3, label=f"out ({name})")
+        small.plot(w.time * 1e6, w["out"] * 1e3, style, label=f"out ({name})")
     w = partbench.follower_step(run_ngspice, -5.0, 5.0, 1.5e-6, 5e-9)
     big.plot(w.time * 1e6, w["in"], "k:", label="in")
     w = partbench.follower_step(run_ngspice, 0.0, 0.01, 0.6e-6, 2e-9)
@@ -87,7 +88,7 @@ def main() -> None:
                 if block == "dead_zone_supplies" and kind != "tl074":
                     cells.append("-")
                     continue
-                x, y, reference = partbench.transfer_curve(run, block, kind)
+                x, y, reference = partbench.transfer_curve(run, block, kind, points=4000)
                 cells.append(f"{np.max(np.abs(y - reference)) * 1e3:.3g}")
         print(f"| {block} | " + " | ".join(cells) + " |")
     plot_steps(runs)
