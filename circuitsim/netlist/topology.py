@@ -321,20 +321,24 @@ def _cut_sets(
         if _conducts_dc(element):
             nodes = _output_nodes(element)
             graph.add_edges_from(zip(nodes[:1] * (len(nodes) - 1), nodes[1:], strict=True))
-    findings = []
-    for piece in nx.connected_components(graph):
-        if GROUND in piece or piece <= floating:
+    pieces = [p for p in nx.connected_components(graph) if GROUND not in p and not p <= floating]
+    # The links of each piece: non-conducting branches with one end in it and one outside,
+    # gathered in one pass over the elements (linear, however many pieces there are).
+    piece_of = {node: index for index, piece in enumerate(pieces) for node in piece}
+    links: list[list[Element]] = [[] for _ in pieces]
+    for element in elements:
+        if _conducts_dc(element):
             continue
+        ends = {piece_of.get(n, -1) for n in _output_nodes(element)}
+        if len(ends) == 2:
+            for index in ends - {-1}:
+                links[index].append(element)
+    findings = []
+    for piece, piece_links in zip(pieces, links, strict=True):
         nodes = tuple(sorted(piece))
-        links = [
-            e
-            for e in elements
-            if not _conducts_dc(e)
-            and len({n in piece for n in _output_nodes(e)}) == 2  # one end in, one out
-        ]
-        names = tuple(e.name for e in links)
+        names = tuple(e.name for e in piece_links)
         listed = ", ".join(nodes)
-        if links and all(_is_current_source(e) for e in links):
+        if piece_links and all(_is_current_source(e) for e in piece_links):
             findings.append(
                 Finding(
                     "current-source-cutset",
@@ -345,7 +349,7 @@ def _cut_sets(
                 )
             )
         else:
-            through = f"only through {', '.join(names)}" if links else "through no element"
+            through = f"only through {', '.join(names)}" if names else "through no element"
             findings.append(
                 Finding(
                     "no-dc-path",
@@ -360,6 +364,7 @@ def _cut_sets(
 def _voltage_loops(elements: list[Element]) -> list[Finding]:
     """Loops of V, E/H outputs and inductors, found as the edge that closes each one."""
     forest = nx.Graph()
+    joined = nx.utils.UnionFind()  # near-constant-time "already connected?" before any path
     findings = []
     for element in elements:
         if not _fixes_voltage(element):
@@ -367,13 +372,14 @@ def _voltage_loops(elements: list[Element]) -> list[Finding]:
         a, b = _output_nodes(element)
         if a == b:
             loop, nodes = (element.name,), (a,)
-        elif forest.has_node(a) and forest.has_node(b) and nx.has_path(forest, a, b):
+        elif joined[a] == joined[b]:
             path = nx.shortest_path(forest, a, b)
             loop = tuple(forest.edges[u, v]["name"] for u, v in zip(path, path[1:], strict=False))
             loop += (element.name,)
             nodes = tuple(path)
         else:
             forest.add_edge(a, b, name=element.name)
+            joined.union(a, b)
             continue
         findings.append(
             Finding(
