@@ -253,6 +253,11 @@ class _Writer:
         if isinstance(shape, Sin):
             fields = [shape.offset, shape.amplitude, shape.frequency]
             fields += _trimmed([shape.delay, shape.damping, shape.phase])
+            if len(fields) == 6 and self.dialect.name == "multisim":
+                self.notes.append(
+                    f"{owner}: SIN phase (6th field) is an ngspice/LTspice extension of "
+                    "SPICE3's SIN, unverified in Multisim"
+                )
             return self.call("SIN", fields)
         if isinstance(shape, Pulse):
             fields = [shape.initial, shape.pulsed, shape.delay, shape.rise, shape.fall]

@@ -268,3 +268,13 @@ def test_instance_parameters_keyword_only_for_multisim():
         ).splitlines()[1]
         == "X2 a b"
     )
+
+
+def test_sin_phase_gets_a_note_for_multisim_only():
+    c = Circuit(
+        title="sin",
+        elements=[VoltageSource("V1", "a", "0", waveform=Sin(0.0, 1.0, 50.0, 0.0, 0.0, 90.0))],
+    )
+    note = "* circuitsim: V1: SIN phase (6th field) is an ngspice/LTspice extension"
+    assert note in write_netlist(c, "multisim")
+    assert "* circuitsim" not in write_netlist(c, "ngspice") + write_netlist(c, "ltspice")
