@@ -32,8 +32,9 @@ simulator prints or saves and carry no circuit meaning: ``.save .print .plot .pr
 .measure .four``. Everything else is a :class:`~circuitsim.netlist.errors.NetlistError`:
 unknown directives, unsupported element letters (Q M J K T B ...), ``.global`` (only ground is
 global here; pass nodes through subcircuit ports instead), ``.endl``/``.ends`` without their
-opening line, a ``.subckt`` without ``.ends``, a ``.control`` without ``.endc``, duplicate
-``.model``/``.subckt`` names in one scope. Lines after ``.end`` are not read.
+opening line (and ``.endc``), a ``.subckt`` without ``.ends``, a ``.control`` without
+``.endc``, duplicate ``.model``/``.subckt`` names in one scope. Lines after ``.end`` are not
+read (``.end`` in an included file ends that file only).
 """
 
 from __future__ import annotations
@@ -65,6 +66,13 @@ from circuitsim.netlist.reader_elements import (
     to_value,
     tokenize,
 )
+from circuitsim.netlist.reader_lines import (
+    Control,
+    include_target,
+    logical_lines,
+    read_file,
+    select_sections,
+)
 from circuitsim.netlist.reader_params import split_assignments
 
 __all__ = ["parse_netlist", "read_netlist", "NetlistWarning", "LIBRARY_DIR"]
@@ -79,102 +87,7 @@ class NetlistWarning(UserWarning):
     """A netlist line was read but not kept (e.g. ``.print``), so nothing is lost silently."""
 
 
-# --- physical lines to logical lines ------------------------------------------------------
-
-
-@dataclass
-class _Control:
-    """A raw ``.control`` ... ``.endc`` block."""
-
-    line: Line
-    text: str
-
-
-def _strip_comment(text: str) -> str:
-    cut = text.find(";")
-    if cut >= 0:
-        text = text[:cut]
-    # ngspice: '$' starts a comment at the start of a word (not inside a name like a$b)
-    for i, ch in enumerate(text):
-        if ch == "$" and (i == 0 or text[i - 1] in " \t,"):
-            return text[:i]
-    return text
-
-
-def _logical_lines(text: str, file: str, has_title: bool) -> tuple[str, list[Line | _Control]]:
-    """Join continuations, drop comments, set ``.control`` blocks aside, stop at ``.end``."""
-    physical = text.splitlines()
-    title = ""
-    start = 0
-    if has_title:
-        title = physical[0].lstrip("\ufeff").strip() if physical else ""
-        start = 1
-    out: list[Line | _Control] = []
-    current: tuple[int, str] | None = None
-    i = start
-    while i < len(physical):
-        number = i + 1
-        raw = physical[i].lstrip("\ufeff") if i == 0 else physical[i]
-        stripped = raw.strip()
-        i += 1
-        if not stripped or stripped.startswith("*"):
-            continue
-        if stripped.startswith("+"):
-            if current is None:
-                raise NetlistError(
-                    "continuation line '+' with no line before it to continue",
-                    file=file,
-                    line=number,
-                    text=raw,
-                )
-            current = (current[0], current[1] + " " + _strip_comment(stripped[1:]))
-            continue
-        if current is not None:
-            out.append(Line(file, current[0], current[1].strip()))
-            current = None
-        body = _strip_comment(stripped).strip()
-        if not body:
-            continue
-        keyword = body.split()[0].lower()
-        if keyword == ".control":
-            block: list[str] = []
-            while i < len(physical) and physical[i].strip().lower().split()[:1] != [".endc"]:
-                block.append(physical[i].rstrip())
-                i += 1
-            if i >= len(physical):
-                raise NetlistError(".control block without .endc", file=file, line=number, text=raw)
-            i += 1
-            out.append(_Control(Line(file, number, body), "\n".join(block)))
-            continue
-        if keyword == ".end":
-            break
-        current = (number, body)
-    if current is not None:
-        out.append(Line(file, current[0], current[1].strip()))
-    return title, out
-
-
-# --- include handling ---------------------------------------------------------------------
-
-
-def _include_target(line: Line, rest: str, what: str) -> tuple[str, str | None]:
-    """The file (quotes removed) and, for ``.lib``, the optional section name."""
-    rest = rest.strip()
-    if not rest:
-        raise line.error(f"{what} needs a file name")
-    if rest[0] in "\"'":
-        end = rest.find(rest[0], 1)
-        if end < 0:
-            raise line.error(f"unbalanced quote in {what} file name")
-        path, tail = rest[1:end], rest[end + 1 :].split()
-    else:
-        parts = rest.split()
-        path, tail = parts[0], parts[1:]
-    if not path:
-        raise line.error(f"{what} needs a file name")
-    if len(tail) > 1 or (tail and what == ".include"):
-        raise line.error(f"unexpected {' '.join(tail)!r} after the file name of {what}")
-    return path, (tail[0].lower() if tail else None)
+# --- include files -----------------------------------------------------------------------
 
 
 def _resolve(line: Line, path: str, base_dir: Path) -> Path:
@@ -185,50 +98,6 @@ def _resolve(line: Line, path: str, base_dir: Path) -> Path:
             return option.resolve()
     where = " or ".join(str(t) for t in tried)
     raise line.error(f"include file {path!r} not found (looked for {where})")
-
-
-def _read_file(line: Line | None, path: Path, file: str) -> str:
-    try:
-        return path.read_text(encoding="utf-8", errors="strict")
-    except (OSError, UnicodeDecodeError) as exc:
-        if line is None:
-            raise NetlistError(f"cannot read netlist: {exc}", file=file) from None
-        raise line.error(f"cannot read {path}: {exc}") from None
-
-
-def _select_sections(
-    lines: list[Line | _Control], section: str | None, where: Line | None, path: Path
-) -> list[Line | _Control]:
-    """Keep the lines outside ``.lib name``/``.endl`` sections, or only those of ``section``."""
-
-    def lib_words(entry: Line | _Control) -> list[str] | None:
-        if isinstance(entry, Line):
-            words = entry.text.split()
-            if words[0].lower() == ".lib" and len(words) == 2:
-                return words
-        return None
-
-    has_endl = [isinstance(e, Line) and e.text.split()[0].lower() == ".endl" for e in lines]
-    kept: list[Line | _Control] = []
-    inside: str | None = None
-    found = False
-    for index, entry in enumerate(lines):
-        words = lib_words(entry)
-        if inside is None and words is not None and any(has_endl[index + 1 :]):
-            inside = words[1].lower()
-            found = found or inside == section
-            continue
-        if isinstance(entry, Line) and entry.text.split()[0].lower() == ".endl":
-            if inside is None:
-                raise entry.error(".endl without a .lib section before it")
-            inside = None
-            continue
-        if (inside is None and section is None) or (inside is not None and inside == section):
-            kept.append(entry)
-    if section is not None and not found:
-        assert where is not None
-        raise where.error(f"library section {section!r} not found in {path}")
-    return kept
 
 
 # --- the reader ---------------------------------------------------------------------------
@@ -253,9 +122,9 @@ class _Reader:
     include_stack: list[str] = field(default_factory=list)
     known: dict[str, float] = field(default_factory=dict)  # global params evaluable so far
 
-    def run(self, lines: list[Line | _Control], base_dir: Path) -> None:
+    def run(self, lines: list[Line | Control], base_dir: Path) -> None:
         for entry in lines:
-            if isinstance(entry, _Control):
+            if isinstance(entry, Control):
                 if len(self.scopes) > 1:
                     raise entry.line.error(".control is not allowed inside a .subckt")
                 self.circuit.control.append(entry.text)
@@ -282,6 +151,8 @@ class _Reader:
                 stacklevel=4,
             )
             return
+        if keyword == ".endc":
+            raise line.error(".endc without a .control before it")
         if keyword == ".global":
             raise line.error(
                 ".global is not supported: only ground 0 (alias gnd) is global; pass the node "
@@ -297,14 +168,14 @@ class _Reader:
     def include(self, line: Line, rest: str, base_dir: Path) -> None:
         what = line.text.split()[0].lower()
         what = ".include" if what.startswith(".inc") else ".lib"
-        path_text, section = _include_target(line, rest, what)
+        path_text, section = include_target(line, rest, what)
         path = _resolve(line, path_text, base_dir)
         key = f"{path}#{section or ''}"
         if key in self.include_stack or len(self.include_stack) >= _MAX_INCLUDE_DEPTH:
             chain = " -> ".join(k.split("#")[0] for k in [*self.include_stack, key])
             raise line.error(f"include cycle: {chain}")
-        _, lines = _logical_lines(_read_file(line, path, str(path)), str(path), has_title=False)
-        lines = _select_sections(lines, section, line, path)
+        _, lines = logical_lines(read_file(line, path, str(path)), str(path), has_title=False)
+        lines = select_sections(lines, section, line, path)
         self.include_stack.append(key)
         try:
             self.run(lines, path.parent)
@@ -533,8 +404,8 @@ def parse_netlist(text: str, source: str = "<string>", base_dir: str | None = No
     if not isinstance(text, str):
         raise NetlistError(f"netlist text must be str, got {type(text).__name__}", file=source)
     folder = Path(base_dir) if base_dir is not None else Path(os.getcwd())
-    title, lines = _logical_lines(text, source, has_title=True)
-    lines = _select_sections(lines, None, None, Path(source))
+    title, lines = logical_lines(text, source, has_title=True)
+    lines = select_sections(lines, None, None, Path(source))
     circuit = Circuit(title=title, source=source)
     top = _Scope(None, circuit.elements, circuit.models, circuit.subcircuits, circuit.params)
     reader = _Reader(circuit, [top])
@@ -549,5 +420,5 @@ def parse_netlist(text: str, source: str = "<string>", base_dir: str | None = No
 def read_netlist(path: str | os.PathLike[str]) -> Circuit:
     """Read a netlist file; relative includes are looked up next to it. See parse_netlist."""
     file = Path(path)
-    text = _read_file(None, file, str(path))
+    text = read_file(None, file, str(path))
     return parse_netlist(text, source=str(path), base_dir=str(file.resolve().parent))
