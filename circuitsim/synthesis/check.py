@@ -539,34 +539,40 @@ class _Checker:
                     Entry(f"nonlinear constant [{states[i]}]", const_model[i], const_real[i],
                           allowed, parts_row.get(i, ()))
                 )  # fmt: skip
-        # |x| pieces: normalize each row so its largest entry is +1, then match
-        real = [(i, g * abs(lam), row / lam, off / lam, parts)
-                for i, g, row, off, parts in pieces_real
-                for lam in [row[np.argmax(np.abs(row))]]]  # fmt: skip
+        # |x| pieces: normalize each row by its entry at the model row's largest entry (the
+        # pivot), so g |row . x + off| = g |lam| |row/lam . x + off/lam| compares like for like
+        real = list(pieces_real)
         for i, g, row, off in pieces_model:
-            lam = row[np.argmax(np.abs(row))]
+            pivot = int(np.argmax(np.abs(row)))
+            lam = row[pivot]
             g, row, off = g * abs(lam), row / lam, off / lam
-            # the nearest realized kink into the same state (rounded argument summers move it)
-            candidates = [p for p in real if p[0] == i]
             what = f"|x| piece into {states[i]} at offset {off:.6g}"
-            if not candidates:
+            normalized = [
+                (q, q[1] * abs(q[2][pivot]), q[2] / q[2][pivot], q[3] / q[2][pivot], q[4])
+                for q in real
+                if q[0] == i and q[2][pivot] != 0
+            ]
+            if not normalized:
                 self.problems.append(f"{what}: not in the netlist")
                 continue
+            # the nearest realized kink into the same state (rounded argument summers move it)
             scale = max(abs(off), 1e-300)
-            p = min(candidates, key=lambda p: np.sum(np.abs(p[2] - row)) + abs(p[3] - off) / scale)
-            real.remove(p)
-            allowed = self.allowed(p[4])
-            report.entries.append(Entry(f"{what} gain", g, p[1], allowed, p[4]))
-            report.entries.append(Entry(f"{what} offset", off, p[3], allowed, p[4]))
+            q, gain_r, row_r, off_r, parts = min(
+                normalized, key=lambda p: np.sum(np.abs(p[2] - row)) + abs(p[3] - off) / scale
+            )
+            real.remove(q)
+            allowed = self.allowed(parts)
+            report.entries.append(Entry(f"{what} gain", g, gain_r, allowed, parts))
+            report.entries.append(Entry(f"{what} offset", off, off_r, allowed, parts))
             for j in np.flatnonzero(row):
-                if j != np.argmax(np.abs(row)):
+                if j != pivot:
                     report.entries.append(
-                        Entry(f"{what} row [{states[j]}]", row[j], p[2][j], allowed, p[4])
+                        Entry(f"{what} row [{states[j]}]", row[j], row_r[j], allowed, parts)
                     )
-        for p in real:
-            if p[1] != 0:
+        for q in real:
+            if q[1] != 0:
                 self.problems.append(
-                    f"an |x| piece into {states[p[0]]} (offset {p[3]:.6g}) the model lacks"
+                    f"an |x| piece into {states[q[0]]} (offset {q[3]:.6g}) the model lacks"
                 )
 
     def stability(self, report: MappingReport) -> None:
