@@ -152,13 +152,24 @@ def synthesize(system: System, options: SynthesisOptions | None = None) -> Synth
             )
     _add_forcing(system, circuit, names, nodes, inputs, G, K, options)
     _add_constants(system, circuit, names, inputs, G, K)
+    first_block, first_bom = len(circuit.elements), len(builder.bom)
     _add_nonlinear(system, builder, names, nodes, inputs, G, K, options)
+    blocks = {id(e) for e in circuit.elements[first_block:]}
+    block_bom = {id(e) for e in builder.bom[first_bom:]}
 
     tmax = _max_step(system, K, t_stop, options)
     for i, state in enumerate(states):
         _add_integrator(builder, names, state, nodes[state], inputs[state], options, warnings)
         x0 = 0.0 if system.x0 is None else float(system.x0[i])
         circuit.initial_conditions[nodes[state][1]] = float(-G[i] * x0) + 0.0
+    # the netlist and the BOM read: supplies, the state sections, then the nonlinear blocks
+    supplies = [e for e in circuit.elements if e.name.upper() in ("VCC", "VEE")]
+    circuit.elements = (
+        supplies
+        + [e for e in circuit.elements if id(e) not in blocks and e not in supplies]
+        + [e for e in circuit.elements if id(e) in blocks and e not in supplies]
+    )
+    builder.bom.sort(key=lambda entry: id(entry) in block_bom)
     for cap in (e for e in circuit.elements if isinstance(e, Capacitor)):
         cap.ic = circuit.initial_conditions[cap.positive]
     circuit.analyses.append(Transient(tstep=tmax, tstop=t_stop / K, tmax=tmax, uic=True))

@@ -174,3 +174,12 @@ def test_linear_model_has_no_switch():
 def test_bad_options_are_named(wheelset, options, message):
     with pytest.raises(SynthesisError, match=message):
         synthesize(wheelset, options)
+
+
+@pytest.mark.parametrize("opamp", ["ideal", "tl074"])
+@pytest.mark.parametrize("nonlinear", ["abs", "deadzone"])
+def test_element_names_are_unique(wheelset, opamp, nonlinear):
+    s = synthesize(wheelset, SynthesisOptions(opamp=opamp, nonlinear=nonlinear))
+    names = [e.name.lower() for e in s.circuit.elements]
+    assert len(names) == len(set(names))
+    assert len(s.bom) == len({entry.part.lower() for entry in s.bom})
