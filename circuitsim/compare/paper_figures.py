@@ -1,0 +1,103 @@
+"""The paper's remaining figures: free response (Fig. 3) and stability against speed.
+Written atomically as small PNGs.
+
+Fig. 4 (displacement, velocity, phase portrait) is :func:`circuitsim.compare.figures.
+plot_response`; the circuit-over-ODE overlay is :func:`circuitsim.compare.plots.plot_overlay`.
+"""
+
+from __future__ import annotations
+
+import os
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from circuitsim.compare.mapping import Trace  # noqa: E402
+from circuitsim.compare.plots import save_figure  # noqa: E402
+
+
+def plot_free_response(
+    path: str | os.PathLike,
+    responses: dict[float, Trace],
+    state: str = "y",
+    unit: str = "m",
+    scale: float = 1000.0,
+    scaled_unit: str = "mm",
+) -> None:
+    """Free responses at several speeds, one panel each (the paper's Fig. 3).
+
+    Parameters
+    ----------
+    path : path-like
+        PNG to write.
+    responses : dict of float to (ndarray, ndarray)
+        Speed (m/s) -> ``(t, values)`` of ``state``, model seconds and SI units.
+    state, unit : str
+        For the axis label.
+    scale, scaled_unit : float, str
+        Display factor and its unit (metres shown as millimetres).
+    """
+    figure, axes = plt.subplots(1, len(responses), figsize=(5.2 * len(responses), 3.2))
+    axes = np.atleast_1d(axes)
+    for axis, (speed, (t, values)) in zip(axes, responses.items(), strict=True):
+        axis.plot(t, values * scale, color="tab:blue", linewidth=0.8)
+        peak = np.max(np.abs(values[t >= t[-1] - 1.0]))
+        axis.set(
+            xlabel="time (s)",
+            ylabel=f"{state} ({scaled_unit})",
+            title=f"V = {speed:g} m/s: max |{state}| over the last second {peak:.3g} {unit}",
+        )
+        axis.title.set_fontsize(9)
+        axis.grid(True, linewidth=0.3)
+    figure.tight_layout()
+    save_figure(figure, path, dpi=72)
+
+
+def plot_growth_rate(
+    path: str | os.PathLike,
+    speeds: np.ndarray,
+    rates: np.ndarray,
+    critical: float,
+    realized: dict[str, float] | None = None,
+) -> None:
+    """Largest real part of the eigenvalues against speed, with the critical speed(s).
+
+    Parameters
+    ----------
+    path : path-like
+        PNG to write.
+    speeds : ndarray, shape (p,)
+        m/s.
+    rates : ndarray, shape (p,)
+        Largest real part at each speed, 1/s.
+    critical : float
+        The model's critical speed, m/s.
+    realized : dict of str to float, optional
+        Label -> critical speed of a realized circuit (from its netlist's mapping check).
+    """
+    figure, axes = plt.subplots(1, 2, figsize=(10.5, 3.4))
+    for axis, zoom in zip(axes, (False, True), strict=True):
+        mask = np.abs(speeds - critical) <= 2.0 if zoom else np.ones(speeds.size, bool)
+        axis.plot(speeds[mask], rates[mask], color="tab:blue", linewidth=1.2)
+        axis.axhline(0.0, color="black", linewidth=0.6)
+        axis.axvline(critical, color="tab:red", linewidth=1.0, label=f"model V_c = {critical:.4f}")
+        if zoom and realized:
+            styles = ["--", ":", "-.", (0, (1, 1))]
+            for style, (label, value) in zip(styles * 8, sorted(realized.items()), strict=False):
+                if value is not None and abs(value - critical) <= 2.0:
+                    axis.axvline(
+                        value, color="tab:gray", linestyle=style, linewidth=0.9,
+                        label=f"{label}: {value:.3f}",
+                    )  # fmt: skip
+        axis.set(
+            xlabel="forward speed V (m/s)",
+            ylabel="largest Re(eigenvalue) (1/s)",
+            title="near the critical speed" if zoom else "linear stability",
+        )
+        axis.grid(True, linewidth=0.3)
+        axis.legend(fontsize=6.5, loc="upper left")
+    figure.tight_layout()
+    save_figure(figure, path, dpi=72)

@@ -1,0 +1,429 @@
+"""The project's main job: the paper's figures and a validation report, in one run.
+
+    scenarios (V = 55 m/s; f = 3, 5, 10 Hz; flange off/on)
+        |-- ODE (kink events) ----------------------------> Fig. 4, reference traces
+        |-- circuit per {ideal, tl074} x {exact, E96} ----> netlist + scale file + BOM
+                |-- engines {builtin, ngspice} -----------> traces --> metrics vs ODE
+    free response at 54 and 57 m/s ----------------------> Fig. 3
+    eigenvalues against speed, realized critical speeds -> stability figure
+    everything ------------------------------------------> report.md, metrics.json, Fig. 6
+
+The cases are independent, so they run in a process pool (``workers``, default every core).
+Each engine run that cannot happen here is a row saying ``not available: <reason>``, never a
+number. Progress goes through the ``progress`` callback; the library prints nothing.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from circuitsim.atomic import write_text_atomic
+from circuitsim.compare.case import engine_available, run_engine
+from circuitsim.compare.comparison import Comparison, Thresholds, compare_traces
+from circuitsim.compare.mapping import Trace, map_waveforms
+
+OPAMPS = ("ideal", "tl074")
+SERIES = ("exact", "E96")
+FREE_SPEEDS = (54.0, 57.0)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One forced-response case of the paper's Fig. 4 (built-in wheelset model).
+
+    Attributes
+    ----------
+    frequency : float
+        Excitation frequency, Hz.
+    flange : bool
+        Flange force (switch S1) on.
+    speed : float
+        Forward speed V, m/s.
+    amplitude : float
+        Equivalent track displacement a, m.
+    t_stop : float
+        Model seconds simulated.
+    """
+
+    frequency: float
+    flange: bool
+    speed: float = 55.0
+    amplitude: float = 0.040
+    t_stop: float = 5.0
+
+    @property
+    def name(self) -> str:
+        """File-name friendly, e.g. ``f3-flange-on``."""
+        return f"f{self.frequency:g}-flange-{'on' if self.flange else 'off'}"
+
+    @property
+    def title(self) -> str:
+        """For figure titles and the report."""
+        return (
+            f"V = {self.speed:g} m/s, f = {self.frequency:g} Hz, "
+            f"flange {'on' if self.flange else 'off'}"
+        )
+
+    def system(self, model):
+        """The scenario's System of ``model`` (options speed, freq, amplitude)."""
+        parameters = model.option_parameters(
+            {"speed": self.speed, "freq": self.frequency, "amplitude": self.amplitude}
+        )
+        return model.system(
+            parameters=parameters, nonlinear={n: self.flange for n in model.nonlinear_terms}
+        )
+
+
+PAPER_SCENARIOS = tuple(Scenario(f, on) for f in (3.0, 5.0, 10.0) for on in (False, True))
+
+
+@dataclass(frozen=True)
+class Variant:
+    """How a scenario's circuit is built and simulated."""
+
+    opamp: str
+    series: str
+    engine: str
+
+    @property
+    def label(self) -> str:
+        return f"{self.engine}, {self.opamp}, {self.series}"
+
+
+@dataclass
+class CircuitInfo:
+    """A written netlist: its scaling, BOM and mapping check."""
+
+    scenario: Scenario
+    opamp: str
+    series: str
+    netlist: str
+    scale_map: object
+    bom: list
+    warnings: list[str]
+    check_ok: bool
+    check_summary: str
+    max_coefficient_error: float
+    critical_speed_model: float | None
+    critical_speed_realized: float | None
+
+
+@dataclass
+class Row:
+    """One scenario x variant: the comparison, or why there is none."""
+
+    scenario: Scenario
+    variant: Variant
+    status: str
+    comparison: Comparison | None = None
+    simulation_s: float = float("nan")
+    points: int = 0
+
+
+@dataclass
+class Reproduction:
+    """Everything a run produced (what :mod:`circuitsim.compare.report` renders)."""
+
+    out_dir: Path
+    scenarios: tuple[Scenario, ...]
+    rows: list[Row]
+    circuits: dict[tuple[str, str, str], CircuitInfo]
+    engines: dict[str, str | None]
+    critical_speed: float
+    hunting_frequency: float
+    ode_summary: dict[str, dict[str, float]]
+    free_summary: dict[float, float]
+    figures: dict[str, str] = field(default_factory=dict)
+    wall_s: float = 0.0
+    workers: int = 1
+
+
+# --- jobs (module-level so the process pool can pickle them) ----------------------------------
+
+
+def _ode_job(scenario: Scenario, figure: str | None) -> tuple[str, dict[str, Trace], dict]:
+    from circuitsim.compare.case import reference_traces
+    from circuitsim.compare.figures import plot_response
+    from circuitsim.mechanics import load_model
+
+    system = scenario.system(load_model())
+    result, traces = reference_traces(system, scenario.t_stop)
+    if figure is not None:
+        plot_response(figure, result, title=f"ODE: {scenario.title}", samples=4001, dpi=72)
+    summary = {
+        "max_abs_y_mm": 1e3 * result.max_abs("y"),
+        "y_end_mm": 1e3 * float(result.sol(scenario.t_stop)[result.states.index("y")]),
+        "max_abs_y_dot": result.max_abs("y_dot"),
+        "kinks": int(len(result.kinks)),
+    }
+    return scenario.name, traces, summary
+
+
+def _free_job(speed: float, t_stop: float = 10.0) -> tuple[float, Trace, float]:
+    from circuitsim.mechanics import load_model, solve
+
+    model = load_model()
+    system = model.system(
+        parameters={**model.option_parameters({"speed": speed, "y0": 0.005})},
+        nonlinear={n: False for n in model.nonlinear_terms},
+        forcing={n: False for n in model.forcing_terms},
+    )
+    result = solve(system, t_span=(0.0, t_stop))
+    t = np.linspace(0.0, t_stop, 10001)
+    y = result.sol(t)[result.states.index("y")]
+    return speed, (t, y), result.max_abs("y", t_stop - 1.0, t_stop)
+
+
+def _circuit_job(
+    scenario: Scenario, variant: Variant, netlist: str | None
+) -> tuple[Variant, Scenario, str, dict | None, CircuitInfo | None, float, int]:
+    """Synthesize (and, with ``netlist``, write and check) then simulate; never raises."""
+    from circuitsim.mechanics import load_model
+    from circuitsim.synthesis.options import SynthesisOptions
+
+    info = None
+    try:
+        system = scenario.system(load_model())
+        options = SynthesisOptions(
+            opamp=variant.opamp, series=variant.series, t_stop=scenario.t_stop
+        )
+        if netlist is not None:
+            from circuitsim.synthesis.generate import generate
+
+            generated = generate(system, netlist, options)
+            synthesis, report, path = generated.synthesis, generated.report, generated.netlist
+            info = CircuitInfo(
+                scenario,
+                variant.opamp,
+                variant.series,
+                str(netlist),
+                synthesis.scale_map,
+                synthesis.bom,
+                generated.warnings,
+                report.ok,
+                report.summary(),
+                report.max_error,
+                report.critical_speed_model,
+                report.critical_speed_realized,
+            )
+        else:
+            from circuitsim.synthesis.translator import synthesize
+
+            synthesis, path = synthesize(system, options), None
+        reason = engine_available(variant.engine)
+        if reason is not None:
+            return variant, scenario, f"not available: {reason}", None, info, float("nan"), 0
+        started = time.perf_counter()
+        waves = run_engine(variant.engine, synthesis.circuit, path)
+        elapsed = time.perf_counter() - started
+        traces = map_waveforms(waves, synthesis.scale_map, list(system.states))
+        return variant, scenario, "ok", traces, info, elapsed, len(waves.time)
+    except Exception as exc:  # noqa: BLE001 - a failed case is a row of the report, not a crash
+        message = " ".join(str(exc).split())[:300]
+        return variant, scenario, f"failed: {type(exc).__name__}: {message}", None, info, 0.0, 0
+
+
+# --- the run -------------------------------------------------------------------------------
+
+
+def reproduce(
+    out_dir: str | os.PathLike,
+    progress: Callable[[str], None] | None = None,
+    scenarios: tuple[Scenario, ...] = PAPER_SCENARIOS,
+    opamps: tuple[str, ...] = OPAMPS,
+    series: tuple[str, ...] = SERIES,
+    engines: tuple[str, ...] = ("builtin", "ngspice"),
+    free_speeds: tuple[float, ...] = FREE_SPEEDS,
+    workers: int | None = None,
+    n_points: int = 4096,
+) -> Reproduction:
+    """Run the paper's cases and write figures, netlists, report.md and metrics.json.
+
+    Parameters
+    ----------
+    out_dir : path-like
+        Created if missing: ``report.md``, ``metrics.json``, ``figures/*.png``,
+        ``netlists/<scenario>-<opamp>-<series>.{cir,scale.json,bom.csv}``.
+    progress : callable, optional
+        Called with one line per finished step.
+    scenarios, opamps, series, engines : tuples
+        What to run (defaults: the six paper scenarios x {ideal, tl074} x {exact, E96} x
+        {builtin, ngspice}); an engine that cannot run here gives "not available" rows.
+    free_speeds : tuple of float
+        Speeds of the free-response figure (m/s); empty to skip it.
+    workers : int, optional
+        Processes (default: every core).
+    n_points : int
+        Common-grid points of each comparison.
+
+    Returns
+    -------
+    Reproduction
+    """
+    from circuitsim.compare.paper_figures import plot_free_response, plot_growth_rate
+    from circuitsim.compare.plots import plot_overlay
+    from circuitsim.compare.report import render_report, reproduction_json
+    from circuitsim.mechanics import critical_speed, eigenvalues, load_model
+
+    say = progress or (lambda message: None)
+    started = time.perf_counter()
+    out = Path(out_dir)
+    (out / "figures").mkdir(parents=True, exist_ok=True)
+    (out / "netlists").mkdir(parents=True, exist_ok=True)
+    workers = workers or os.cpu_count() or 1
+    available = {engine: engine_available(engine) for engine in engines}
+    for engine, reason in available.items():
+        say(f"engine {engine}: {'available' if reason is None else reason}")
+
+    model = load_model()
+    v_c, f_h = critical_speed(model)
+    say(f"model critical speed {v_c:.4f} m/s, hunting frequency {f_h:.3f} Hz")
+    figures: dict[str, str] = {}
+
+    # Jobs, longest first so that two workers finish together.
+    jobs = []
+    writer = next((e for e in engines if available[e] is None), engines[0] if engines else None)
+    order = sorted(engines, key=lambda e: e != "builtin")
+    for engine in order:
+        for opamp in sorted(opamps, key=lambda o: o == "ideal"):
+            for s in series:
+                for scenario in scenarios:
+                    variant = Variant(opamp, s, engine)
+                    path = None
+                    if engine == writer:
+                        path = str(out / "netlists" / f"{scenario.name}-{opamp}-{s.lower()}.cir")
+                    jobs.append(("circuit", (scenario, variant, path)))
+    ode_jobs = [("ode", (sc, str(out / "figures" / f"fig4-{sc.name}.png"))) for sc in scenarios]
+    free_jobs = [("free", (speed,)) for speed in free_speeds]
+    functions = {"circuit": _circuit_job, "ode": _ode_job, "free": _free_job}
+
+    references: dict[str, dict[str, Trace]] = {}
+    ode_summary: dict[str, dict] = {}
+    free: dict[float, Trace] = {}
+    free_summary: dict[float, float] = {}
+    results = []
+    everything = ode_jobs + free_jobs + jobs
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        futures = {pool.submit(functions[kind], *args): (kind, args) for kind, args in everything}
+        for done, future in enumerate(as_completed(futures), start=1):
+            kind, args = futures[future]
+            value = future.result()
+            if kind == "ode":
+                name, traces, summary = value
+                references[name], ode_summary[name] = traces, summary
+                figures[f"fig4-{name}"] = f"figures/fig4-{name}.png"
+                say(
+                    f"[{done}/{len(everything)}] ODE {args[0].title}: "
+                    f"max |y| {summary['max_abs_y_mm']:.3f} mm"
+                )
+            elif kind == "free":
+                speed, trace, peak = value
+                free[speed], free_summary[speed] = trace, peak
+                say(
+                    f"[{done}/{len(everything)}] free response at {speed:g} m/s: "
+                    f"max |y| over 9-10 s {peak:.4g} m"
+                )
+            else:
+                results.append(value)
+                variant, scenario, status, _, _, elapsed, _ = value
+                timing = f" ({elapsed:.1f} s)" if status == "ok" else ""
+                say(
+                    f"[{done}/{len(everything)}] {scenario.title} | {variant.label}: "
+                    f"{status}{timing}"
+                )
+
+    rows, circuits, traces_by = [], {}, {}
+    for variant, scenario, status, traces, info, elapsed, points in results:
+        if info is not None:
+            circuits[(scenario.name, variant.opamp, variant.series)] = info
+        comparison = None
+        if status == "ok":
+            units = {"y": "m", "psi": "rad", "y_dot": "m/s", "psi_dot": "rad/s"}
+            comparison = compare_traces(
+                references[scenario.name],
+                traces,
+                Thresholds.for_opamp(variant.opamp),
+                n_points,
+                units,
+                f"{scenario.title} | {variant.label}",
+            )
+            traces_by[(scenario.name, variant)] = traces
+        rows.append(Row(scenario, variant, status, comparison, elapsed, points))
+    rows.sort(key=lambda r: _row_order(r, scenarios, opamps, series, engines))
+
+    if free:
+        plot_free_response(out / "figures" / "fig3-free-response.png", free)
+        figures["fig3"] = "figures/fig3-free-response.png"
+    speeds = np.linspace(40.0, 70.0, 301)
+    rates = eigenvalues(model, "V", speeds)[:, 0].real
+    realized = {}
+    for (_, _, s), info in sorted(circuits.items()):
+        if info.critical_speed_realized is not None:
+            realized.setdefault(f"circuit, {s}", info.critical_speed_realized)
+    plot_growth_rate(out / "figures" / "critical-speed.png", speeds, rates, v_c, realized)
+    figures["critical-speed"] = "figures/critical-speed.png"
+    for scenario in scenarios:
+        curves = {}
+        for variant in _fig6_variants(engines):
+            if (scenario.name, variant) in traces_by:
+                curves[variant.label] = traces_by[(scenario.name, variant)]
+        if curves:
+            name = f"fig6-{scenario.name}"
+            plot_overlay(
+                out / "figures" / f"{name}.png",
+                references[scenario.name],
+                curves,
+                states=["y", "y_dot"],
+                units={"y": "mm", "y_dot": "m/s"},
+                scales={"y": 1000.0},
+                title=f"circuit over ODE: {scenario.title}",
+                errors=True,
+            )
+            figures[name] = f"figures/{name}.png"
+    say("figures written")
+
+    result = Reproduction(
+        out,
+        tuple(scenarios),
+        rows,
+        circuits,
+        available,
+        v_c,
+        f_h,
+        ode_summary,
+        free_summary,
+        figures,
+        time.perf_counter() - started,
+        workers,
+    )
+    write_text_atomic(out / "metrics.json", json.dumps(reproduction_json(result), indent=1) + "\n")
+    write_text_atomic(out / "report.md", render_report(result))
+    result.wall_s = time.perf_counter() - started
+    say(f"wrote {out / 'report.md'} in {result.wall_s:.1f} s")
+    return result
+
+
+def _fig6_variants(engines: tuple[str, ...]) -> list[Variant]:
+    """The circuits drawn over the ODE: the ideal exact design on our engine, and the paper's
+    realistic one (TL074, E96 values) on the referee."""
+    chosen = [Variant("ideal", "exact", "builtin"), Variant("tl074", "E96", "ngspice")]
+    if "builtin" not in engines:
+        chosen[0] = Variant("ideal", "exact", "ngspice")
+    return chosen
+
+
+def _row_order(row: Row, scenarios, opamps, series, engines) -> tuple[int, int, int, int]:
+    return (
+        scenarios.index(row.scenario),
+        opamps.index(row.variant.opamp),
+        series.index(row.variant.series),
+        engines.index(row.variant.engine),
+    )
