@@ -581,6 +581,179 @@ def _run_simulate(args: argparse.Namespace) -> int:
 COMMANDS.append(_add_simulate)
 
 
+def _add_compare(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "compare",
+        help="generate the circuit, simulate it, solve the ODE and compare them state by state",
+        description=(
+            "Translate the model scenario into its op-amp circuit, simulate the circuit with "
+            "the chosen engine, map node voltages back to physical states through the scale "
+            "map, solve the ODE directly, and print per state: %%NRMSD, max abs error, peak "
+            "ratio, dominant-frequency ratio and phase lag (positive: the circuit lags). Exit "
+            "code 1 when a metric is beyond its threshold, 2 on an error. See "
+            "docs/validation.md."
+        ),
+    )
+    _add_model_options(parser)
+    _add_scenario_options(parser)
+    parser.add_argument(
+        "--opamp", choices=("ideal", "tl074"), default="ideal", help="op-amp model (default ideal)"
+    )
+    parser.add_argument(
+        "--series",
+        choices=("exact", "E96", "E24"),
+        default="exact",
+        help="resistor values (default exact: the design itself; E96 shows what standard "
+        "parts cost)",
+    )
+    parser.add_argument(
+        "--engine",
+        choices=("builtin", "ngspice"),
+        default="builtin",
+        help="circuit simulator (default builtin, our MNA solver)",
+    )
+    parser.add_argument(
+        "--tstop", type=float, metavar="T", help="model seconds to simulate (default 5)"
+    )
+    parser.add_argument(
+        "--max-nrmsd",
+        type=float,
+        metavar="PERCENT",
+        help="NRMSD threshold (default 0.5 for ideal op-amps, 2 for tl074)",
+    )
+    parser.add_argument(
+        "--tolerance",
+        type=float,
+        default=0.01,
+        metavar="FRACTION",
+        help="allowed |peak ratio - 1| and |frequency ratio - 1| (default 0.01)",
+    )
+    parser.add_argument(
+        "--netlist", metavar="FILE.cir", help="also write the netlist, scale file and BOM here"
+    )
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--plot", metavar="FILE.png", help="draw the circuit traces over the ODE's")
+    parser.set_defaults(func=_run_compare, error_exit_code=2)
+
+
+def _run_compare(args: argparse.Namespace) -> int:
+    import json
+    from dataclasses import replace
+
+    from circuitsim.compare import ComparisonError, Thresholds
+    from circuitsim.compare.case import run_case
+    from circuitsim.synthesis.options import SynthesisOptions
+
+    thresholds = replace(
+        Thresholds.for_opamp(args.opamp),
+        peak_ratio_tolerance=args.tolerance,
+        frequency_ratio_tolerance=args.tolerance,
+    )
+    if args.max_nrmsd is not None:
+        thresholds = replace(thresholds, nrmsd_percent=args.max_nrmsd)
+    options = SynthesisOptions(opamp=args.opamp, series=args.series, t_stop=args.tstop)
+    label = f"{args.engine}, {args.opamp}, {args.series}"
+    try:
+        case = run_case(
+            _scenario_system(args), options, args.engine, thresholds, args.netlist, label=label
+        )
+    except ComparisonError as exc:
+        print(f"circuitsim compare: error: {exc}", file=sys.stderr)
+        return 2
+    comparison = case.comparison
+    if args.plot:
+        from circuitsim.compare.plots import plot_overlay
+
+        plot_overlay(
+            args.plot,
+            case.reference,
+            {label: case.circuit},
+            units={state: m.unit for state, m in comparison.states.items()},
+            title=f"circuit over ODE ({label})",
+            errors=True,
+        )
+    report = case.report
+    if args.json:
+        data = comparison.to_json()
+        data.update(
+            engine=args.engine,
+            opamp=args.opamp,
+            series=args.series,
+            netlist=None if case.netlist is None else str(case.netlist),
+            critical_speed_model=getattr(report, "critical_speed_model", None),
+            critical_speed_circuit=getattr(report, "critical_speed_realized", None),
+            timings_s=case.timings,
+        )
+        print(json.dumps(data, indent=1))
+    else:
+        print(f"circuit ({label}) against the ODE")
+        print(comparison.table())
+        if report is not None:
+            print(report.summary())
+        print("PASS" if comparison.passed else "FAIL: " + ", ".join(comparison.failures()))
+    return 0 if comparison.passed else 1
+
+
+COMMANDS.append(_add_compare)
+
+
+def _add_reproduce(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "reproduce",
+        help="the paper's figures and a validation report (all scenarios, circuits, engines)",
+        description=(
+            "Solve the paper's six forced-response scenarios (V = 55 m/s; 3, 5, 10 Hz; flange "
+            "off/on) and the free responses at 54 and 57 m/s, generate each scenario's circuit "
+            "with ideal and TL074 op-amps and exact and E96 values, simulate them with every "
+            "available engine, and write figures/ (Fig. 3, 4, 6, critical speed), netlists/, "
+            "report.md and metrics.json. Progress on stderr. See docs/validation.md."
+        ),
+    )
+    parser.add_argument(
+        "--out", default="reproduction", metavar="DIR", help="output folder (default reproduction)"
+    )
+    parser.add_argument(
+        "--engine",
+        action="append",
+        choices=("builtin", "ngspice"),
+        help="engine to run (repeatable; default both)",
+    )
+    parser.add_argument(
+        "--opamp", action="append", choices=("ideal", "tl074"), help="repeatable; default both"
+    )
+    parser.add_argument(
+        "--series", action="append", choices=("exact", "E96"), help="repeatable; default both"
+    )
+    parser.add_argument("--workers", type=int, metavar="N", help="processes (default: every core)")
+    parser.set_defaults(func=_run_reproduce)
+
+
+def _run_reproduce(args: argparse.Namespace) -> int:
+    from circuitsim.compare.reproduce import OPAMPS, SERIES, reproduce
+
+    result = reproduce(
+        args.out,
+        progress=_progress,
+        opamps=tuple(args.opamp or OPAMPS),
+        series=tuple(args.series or SERIES),
+        engines=tuple(args.engine or ("builtin", "ngspice")),
+        workers=args.workers,
+    )
+    done = [r for r in result.rows if r.comparison is not None]
+    passed = sum(r.comparison.passed for r in done)
+    print(
+        f"wrote {result.out_dir / 'report.md'} ({len(done)} of {len(result.rows)} circuit runs "
+        f"compared, {passed} within every threshold; {result.wall_s:.0f} s)"
+    )
+    for row in result.rows:
+        if row.comparison is None:
+            print(f"{row.scenario.name} {row.variant.label}: {row.status}")
+    return 0
+
+
+COMMANDS.append(_add_reproduce)
+
+
 # --- end of verbs ---
 
 
