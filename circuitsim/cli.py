@@ -302,11 +302,24 @@ def _add_convert(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=_run_convert, error_exit_code=2)
 
 
-def _run_convert(args: argparse.Namespace) -> int:
+def _read_netlist_reporting_warnings(path: str):
+    """``read_netlist(path)``, its NetlistWarnings printed as ``warning:`` lines on stderr."""
+    import warnings
+
     from circuitsim.netlist.reader import read_netlist
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        circuit = read_netlist(path)
+    for warning in caught:
+        print(f"warning: {warning.message}", file=sys.stderr)
+    return circuit
+
+
+def _run_convert(args: argparse.Namespace) -> int:
     from circuitsim.netlist.writer import save_netlist, write_netlist
 
-    circuit = read_netlist(args.netlist)
+    circuit = _read_netlist_reporting_warnings(args.netlist)
     if args.output:
         save_netlist(circuit, args.output, args.dialect)
         print(f"wrote {args.output} ({args.dialect})", file=sys.stderr)
@@ -335,10 +348,9 @@ def _add_check(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_check(args: argparse.Namespace) -> int:
-    from circuitsim.netlist.reader import read_netlist
     from circuitsim.netlist.topology import check_circuit
 
-    findings = check_circuit(read_netlist(args.netlist))
+    findings = check_circuit(_read_netlist_reporting_warnings(args.netlist))
     for finding in findings:
         print(f"{args.netlist}: {finding.kind}: {finding.message}")
     if not findings:

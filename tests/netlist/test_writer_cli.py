@@ -94,3 +94,10 @@ def test_convert_to_stdout_and_bad_input(tmp_path, capsys):
     bad = _write(tmp_path, "bad.cir", "bad\nR1 a\n.end\n")
     assert main(["convert", str(bad), "-o", str(tmp_path / "o.cir")]) == 2
     assert not (tmp_path / "o.cir").exists()
+
+
+def test_reader_warnings_are_one_line_each_on_stderr(tmp_path, capsys):
+    path = _write(tmp_path, "w.cir", CLEAN.replace(".op", ".print dc v(out)\n.op"))
+    assert main(["check", str(path)]) == 0
+    err = capsys.readouterr().err
+    assert err.startswith(f"warning: {path}:5: .print ignored") and err.count("\n") == 1
