@@ -1,8 +1,9 @@
 """Measure the part library for docs/parts.md: figures table, glitch table, step-response plot.
 
-Run from the repository root: ``python tests/parts/report.py`` (prints Markdown tables and
-writes ``docs/figures/tl074_step.png``). Uses every engine that is available: ngspice and,
-our solver (``circuitsim.solver.simulate``).
+Run from the repository root: ``python tests/parts/report.py [--wheelset]`` (prints Markdown
+tables and writes ``docs/figures/tl074_step.png``; ``--wheelset`` adds the translator's
+wheelset circuit with tl074 op-amps against the direct ODE). Uses every engine available:
+ngspice and our solver (``circuitsim.solver.simulate``).
 """
 
 from __future__ import annotations
@@ -23,6 +24,17 @@ FIGURE = ROOT / "docs" / "figures" / "tl074_step.png"
 KINDS = ("ideal", "tl074")
 GLITCH_CASES = [(5.0, 10.0), (5.0, 100.0), (5.0, 1e3), (5.0, 1e4), (0.05, 10.0)]
 """(sine amplitude V, frequency Hz); 50 mV is the size of the paper's unscaled (1 V = 1 m) y."""
+WHEELSET_CASES = [
+    (1.0, True, 0.0),
+    (1.0, True, 3e-3),
+    (1.0, False, 0.0),
+    (10.0, True, 0.0),
+    (100.0, True, 0.0),
+    (100.0, False, 0.0),
+    (1000.0, True, 0.0),
+    (1000.0, False, 0.0),
+]
+"""(time scale K, flange on, input offset of every op-amp V) for ``--wheelset``."""
 
 
 def plot_steps(runs: dict) -> None:
@@ -52,6 +64,48 @@ def plot_steps(runs: dict) -> None:
     FIGURE.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(FIGURE, dpi=80)
     plt.close(fig)
+
+
+def wheelset_table() -> None:
+    """%NRMSD of the wheelset's tl074 circuit (exact values, ngspice) against the direct ODE."""
+    from circuitsim.compare.case import reference_traces, run_engine
+    from circuitsim.compare.comparison import Thresholds, compare_traces
+    from circuitsim.compare.mapping import map_waveforms
+    from circuitsim.mechanics.model import load_model
+    from circuitsim.netlist.circuit import SubcircuitCall
+    from circuitsim.synthesis.options import SynthesisOptions
+    from circuitsim.synthesis.translator import synthesize
+
+    model = load_model()
+    print(
+        "| time scale K | flange | vos (mV) | "
+        + " | ".join(f"y at {f} Hz" for f in (3, 5, 10))
+        + " | worst of y' at 3/5/10 Hz |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    for time_scale, flange, vos in WHEELSET_CASES:
+        y, y_dot = [], []
+        for f in (3.0, 5.0, 10.0):
+            system = model.system(
+                parameters={"V": 55.0, "f": f, "a": 0.040}, nonlinear={"flange": flange}
+            )
+            options = SynthesisOptions(opamp="tl074", series="exact", time_scale=time_scale)
+            synthesis = synthesize(system, options)
+            for element in synthesis.circuit.elements:
+                if isinstance(element, SubcircuitCall) and vos:
+                    element.params["vos"] = vos
+            waves = run_engine("ngspice", synthesis.circuit)
+            traces = map_waveforms(waves, synthesis.scale_map, list(system.states))
+            _, reference = reference_traces(system, synthesis.t_stop)
+            units = dict(zip(system.states, system.units, strict=False))
+            result = compare_traces(reference, traces, Thresholds(nrmsd_percent=2.0), 4096, units)
+            y.append(result.states[system.states[0]].nrmsd_percent)
+            y_dot.append(result.states[system.states[2]].nrmsd_percent)
+        cells = " | ".join(f"{v:.3g}" for v in y)
+        print(
+            f"| {time_scale:g} | {'on' if flange else 'off'} | {vos * 1e3:g} | {cells} "
+            f"| {max(y_dot):.3g} |"
+        )
 
 
 def main() -> None:
@@ -92,7 +146,9 @@ def main() -> None:
                 cells.append(f"{np.max(np.abs(y - reference)) * 1e3:.3g}")
         print(f"| {block} | " + " | ".join(cells) + " |")
     plot_steps(runs)
-    print(f"\nwrote {FIGURE}")
+    print(f"\nwrote {FIGURE}\n")
+    if "--wheelset" in sys.argv:
+        wheelset_table()
 
 
 if __name__ == "__main__":
