@@ -203,12 +203,11 @@ def _add_forcing(system, circuit, names, nodes, inputs, G, K, options) -> None:
         if used.size == 0 or force.amplitude == 0:
             continue
         # the source stands for the forcing in a state's units when they agree (the wheelset:
-        # metres of track displacement, like y itself, so R17 = R31); else 1 V per unit
+        # metres of track displacement, scaled like y itself, so R17 = R31 in every scaling;
+        # the generator may exceed the swing: it drives a virtual ground); else 1 V per unit
         like = [j for j, unit in enumerate(system.units) if unit and unit == force.amplitude_unit]
         volts_per_unit = G[like[0]] if like else 1.0
         amplitude = volts_per_unit * force.amplitude
-        if abs(amplitude) > options.swing and options.scaling == "auto":
-            amplitude = math.copysign(options.swing, amplitude)
         key = getattr(force, "name", "") or f"forcing{k}"
         first_sign = np.sign(direction[used[0]])
         sources = {}

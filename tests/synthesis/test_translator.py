@@ -65,12 +65,17 @@ def test_flange_path_and_switch(unity):
     assert set(c.element("R3").nodes) == {switch.negative, "y_dot_sum"}
 
 
-def test_generator_is_the_papers_xfg1(unity):
+def test_generator_is_the_papers_xfg1(unity, wheelset):
     source = unity.circuit.element("VXFG1")
     assert isinstance(source.waveform, Sin)
     assert float(source.waveform.amplitude) == pytest.approx(0.040)  # 40 mV: a = 0.040 m
     assert float(source.waveform.frequency) == 3.0
     assert value(unity.circuit, "R17") == value(unity.circuit, "R31")
+    # auto scaling: the generator is scaled like y, so R17 = R31 still (E96-rounded alike)
+    auto = synthesize(wheelset, SynthesisOptions())
+    assert value(auto.circuit, "R17") == value(auto.circuit, "R31")
+    amplitude = float(auto.circuit.element("VXFG1").waveform.amplitude)
+    assert amplitude == pytest.approx(auto.scale_map.states["y"].volts_per_unit * 0.040)
 
 
 def test_op_amp_sections_follow_the_paper(unity):
