@@ -68,24 +68,39 @@ def test_library_file_is_found_by_plain_include():
 DATASHEET_VF = {1e-3: 0.62, 10e-3: 0.74, 100e-3: 0.95}
 
 
-@partbench.requires_ngspice
+ENGINES = [
+    pytest.param("ngspice", marks=partbench.requires_ngspice),
+    pytest.param("builtin"),
+]
+RUN = {"ngspice": run_ngspice, "builtin": partbench.run_builtin}
+
+
+@pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("amps", sorted(DATASHEET_VF))
-def test_diode_forward_voltage_matches_datasheet_curve(amps):
+def test_diode_forward_voltage_matches_datasheet_curve(amps, engine):
     body = f"I1 0 a {amps!r}\nD1 a 0 D1N4148\n"
-    vf = float(run_ngspice(partbench.deck(body, ".op"))["v(a)"][0])
+    vf = float(RUN[engine](partbench.deck(body, ".op"))["v(a)"][0])
     assert vf == pytest.approx(DATASHEET_VF[amps], abs=0.02)
 
 
-@partbench.requires_ngspice
-def test_diode_reverse_leakage_below_datasheet_maximum():
+@pytest.mark.parametrize("engine", ENGINES)
+def test_diode_reverse_leakage_below_datasheet_maximum(engine):
     # Datasheet: IR <= 25 nA at VR = 20 V, 25 C.
-    waves = run_ngspice(partbench.deck("V1 k 0 20\nD1 0 k D1N4148\n", ".op"))
+    waves = RUN[engine](partbench.deck("V1 k 0 20\nD1 0 k D1N4148\n", ".op"))
     assert 0 < abs(float(waves["i(v1)"][0])) <= 25e-9
 
 
-@partbench.requires_ngspice
-def test_ideal_opamp_inverting_gain():
+@pytest.mark.parametrize("engine", ENGINES)
+def test_ideal_opamp_inverting_gain(engine):
     # Inverting amplifier, gain -10: closed-loop gain -10 / (1 + 11 / A) with A = 1e6.
     body = "VIN in 0 0.5\nR1 in m 1k\nR2 m out 10k\nX1 0 m out OPAMP_IDEAL\n"
-    out = float(run_ngspice(partbench.deck(body, ".op"))["v(out)"][0])
+    out = float(RUN[engine](partbench.deck(body, ".op"))["v(out)"][0])
     assert out == pytest.approx(-5.0 / (1 + 11 / 1e6), rel=1e-9)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_ideal_opamp_gain_parameter(engine):
+    # gain=100: a follower gives 100/101 of its input.
+    body = "VIN in 0 1\nX1 in out out OPAMP_IDEAL gain=100\nRL out 0 1k\n"
+    out = float(RUN[engine](partbench.deck(body, ".op"))["v(out)"][0])
+    assert out == pytest.approx(100 / 101, rel=1e-9)
