@@ -94,8 +94,11 @@ def _resolve(line: Line, path: str, base_dir: Path) -> Path:
     candidate = Path(path)
     tried = [candidate] if candidate.is_absolute() else [base_dir / candidate, LIBRARY_DIR / path]
     for option in tried:
-        if option.is_file():
-            return option.resolve()
+        try:
+            if option.is_file():
+                return option.resolve()
+        except (OSError, ValueError):  # a name too long, or with a NUL: not a file we can read
+            continue
     where = " or ".join(str(t) for t in tried)
     raise line.error(f"include file {path!r} not found (looked for {where})")
 

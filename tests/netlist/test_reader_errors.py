@@ -272,3 +272,11 @@ def test_lines_after_end_are_not_read():
         warnings.simplefilter("error")
         circuit = parse_netlist("t\nR1 a 0 1k\n.END\nthis is not spice\n")
     assert [e.name for e in circuit.elements] == ["R1"]
+
+
+@pytest.mark.parametrize("name", ["a" * 5000, "a\x00b", "{(((1)))}"])
+def test_include_names_the_filesystem_refuses_are_not_found(name):
+    # found by the fuzz test: a 5000-character name made Path.is_file raise OSError
+    with pytest.raises(NetlistError, match="not found") as info:
+        parse_netlist(f"t\n.include {name}\n")
+    assert info.value.line == 2
