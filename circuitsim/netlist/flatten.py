@@ -28,7 +28,7 @@ Errors are :class:`~circuitsim.netlist.errors.NetlistError` (file = ``circuit.so
 line: a Circuit does not remember lines) naming the instance path and element: unknown
 subcircuit, wrong number of connections, recursion (direct or indirect), an instance parameter
 the subcircuit does not declare, an undefined parameter, a bad expression, and circuits that
-would expand past 200 000 elements or 64 levels.
+would expand past 200 000 elements and instances or 64 levels.
 """
 
 from __future__ import annotations
@@ -73,6 +73,7 @@ class _Flattener:
         self.file = circuit.source
         self.elements: list[Element] = []
         self.models: dict[str, Model] = {}
+        self.expanded = 0  # elements and instances so far
 
     def error(self, message: str) -> NetlistError:
         return NetlistError(message, file=self.file)
@@ -149,13 +150,21 @@ class _Flattener:
             if isinstance(element, SubcircuitCall):
                 self.call(element, scope, path, node, stack, where)
                 continue
-            if len(self.elements) >= MAX_ELEMENTS:
-                raise self.error(f"the flat circuit would exceed {MAX_ELEMENTS} elements")
+            self.count(where)
             self.elements.append(
                 self.flat_element(element, scope, element_name, node, local, where)
             )
 
+    def count(self, where: str) -> None:
+        """Count one element or instance; a cap keeps fan-out trees (2**60 calls) finite."""
+        self.expanded += 1
+        if self.expanded > MAX_ELEMENTS:
+            raise self.error(
+                f"{where}the flat circuit would exceed {MAX_ELEMENTS} elements and instances"
+            )
+
     def call(self, call, scope, path, node, stack, where) -> None:
+        self.count(where)
         key = call.subcircuit.lower()
         found = scope.subcircuits.get(key)
         if found is None:

@@ -142,13 +142,18 @@ def select_sections(
                 return words
         return None
 
-    has_endl = [isinstance(e, Line) and e.text.split()[0].lower() == ".endl" for e in lines]
+    # endl_after[i]: some .endl follows entry i (a suffix scan, so many .lib lines stay linear)
+    endl_after = [False] * (len(lines) + 1)
+    for index in range(len(lines) - 1, -1, -1):
+        entry = lines[index]
+        is_endl = isinstance(entry, Line) and entry.text.split()[0].lower() == ".endl"
+        endl_after[index] = endl_after[index + 1] or is_endl
     kept: list[Line | Control] = []
     inside: str | None = None
     found = False
     for index, entry in enumerate(lines):
         words = lib_words(entry)
-        if inside is None and words is not None and any(has_endl[index + 1 :]):
+        if inside is None and words is not None and endl_after[index + 1]:
             inside = words[1].lower()
             found = found or inside == section
             continue

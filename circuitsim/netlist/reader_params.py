@@ -34,7 +34,13 @@ def _value_end(text: str, start: int, line: Line) -> int:
             depth -= 1
             if depth < 0:
                 raise line.error(f"unbalanced {ch!r} at column {i + 1} of the .param values")
-        elif not quote and depth == 0 and _NEXT_NAME.match(text, i):
+        elif (
+            not quote
+            and depth == 0
+            and ch in " \t,"
+            and text[i - 1] not in " \t,"  # only where a blank run starts: linear time
+            and _NEXT_NAME.match(text, i)
+        ):
             return i
         i += 1
     if quote:

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from circuitsim.netlist import flatten as flatten_module
 from circuitsim.netlist.circuit import (
     Capacitor,
     Cccs,
@@ -288,3 +289,14 @@ def test_ccvs_and_cccs_keep_their_types():
     flat = flatten(read_netlist(CORPUS / "controlled_sources.cir"))
     kinds = {type(e) for e in flat.elements}
     assert {Vcvs, Vccs, Cccs, Ccvs} <= kinds
+
+
+def test_fan_out_tree_is_capped_not_hung(monkeypatch):
+    monkeypatch.setattr(flatten_module, "MAX_ELEMENTS", 5000)  # the mechanism, quickly
+    # s0 calls s1 twice, s1 calls s2 twice ...: 2**60 instances, no element at all
+    lines = ["t"]
+    for level in range(60):
+        lines += [f".subckt s{level} p", f"Xa p s{level + 1}", f"Xb p s{level + 1}", ".ends"]
+    lines += [".subckt s60 p", ".ends", "X1 n s0"]
+    with pytest.raises(NetlistError, match="would exceed 5000 elements and instances"):
+        flatten(parse_netlist("\n".join(lines) + "\n"))

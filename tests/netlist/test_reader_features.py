@@ -200,3 +200,16 @@ def test_control_blocks_kept_raw_in_order():
 def test_crlf_and_bom():
     c = parse_netlist("\ufefftitle\r\nR1 a 0 1k\r\n+ \r\n.end\r\n")
     assert c.title == "title" and c.elements == [Resistor("R1", "a", "0", 1e3)]
+
+
+def test_long_lines_stay_linear():
+    # 200k blanks between .param values once cost quadratic time in the value splitter
+    c = one(".param a=1" + " " * 200_000 + "b=2\n")
+    assert c.params == {"a": 1.0, "b": 2.0}
+
+
+def test_many_lib_sections_stay_linear(tmp_path):
+    body = "".join(f".lib s{i}\n.model d{i} D(is={i + 1}f)\n.endl\n" for i in range(3000))
+    (tmp_path / "big.lib").write_text(body)
+    c = parse_netlist("t\n.lib big.lib s2999\n", base_dir=str(tmp_path))
+    assert c.models == {"d2999": Model("d2999", "D", {"is": 3000e-15})}
