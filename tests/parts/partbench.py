@@ -316,3 +316,29 @@ def transfer_curve(
     waves = run_circuit(circuit)
     x = waves["in"]
     return x, waves["out"], reference(x)
+
+
+def ngspice_open_loop_magnitude(tmp_dir) -> tuple[np.ndarray, np.ndarray]:
+    """Open-loop |v(out)/v(in)| of the TL074 from an ngspice ``.ac`` sweep, 1 Hz .. 100 MHz.
+
+    The project's runner returns ``.tran``/``.op`` only, so this runs ``ngspice -b`` directly
+    and has it write the magnitude with ``wrdata``. Returns (frequency Hz, magnitude V/V).
+    """
+    import subprocess
+    from pathlib import Path
+
+    out = Path(tmp_dir) / "ac.txt"
+    body = SUPPLIES + "VP p 0 DC 0 AC 1\nXU p 0 vcc vee out TL074\n"
+    text = deck(body, ".ac dec 100 1 100meg").replace(
+        "\n.end\n", f"\n.control\nrun\nwrdata {out} vm(out)\n.endc\n.end\n"
+    )
+    path = Path(tmp_dir) / "ac.cir"
+    path.write_text(text)
+    # ngspice's exit status is not meaningful with a .control block; the data file is.
+    done = subprocess.run(["ngspice", "-b", str(path)], capture_output=True, text=True, timeout=60)
+    if not out.exists():
+        raise RuntimeError(
+            f"ngspice wrote no .ac data:\n{done.stdout[-2000:]}{done.stderr[-2000:]}"
+        )
+    data = np.loadtxt(out, ndmin=2)
+    return data[:, 0], data[:, 1]

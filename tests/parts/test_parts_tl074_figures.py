@@ -7,6 +7,7 @@ solver, and must be within 10 % of the design value; the two engines within 2 % 
 
 import functools
 
+import numpy as np
 import partbench
 import pytest
 
@@ -58,3 +59,19 @@ def test_swing_follows_the_supplies(engine):
 def test_offset_parameter_appears_at_a_follower_output(engine, vos):
     # A follower with grounded input shows the offset at its output (times A0/(1+A0)).
     assert partbench.offset_output(RUN[engine], vos) == pytest.approx(vos, abs=1e-6)
+
+
+@partbench.requires_ngspice
+def test_small_signal_ac_agrees_with_the_step_measurements(tmp_path):
+    # An independent method: the open-loop frequency response (ngspice .ac) must show the same
+    # DC gain and unity-gain frequency as the .op and step-response benches.
+    f, magnitude = partbench.ngspice_open_loop_magnitude(tmp_path)
+    assert magnitude[0] == pytest.approx(measured("ngspice")["dc_gain"], rel=0.01)
+    i = int(np.argmax(magnitude < 1.0))
+    # log-log interpolation of the 0 dB crossing
+    lf = np.interp(0.0, np.log(magnitude[[i, i - 1]]), np.log(f[[i, i - 1]]))
+    assert np.exp(lf) == pytest.approx(measured("ngspice")["unity_gain_hz"], rel=0.02)
+    # one pole: -20 dB/decade between the pole (15 Hz) and the crossing
+    decade = (f > 1e3) & (f < 1e5)
+    slope = np.polyfit(np.log10(f[decade]), np.log10(magnitude[decade]), 1)[0]
+    assert slope == pytest.approx(-1.0, abs=0.01)
