@@ -34,7 +34,7 @@ would expand past 200 000 elements and instances or 64 levels.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from circuitsim.netlist.circuit import (
@@ -163,7 +163,15 @@ class _Flattener:
                 f"{where}the flat circuit would exceed {MAX_ELEMENTS} elements and instances"
             )
 
-    def call(self, call, scope, path, node, stack, where) -> None:
+    def call(
+        self,
+        call: SubcircuitCall,
+        scope: _Scope,
+        path: list[str],
+        node: Callable[[str], str],
+        stack: list[Subcircuit],
+        where: str,
+    ) -> None:
         self.count(where)
         key = call.subcircuit.lower()
         found = scope.subcircuits.get(key)
@@ -208,7 +216,15 @@ class _Flattener:
         }
         self.expand(sub.elements, inner, inner_path, mapping, [*stack, sub])
 
-    def flat_element(self, element, scope, element_name, node, local, where) -> Element:
+    def flat_element(
+        self,
+        element: Element,
+        scope: _Scope,
+        element_name: Callable[[str], str],
+        node: Callable[[str], str],
+        local: Mapping[str, str],
+        where: str,
+    ) -> Element:
         what = f"{where}{element.name}"
         kwargs: dict[str, object] = {}
         for f in dataclasses.fields(element):
