@@ -297,8 +297,8 @@ def _add_nonlinear(system, builder, names, nodes, inputs, G, K, options) -> None
         if term.t_on is None or term.t_on <= 0:
             circuit.add(VoltageSource(source, control, "0", dc=1.0))
         else:
-            t_on = term.t_on / K
-            ramp = t_on * 1e-4
+            t_on = float(f"{term.t_on / K:.12g}")
+            ramp = float(f"{t_on * 1e-4:.6g}")
             circuit.add(
                 VoltageSource(
                     source,
