@@ -116,7 +116,9 @@ class MatrixPattern:
 
     def select(self, values) -> np.ndarray:
         """The kept entries of ``values`` (broadcast to the pattern's shape), shape (n_kept,)."""
-        v = np.broadcast_to(values, self.shape).ravel()
+        if getattr(values, "shape", None) != self.shape:
+            values = np.broadcast_to(values, self.shape)
+        v = values.ravel()
         return v if self.all_kept else v[self.keep]
 
 
@@ -133,7 +135,9 @@ class VectorPattern:
 
     def add(self, rhs: np.ndarray, values) -> None:
         """``rhs[rows] += values`` with repeated rows summed."""
-        v = np.broadcast_to(values, self.shape).ravel()
+        if getattr(values, "shape", None) != self.shape:
+            values = np.broadcast_to(values, self.shape)
+        v = values.ravel()
         np.add.at(rhs, self.rows, v if self.all_kept else v[self.keep])
 
 

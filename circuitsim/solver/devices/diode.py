@@ -24,6 +24,9 @@ CHARGE = 1.6021766208e-19  # C
 TEMPERATURE = 300.15  # K (27 C)
 THERMAL_VOLTAGE = BOLTZMANN * TEMPERATURE / CHARGE
 
+CONDUCTANCE_SIGNS = np.array([[1.0], [-1.0], [-1.0], [1.0]])  # (p,p) (p,n) (n,p) (n,n)
+CURRENT_SIGNS = np.array([[-1.0], [1.0]])  # rhs of anode, cathode
+
 DEFAULTS = {
     "is": 1e-14,
     "n": 1.0,
@@ -40,23 +43,33 @@ DEFAULTS = {
 def pnjlim(vnew: np.ndarray, vold: np.ndarray, vt: np.ndarray, vcrit: np.ndarray):
     """SPICE's junction-voltage limiting (DEVpnjlim), vectorized.
 
+    Forward: a step beyond vcrit larger than 2 vt is compressed logarithmically. Reverse: a
+    step below -vold - 1 (from a forward-biased start) or 2 vold - 1 is cut there.
+
     Returns
     -------
     v : ndarray
         The limited junction voltages, volts.
-    limited : ndarray of bool
-        Where a limit was applied.
+    limited : bool
+        Whether any voltage was limited.
     """
     big = (vnew > vcrit) & (np.abs(vnew - vold) > 2 * vt)
-    arg = 1 + (vnew - vold) / vt
-    with np.errstate(invalid="ignore", divide="ignore"):
-        from_positive = np.where(arg > 0, vold + vt * np.log(np.maximum(arg, 1e-300)), vcrit)
-        from_negative = vt * np.log(np.maximum(vnew / vt, 1e-300))
-    forward = np.where(vold > 0, from_positive, from_negative)
+    negative = vnew < 0
+    if not (big.any() or negative.any()):
+        return vnew, False
+    v = vnew.copy()
+    if big.any():
+        vn, vo, t = vnew[big], vold[big], vt[big]
+        arg = 1 + (vn - vo) / t
+        with np.errstate(invalid="ignore", divide="ignore"):
+            from_positive = np.where(arg > 0, vo + t * np.log(np.maximum(arg, 1e-300)), vcrit[big])
+            from_negative = t * np.log(np.maximum(vn / t, 1e-300))
+        v[big] = np.where(vo > 0, from_positive, from_negative)
     floor = np.where(vold > 0, -vold - 1, 2 * vold - 1)
-    reverse = ~big & (vnew < 0) & (vnew < floor)
-    v = np.where(big, forward, np.where(reverse, floor, vnew))
-    return v, big | reverse
+    reverse = ~big & negative & (vnew < floor)
+    if reverse.any():
+        v[reverse] = floor[reverse]
+    return v, bool(big.any() or reverse.any())
 
 
 class DiodeFamily(DeviceFamily):
@@ -90,6 +103,15 @@ class DiodeFamily(DeviceFamily):
         self.pattern = two_terminal_pattern(self.junction, self.cathode)
         self.rows = VectorPattern(np.stack([self.junction, self.cathode]))
         self.has_charge = bool(np.any(self.cjo > 0) or np.any(self.tt > 0))
+        self.has_transit = bool(np.any(self.tt > 0))
+        self.inv_vte = 1.0 / self.vte
+        m, vj, fc, cjo = self.m, self.vj, self.fc, self.cjo
+        self.knee = fc * vj
+        f2, f3 = (1 - fc) ** (1 + m), 1 - fc * (1 + m)
+        self.q_scale = vj * cjo / (1 - m)
+        self.ext_linear = cjo / f2 * f3
+        self.ext_quadratic = cjo / f2 * m / (2 * vj)
+        self.ext_slope = cjo / f2 * m / vj
         self.slots = layout.add_charges(len(elements)) if self.has_charge else None
         m = len(elements)
         self.vd = np.zeros(m)  # linearization point of the last load
@@ -110,7 +132,7 @@ class DiodeFamily(DeviceFamily):
         else:
             vold = self.vd_accepted if ctx.first_iteration else self.vd
             vd, limited = pnjlim(self._junction_voltage(x_ext), vold, self.vte, self.vcrit)
-            ctx.noncon += int(limited.any())
+            ctx.noncon += limited
         cd, gd = self._current(vd)
         if self.has_charge:
             q, c = self._charge(vd, cd, gd)
@@ -118,38 +140,41 @@ class DiodeFamily(DeviceFamily):
             cd = cd + icap
             gd = gd + gcap
         self.vd, self.cd, self.gd = vd, cd, gd
-        stamps.add(self.pattern, conductance_values(gd))
-        ieq = cd - gd * vd
-        self.rows.add(rhs, np.stack([-ieq, ieq]))
+        stamps.add(self.pattern, CONDUCTANCE_SIGNS * gd)
+        self.rows.add(rhs, CURRENT_SIGNS * (cd - gd * vd))
 
     def _current(self, vd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Static current (A) and conductance (S) with gmin, as SPICE's dioload."""
-        vte, isat = self.vte, self.isat
-        forward = vd >= -3 * vte
-        ex = np.exp(np.minimum(vd / vte, 700.0))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            arg = (3 * vte / (vd * np.e)) ** 3
-        cd = np.where(forward, isat * (ex - 1), -isat * (1 + arg))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            gd = np.where(forward, isat * ex / vte, isat * 3 * arg / vd)
+        isat = self.isat
+        ex = np.exp(np.minimum(vd * self.inv_vte, 700.0))
+        cd = isat * (ex - 1)
+        gd = isat * ex * self.inv_vte
+        reverse = vd < -3 * self.vte
+        if reverse.any():
+            # SPICE's reverse branch: the exponential replaced by a cubic that reaches -IS.
+            vr, ir = vd[reverse], isat[reverse]
+            arg = (3 * self.vte[reverse] / (vr * np.e)) ** 3
+            cd[reverse] = -ir * (1 + arg)
+            gd[reverse] = ir * 3 * arg / vr
         return cd + self.gmin * vd, gd + self.gmin
 
     def _charge(self, vd, cd, gd) -> tuple[np.ndarray, np.ndarray]:
-        """Depletion plus diffusion charge (C) and capacitance (F)."""
-        vj, m, fc, cjo = self.vj, self.m, self.fc, self.cjo
-        knee = fc * vj
-        below = vd < knee
-        arg = np.where(below, 1 - vd / vj, 1.0)
-        sarg = np.exp(-m * np.log(arg))
-        q_low = vj * cjo * (1 - arg * sarg) / (1 - m)
-        c_low = cjo * sarg
-        f1 = vj * (1 - (1 - fc) ** (1 - m)) / (1 - m)
-        f2 = (1 - fc) ** (1 + m)
-        f3 = 1 - fc * (1 + m)
-        q_high = cjo * f1 + cjo / f2 * (f3 * (vd - knee) + m / (2 * vj) * (vd**2 - knee**2))
-        c_high = cjo / f2 * (f3 + m * vd / vj)
-        q = np.where(below, q_low, q_high) + self.tt * cd
-        c = np.where(below, c_low, c_high) + self.tt * gd
+        """Depletion plus diffusion charge (C) and capacitance (F).
+
+        Below FC*VJ the depletion charge is SPICE's power law; above it, its linear-quadratic
+        continuation, written here as the power law at the knee plus the extension.
+        """
+        below = np.minimum(vd, self.knee)
+        arg = 1 - below / self.vj
+        sarg = arg ** (-self.m)
+        excess = np.maximum(vd - self.knee, 0.0)
+        q = self.q_scale * (1 - arg * sarg) + excess * (
+            self.ext_linear + self.ext_quadratic * (vd + self.knee)
+        )
+        c = self.cjo * sarg + self.ext_slope * excess
+        if self.has_transit:
+            q = q + self.tt * cd
+            c = c + self.tt * gd
         return q, c
 
     def converged(self, x_ext: np.ndarray, ctx: StepContext) -> bool:
