@@ -1,0 +1,410 @@
+"""Parameter sweeps of the equivalent circuit: many variants, one vectorized run, peak |state|.
+
+    Systems (one per value) --synthesize once, rescale the changed parts--> Circuits
+        --batch_transient (builtin, one run) or ngspice (one process per variant)-->
+        peak |y| over a late window and over the whole run --> CSV + bifurcation-style plot
+
+The variants share one translation: the amplitude scaling is fixed from the direct solution's
+peaks at the sweep's ends and middle, resistors are exact (no E-series rounding: turning the
+paper's potentiometers), and a variant differs from the base circuit only in the resistors
+whose model coefficient (an entry of A) changes - for the wheelset's speed, R33 and R44. When a
+parameter changes anything else (forcing, constants, flange terms) every variant is translated
+on its own, with the same scaling.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import os
+import re
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from circuitsim.atomic import write_atomic, write_text_atomic
+from circuitsim.compare.errors import ComparisonError
+from circuitsim.compare.mapping import map_waveforms
+from circuitsim.mechanics.system import System
+from circuitsim.netlist.circuit import Circuit, Resistor
+from circuitsim.synthesis.options import SynthesisOptions
+from circuitsim.synthesis.scalemap import ScaleMap
+from circuitsim.synthesis.scaling import direct_solution
+from circuitsim.synthesis.translator import synthesize
+
+Progress = Callable[[float, str], None]
+"""Progress callback: fraction done (0..1) and a short message."""
+
+_A_ENTRY = re.compile(r"A\[(\w+), (\w+)\]")
+_TRANSIENT_T = re.compile(r"t = ([-+0-9.eE]+) s of ([-+0-9.eE]+) s")
+
+
+def parse_values(text: str) -> np.ndarray:
+    """``"START:STOP:STEP"`` (STOP included when on the grid) or ``"v1,v2,..."``.
+
+    Raises
+    ------
+    ComparisonError
+        Unparsable text, a non-positive step, or an empty range.
+    """
+    try:
+        if ":" in text:
+            start, stop, step = (float(p) for p in text.split(":"))
+            if not step > 0 or stop < start:
+                raise ValueError
+            count = int(math.floor((stop - start) / step + 1e-9)) + 1
+            values = start + step * np.arange(count)
+        else:
+            values = np.array([float(p) for p in text.split(",") if p.strip()])
+    except ValueError:
+        raise ComparisonError(
+            f"--values {text!r}: expected START:STOP:STEP with STEP > 0 and STOP >= START, "
+            "or a comma-separated list of numbers"
+        ) from None
+    if values.size == 0:
+        raise ComparisonError(f"--values {text!r}: no values")
+    return values
+
+
+@dataclass
+class SweepCircuits:
+    """The variants' circuits and what they share.
+
+    Attributes
+    ----------
+    circuits : list of Circuit
+        One per value, same topology.
+    scale_map : ScaleMap
+        Shared by every variant.
+    changed : list of str
+        Elements whose values differ between variants (``["R33", "R44"]`` for the speed).
+    ranges : dict of str to float
+        State peaks (SI units) the shared scaling was set from.
+    rescaled : bool
+        True when variants were made by rescaling the base circuit's resistors.
+    """
+
+    circuits: list[Circuit]
+    scale_map: ScaleMap
+    changed: list[str]
+    ranges: dict[str, float]
+    rescaled: bool
+
+
+def _same_except_a(a: System, b: System) -> bool:
+    if a.states != b.states or len(a.forcing) != len(b.forcing):
+        return False
+    if not np.array_equal(np.asarray(a.b0), np.asarray(b.b0)):
+        return False
+    if (a.x0 is None) != (b.x0 is None) or (
+        a.x0 is not None and not np.array_equal(np.asarray(a.x0), np.asarray(b.x0))
+    ):
+        return False
+    for fa, fb in zip(a.forcing, b.forcing, strict=True):
+        same = fa.amplitude == fb.amplitude and fa.frequency == fb.frequency
+        if not (same and fa.phase == fb.phase and np.array_equal(fa.direction, fb.direction)):
+            return False
+    if len(a.nonlinear) != len(b.nonlinear):
+        return False
+    return all(repr(ta) == repr(tb) for ta, tb in zip(a.nonlinear, b.nonlinear, strict=True))
+
+
+def _rescaled(base, base_system: System, system: System) -> Circuit | None:
+    """Base circuit with each A-entry resistor scaled by A_base/A_new; None if not possible."""
+    circuit = copy.deepcopy(base.circuit)
+    states = list(base_system.states)
+    for entry in base.bom:
+        found = _A_ENTRY.search(entry.role)
+        if entry.unit != "ohm" or found is None:
+            continue
+        i, j = states.index(found.group(1)), states.index(found.group(2))
+        old, new = float(base_system.A[i, j]), float(system.A[i, j])
+        if old == new:
+            continue
+        if new == 0 or np.sign(new) != np.sign(old):
+            return None  # the resistor would move to the other node or vanish
+        element = circuit.element(entry.part)
+        if not isinstance(element, Resistor):
+            return None
+        element.resistance = float(element.resistance) * old / new
+    return circuit
+
+
+def sweep_circuits(
+    systems: Sequence[System], options: SynthesisOptions | None = None
+) -> SweepCircuits:
+    """Translate every system into a circuit of one shared topology and scaling.
+
+    Parameters
+    ----------
+    systems : sequence of System
+        The scenario at each swept value.
+    options : SynthesisOptions, optional
+        Translator options; ``series`` is forced to ``"exact"`` and, for auto scaling without
+        user ranges, ``ranges`` to the largest peaks of the first, middle and last systems.
+    """
+    options = replace(options or SynthesisOptions(), series="exact")
+    middle = systems[len(systems) // 2]
+    ranges = dict(options.ranges)
+    if options.scaling == "auto" and len(ranges) < middle.n:
+        t_stop = float(options.t_stop or (middle.circuit_hints or {}).get("t_stop", 5.0))
+        probes = {0: systems[0], len(systems) // 2: middle, len(systems) - 1: systems[-1]}
+        peaks = np.zeros(middle.n)
+        for system in probes.values():
+            _, x = direct_solution(system, t_stop)
+            peaks = np.maximum(peaks, np.max(np.abs(x), axis=1))
+        for name, peak in zip(middle.states, peaks, strict=True):
+            ranges.setdefault(name, float(peak) if peak > 0 else 1.0)
+        options = replace(options, ranges=ranges)
+    base = synthesize(middle, options)
+    circuits: list[Circuit] = []
+    rescaled = all(_same_except_a(middle, s) for s in systems)
+    for system in systems:
+        circuit = _rescaled(base, middle, system) if rescaled else None
+        if circuit is None:
+            rescaled = rescaled and system is middle
+            circuit = synthesize(system, options).circuit
+        circuits.append(circuit)
+    changed = []
+    for index, element in enumerate(circuits[0].elements):
+        if any(c.elements[index] != element for c in circuits[1:]):
+            changed.append(element.name)
+    return SweepCircuits(circuits, base.scale_map, changed, ranges, rescaled)
+
+
+@dataclass
+class SweepResult:
+    """Peak |state| against the swept parameter.
+
+    Attributes
+    ----------
+    parameter : str
+        The swept parameter's name (``"V"``).
+    unit : str
+        Its unit.
+    values : ndarray, shape (k,)
+    state : str
+        The state measured (``"y"``), in ``state_unit``.
+    peak_late, peak_all : ndarray, shape (k,)
+        max |state| over the last ``window`` model seconds and over the whole run.
+    engine : str
+        ``"builtin"`` (one batched run) or ``"ngspice"`` (one process per variant).
+    window : float
+        Model seconds of the late window.
+    critical : float or None
+        The linear critical value of the parameter (marked on the plot), if known.
+    changed : list of str
+        Elements that differ between variants.
+    timings : dict of str to float
+        Wall seconds of ``synthesis`` and ``simulation``.
+    stats : dict
+        Engine statistics (time points, Newton iterations ...).
+    """
+
+    parameter: str
+    unit: str
+    values: np.ndarray
+    state: str
+    state_unit: str
+    peak_late: np.ndarray
+    peak_all: np.ndarray
+    engine: str
+    window: float
+    critical: float | None = None
+    changed: list[str] = field(default_factory=list)
+    timings: dict[str, float] = field(default_factory=dict)
+    stats: dict = field(default_factory=dict)
+
+    def csv_text(self) -> str:
+        """``<parameter>,peak_late,peak_all`` header and one row per value, full precision."""
+        header = (
+            f"{self.parameter} ({self.unit}),max_abs_{self.state}_last_{self.window:g}s "
+            f"({self.state_unit}),max_abs_{self.state}_all ({self.state_unit})"
+        )
+        rows = [
+            f"{v:.17g},{a:.17g},{b:.17g}"
+            for v, a, b in zip(self.values, self.peak_late, self.peak_all, strict=True)
+        ]
+        return "\n".join([header, *rows]) + "\n"
+
+
+def _peaks(waves, scale_map: ScaleMap, state: str, window: float) -> tuple[float, float]:
+    t, values = map_waveforms(waves, scale_map, [state])[state]
+    late = t >= t[-1] - window
+    return float(np.max(np.abs(values[late]))), float(np.max(np.abs(values)))
+
+
+def run_sweep(
+    systems: Sequence[System],
+    values: np.ndarray,
+    parameter: str,
+    unit: str = "",
+    engine: str = "builtin",
+    options: SynthesisOptions | None = None,
+    state: str | None = None,
+    window: float = 1.0,
+    workers: int = 2,
+    progress: Progress | None = None,
+) -> SweepResult:
+    """Simulate the circuit of every system and measure the peak |state|.
+
+    Parameters
+    ----------
+    systems : sequence of System
+        One per entry of ``values``.
+    values : ndarray, shape (k,)
+        The swept parameter's values.
+    parameter, unit : str
+        Its name and unit (for the CSV and plot).
+    engine : {"builtin", "ngspice"}
+        builtin: all variants in one :func:`~circuitsim.solver.batch.batch_transient` run;
+        ngspice: one ngspice process per variant, ``workers`` at a time.
+    options : SynthesisOptions, optional
+    state : str, optional
+        State to measure (default: the first, the wheelset's y).
+    window : float
+        Late window, model seconds.
+    progress : callable(fraction, message), optional
+
+    Raises
+    ------
+    ComparisonError, SynthesisError, SolverError, NgspiceError
+    """
+    if len(systems) != len(values):
+        raise ComparisonError("run_sweep: one system per value is needed")
+    state = state or systems[0].states[0]
+    if state not in systems[0].states:
+        raise ComparisonError(f"state {state!r} is not one of {', '.join(systems[0].states)}")
+    state_unit = systems[0].units[list(systems[0].states).index(state)] if systems[0].units else ""
+    timings: dict[str, float] = {}
+    started = time.perf_counter()
+    variants = sweep_circuits(systems, options)
+    timings["synthesis"] = time.perf_counter() - started
+    if progress:
+        progress(0.0, f"{len(values)} variants; changed: {', '.join(variants.changed) or 'none'}")
+    started = time.perf_counter()
+    if engine == "builtin":
+        waves, stats = _run_builtin(variants.circuits, progress)
+    elif engine == "ngspice":
+        waves, stats = _run_ngspice(variants, state, workers, progress)
+    else:
+        raise ComparisonError(f"unknown engine {engine!r} (choose builtin or ngspice)")
+    timings["simulation"] = time.perf_counter() - started
+    peaks = np.array([_peaks(w, variants.scale_map, state, window) for w in waves])
+    return SweepResult(
+        parameter=parameter,
+        unit=unit,
+        values=np.asarray(values, dtype=float),
+        state=state,
+        state_unit=state_unit,
+        peak_late=peaks[:, 0],
+        peak_all=peaks[:, 1],
+        engine=engine,
+        window=window,
+        changed=variants.changed,
+        timings=timings,
+        stats=stats,
+    )
+
+
+def _run_builtin(circuits: list[Circuit], progress: Progress | None):
+    from circuitsim.solver.batch import batch_transient
+
+    def relay(message: str) -> None:
+        found = _TRANSIENT_T.search(message)
+        if progress and found:
+            progress(min(1.0, float(found.group(1)) / float(found.group(2))), message)
+
+    result = batch_transient(circuits, progress=relay)
+    return [result.variant(k) for k in range(result.n_variants)], dict(result.stats)
+
+
+def _run_ngspice(variants: SweepCircuits, state: str, workers: int, progress: Progress | None):
+    from circuitsim.interop.ngspice import run_ngspice
+
+    node = variants.scale_map.states[state].node
+    total = len(variants.circuits)
+    waves: list = [None] * total
+    with tempfile.TemporaryDirectory(prefix="circuitsim-sweep-") as folder:
+        from circuitsim.netlist.writer import save_netlist
+
+        paths = []
+        for k, circuit in enumerate(variants.circuits):
+            path = Path(folder) / f"variant_{k:04d}.cir"
+            save_netlist(circuit, path, "ngspice")
+            paths.append(path)
+        with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
+            futures = {pool.submit(run_ngspice, p, [f"v({node})"]): k for k, p in enumerate(paths)}
+            for done, future in enumerate(as_completed(futures), start=1):
+                waves[futures[future]] = future.result()
+                if progress:
+                    progress(done / total, f"ngspice: {done} of {total} variants")
+    points = [len(w.time) for w in waves]
+    return waves, {"processes": total, "workers": workers, "time_points": int(np.sum(points))}
+
+
+def save_sweep(result: SweepResult, folder: str | os.PathLike, stem: str = "sweep") -> list[Path]:
+    """Write ``<stem>.csv`` and ``<stem>.png`` (bifurcation-style plot) atomically.
+
+    Returns
+    -------
+    list of Path
+        The files written.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    csv_path, png_path = folder / f"{stem}.csv", folder / f"{stem}.png"
+    write_text_atomic(csv_path, result.csv_text())
+    plot_sweep(result, png_path)
+    return [csv_path, png_path]
+
+
+def plot_sweep(result: SweepResult, path: str | os.PathLike) -> None:
+    """Peak |state| (late window and whole run) against the parameter, critical value marked."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    scale, unit = (1e3, "mm") if result.state_unit == "m" else (1.0, result.state_unit)
+    ax.plot(result.values, result.peak_all * scale, "o-", ms=3, color="0.6", label="whole run")
+    ax.plot(
+        result.values,
+        result.peak_late * scale,
+        "o-",
+        ms=3,
+        color="C0",
+        label=f"last {result.window:g} s",
+    )
+    if result.critical is not None:
+        ax.axvline(result.critical, color="C3", ls="--", lw=1)
+        ax.annotate(
+            f"critical {result.parameter} = {result.critical:.4g} {result.unit}",
+            (result.critical, 0.97),
+            xycoords=("data", "axes fraction"),
+            ha="right",
+            va="top",
+            rotation=90,
+            color="C3",
+            fontsize=8,
+        )
+    ax.set_xlabel(f"{result.parameter} ({result.unit})" if result.unit else result.parameter)
+    ax.set_ylabel(f"max |{result.state}| ({unit})")
+    ax.set_title(f"peak |{result.state}| against {result.parameter} ({result.engine} engine)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper left", fontsize=8)
+    fig.tight_layout()
+
+    def write(handle) -> None:
+        fig.savefig(handle, format="png", dpi=120)
+
+    try:
+        write_atomic(path, write, binary=True)
+    finally:
+        plt.close(fig)
