@@ -296,6 +296,8 @@ def _add_nonlinear(system, builder, names, nodes, inputs, G, K, options) -> None
         source = names.generic(f"V{prefix}_CTL", f"switch control of {term.name}")
         if term.t_on is None or term.t_on <= 0:
             circuit.add(VoltageSource(source, control, "0", dc=1.0))
+        elif math.isinf(term.t_on):  # never: the block is there, the switch stays open
+            circuit.add(VoltageSource(source, control, "0", dc=0.0))
         else:
             t_on = float(f"{term.t_on / K:.12g}")
             ramp = float(f"{t_on * 1e-4:.6g}")

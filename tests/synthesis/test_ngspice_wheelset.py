@@ -53,6 +53,22 @@ def test_exact_circuit_matches_the_ode(tmp_path, f, flange):
     assert errors["y_dot"] <= 0.5, errors
 
 
+def test_switch_open_is_the_linear_model(tmp_path):
+    # the paper's linear circuit: flange blocks in place, S1 open; against the flange-free ODE
+    import math
+
+    from circuitsim.synthesis.generate import switch_at
+
+    model = load_model()
+    scenario = {"V": 55.0, "f": 5.0, "a": 0.040}
+    opened = switch_at(model.system(parameters=scenario), math.inf)
+    result = generate(opened, tmp_path / "w.cir", SynthesisOptions(series="exact"))
+    assert result.report.ok and result.synthesis.circuit.element("S1")
+    linear = model.system(parameters=scenario, nonlinear={"flange": False})
+    errors = circuit_vs_ode(result, linear)
+    assert errors["y"] <= 0.5 and errors["y_dot"] <= 0.5, errors
+
+
 def test_e96_circuit_is_the_model_the_check_recomputes(tmp_path):
     system = load_model().system(parameters={"V": 55.0, "f": 3.0}, nonlinear={"flange": False})
     result = generate(system, tmp_path / "w.cir", SynthesisOptions(series="E96"))
