@@ -491,7 +491,8 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
         "--switch-at",
         type=float,
         metavar="T",
-        help="close the nonlinear switches (S1) at model time T instead of from the start",
+        help="close the nonlinear switches (S1) at model time T instead of from the start; "
+        "'inf' keeps them open (the linear circuit with the blocks in place)",
     )
     parser.add_argument("-o", "--output", required=True, metavar="FILE.cir", help="netlist file")
     parser.set_defaults(func=_run_generate)
