@@ -1,8 +1,9 @@
 """Regenerate the committed paper netlists: ``python netlists/regenerate.py``.
 
 Writes every case of :mod:`circuitsim.synthesis.paper` into this folder (netlist, scale file,
-bill of materials) and prints each mapping check. tests/synthesis/test_paper_netlists.py fails
-when the files here differ from what the generator produces now.
+bill of materials) and prints each mapping check.
+tests/synthesis/test_synthesis_generate_cli.py fails when the files here differ from what the
+generator produces now.
 """
 
 from pathlib import Path
