@@ -19,6 +19,7 @@ from circuitsim.netlist.circuit import Circuit, Expression, SubcircuitCall
 from circuitsim.solver.dc import operating_point_solution
 from circuitsim.solver.options import SimulationOptions
 from circuitsim.solver.system import MnaSystem
+from circuitsim.solver.threads import single_threaded_blas
 from circuitsim.solver.transient import run_transient
 from circuitsim.solver.waveforms import Waveforms
 
@@ -69,7 +70,8 @@ def operating_point(circuit: Circuit, options: SimulationOptions | None = None) 
     started = _time.perf_counter()
     system = build_system(circuit, options)
     stats: dict = {"analysis": "op", "newton_iterations": 0}
-    x, _ = operating_point_solution(system, dc_op=True, clamp_ic=False, stats=stats)
+    with single_threaded_blas():
+        x, _ = operating_point_solution(system, dc_op=True, clamp_ic=False, stats=stats)
     stats["wall_time_s"] = _time.perf_counter() - started
     return _waveforms(system, np.zeros(1), x[None, :], stats)
 
@@ -96,9 +98,10 @@ def transient(
     started = _time.perf_counter()
     system = build_system(circuit, options)
     stats: dict = {"analysis": "tran", "newton_iterations": 0}
-    times, solutions = run_transient(
-        system, tstep, tstop, tstart, tmax, uic, progress=progress, stats=stats
-    )
+    with single_threaded_blas():
+        times, solutions = run_transient(
+            system, tstep, tstop, tstart, tmax, uic, progress=progress, stats=stats
+        )
     stats["wall_time_s"] = _time.perf_counter() - started
     return _waveforms(system, times, solutions, stats)
 

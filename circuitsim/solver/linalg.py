@@ -1,9 +1,10 @@
 """LU factorization and solve: LAPACK for small dense systems, SuperLU past a size.
 
 Small systems go straight to LAPACK ``dgetrf``/``dgetrs`` (no argument checking, no copies
-beyond the one factor), which is several times cheaper than ``scipy.linalg.lu_factor`` for the
-20-100 unknowns of an op-amp circuit. OpenBLAS factors such matrices on one thread whatever its
-thread setting, so no thread pool control is needed (see docs/solver.md for the measurement).
+beyond the one factor), several times cheaper than ``scipy.linalg.lu_factor`` for the 20-150
+unknowns of an op-amp circuit. The engine runs with OpenBLAS held to one thread
+(:mod:`circuitsim.solver.threads`); docs/solver.md has the dense/sparse crossover measurement
+behind ``SimulationOptions.dense_limit``.
 """
 
 from __future__ import annotations

@@ -68,7 +68,7 @@ class SimulationOptions:
     gminsteps: int = 10
     srcsteps: int = 10
     fixed_step: float | None = None
-    dense_limit: int = 300
+    dense_limit: int = 150
     max_steps: int = 2_000_000
 
     def __post_init__(self) -> None:

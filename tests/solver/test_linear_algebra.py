@@ -1,0 +1,47 @@
+"""Dense and sparse paths give the same answers; the BLAS thread limit is restored."""
+
+import numpy as np
+import pytest
+
+from circuitsim.netlist.circuit import (
+    Capacitor,
+    Circuit,
+    Diode,
+    Model,
+    Pulse,
+    Resistor,
+    VoltageSource,
+)
+from circuitsim.solver import SimulationOptions, transient
+from circuitsim.solver.threads import _openblas_controls, single_threaded_blas
+
+
+def ladder(n: int) -> Circuit:
+    c = Circuit(
+        elements=[VoltageSource("V1", "n0", "0", waveform=Pulse(0, 1, 1e-6, 1e-7, 1e-7, 1.0))]
+    )
+    for i in range(1, n):
+        c.add(
+            Resistor(f"R{i}", f"n{i - 1}", f"n{i}", 100.0), Capacitor(f"C{i}", f"n{i}", "0", 1e-9)
+        )
+    c.add(Diode("D1", f"n{n - 1}", "0", "dm"))
+    c.models["dm"] = Model("dm", "D", {"is": 1e-14})
+    return c
+
+
+def test_sparse_and_dense_agree():
+    c = ladder(30)
+    dense = transient(c, 1e-7, 2e-5, options=SimulationOptions(dense_limit=1000))
+    sparse = transient(c, 1e-7, 2e-5, options=SimulationOptions(dense_limit=0))
+    assert np.array_equal(dense.time, sparse.time) or len(dense.time) == len(sparse.time)
+    assert np.max(np.abs(dense["n29"] - np.interp(dense.time, sparse.time, sparse["n29"]))) < 1e-9
+
+
+def test_thread_limit_is_restored():
+    controls = _openblas_controls()
+    if not controls:
+        pytest.skip("no OpenBLAS found in this process")
+    before = [get() for get, _ in controls]
+    with single_threaded_blas():
+        assert all(get() == 1 for get, _ in controls)
+    assert [get() for get, _ in controls] == before
