@@ -230,9 +230,13 @@ class BatchedMnaSystem(MnaSystem):
         key, base = self.batched_base(ctx, clamp_ic)
         if not self.nonlinear:
             inverse = self._inverse(key, base)
-            if inverse is None:
-                raise SingularMatrixError(self._singular_message(base))
-            return self.from_blocks(np.einsum("kij,kj->ki", inverse, self.to_blocks(rhs0)))
+            none = np.zeros(0, dtype=np.intp)
+            blocks = None
+            if inverse is not None:
+                blocks = np.einsum("kij,kj->ki", inverse, self.to_blocks(rhs0))
+            if blocks is None or not self._accurate(key, blocks, none, none, np.zeros(0), rhs0):
+                blocks = self._direct(base, none, none, np.zeros(0), rhs0)
+            return self.from_blocks(blocks)
         rhs = rhs0.copy()
         stamps = Stamps()
         for family in self.nonlinear:
