@@ -153,7 +153,7 @@ def synthesize(system: System, options: SynthesisOptions | None = None) -> Synth
     _add_forcing(system, circuit, names, nodes, inputs, G, K, options)
     _add_constants(system, circuit, names, inputs, G, K)
     first_block, first_bom = len(circuit.elements), len(builder.bom)
-    _add_nonlinear(system, builder, names, nodes, inputs, G, K, options)
+    signals = _add_nonlinear(system, builder, names, nodes, inputs, G, K, options)
     blocks = {id(e) for e in circuit.elements[first_block:]}
     block_bom = {id(e) for e in builder.bom[first_bom:]}
 
@@ -184,6 +184,15 @@ def synthesize(system: System, options: SynthesisOptions | None = None) -> Synth
             warnings.append(
                 f"state {state} peaks at {peak:.3g} V, beyond the {options.opamp} op-amp's "
                 f"{limit:g} V swing: it will clip (use scaling='auto' or a smaller swing)"
+            )
+    for term, signal in signals:
+        # the summed signal swings beta * max|s(x)| whether or not its switch is closed
+        peak = float(signal.beta * np.max(np.abs(term.value(x))))
+        node_peaks[signal.node] = peak
+        if peak > limit:
+            warnings.append(
+                f"the {term.name} signal ({signal.node}) peaks at {peak:.3g} V, beyond the "
+                f"{options.opamp} op-amp's {limit:g} V swing: it will clip"
             )
     scale_map = ScaleMap(
         time_scale=K,
@@ -262,12 +271,17 @@ def _add_constants(system, circuit, names, inputs, G, K) -> None:
         )
 
 
-def _add_nonlinear(system, builder, names, nodes, inputs, G, K, options) -> None:
-    """Each piecewise-linear term: its signal, then a switch and a resistor per entry."""
+def _add_nonlinear(system, builder, names, nodes, inputs, G, K, options) -> list:
+    """Each piecewise-linear term: its signal, then a switch and a resistor per entry.
+
+    Returns (term, TermSignal) pairs.
+    """
+    built = []
     terms = TermBuilder(builder, list(system.states), nodes, G, options.r_unit)
     circuit = builder.circuit
     for t, term in enumerate(system.nonlinear, start=1):
         signal = terms.build(term, options.nonlinear)
+        built.append((term, signal))
         direction = np.asarray(term.direction, dtype=float)
         used = np.flatnonzero(direction)
         prefix = node_name(term.name).upper()
@@ -309,6 +323,8 @@ def _add_nonlinear(system, builder, names, nodes, inputs, G, K, options) -> None
                     waveform=Pwl(((0.0, 0.0), (t_on, 0.0), (t_on + ramp, 1.0))),
                 )
             )
+
+    return built
 
 
 def _choose_capacitor(gains: list[float], options: SynthesisOptions) -> float:

@@ -188,3 +188,10 @@ def test_element_names_are_unique(wheelset, opamp, nonlinear):
     names = [e.name.lower() for e in s.circuit.elements]
     assert len(names) == len(set(names))
     assert len(s.bom) == len({entry.part.lower() for entry in s.bom})
+
+
+def test_flange_signal_peak_is_predicted(wheelset):
+    # v_sig = -G_y * deadzone(y, eta): peak G_y (max|y| - eta), MODEL.md max|y| = 14.265 mm
+    s = synthesize(wheelset, SynthesisOptions())
+    G = s.scale_map.states["y"].volts_per_unit
+    assert s.node_peaks["flange_sig"] == pytest.approx(G * (14.265e-3 - 0.009), rel=2e-3)
