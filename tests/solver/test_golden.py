@@ -65,3 +65,25 @@ def test_golden_against_ngspice(name):
     assert not missing
     worst = max(devs, key=devs.get)
     assert devs[worst] <= limit, f"{name}: {worst} deviates {devs[worst]:.3g} of its range"
+
+
+@requires_ngspice
+@pytest.mark.parametrize("name", ["rlc.cir", "halfwave.cir"])
+def test_gear_golden_against_ngspice(name, tmp_path):
+    """Both engines switched to Gear-2 by ``.options method=gear``."""
+    from circuitsim.interop.ngspice import run_ngspice
+
+    text = (
+        (GOLDEN / name)
+        .read_text()
+        .replace(".options reltol=1e-6", ".options reltol=1e-6 method=gear")
+    )
+    assert "method=gear" in text
+    path = tmp_path / name
+    path.write_text(text)
+    limit, which = CASES[name]
+    ours = simulate(read_netlist(path))
+    assert ours.stats["method"] == "gear"
+    devs = deviations(ours, run_ngspice(path), which)
+    worst = max(devs, key=devs.get)
+    assert devs[worst] <= limit, f"{name} (gear): {worst} deviates {devs[worst]:.3g}"
