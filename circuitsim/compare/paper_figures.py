@@ -61,7 +61,7 @@ def plot_growth_rate(
     speeds: np.ndarray,
     rates: np.ndarray,
     critical: float,
-    realized: dict[str, float] | None = None,
+    realized: dict[str, list[float]] | None = None,
 ) -> None:
     """Largest real part of the eigenvalues against speed, with the critical speed(s).
 
@@ -75,23 +75,29 @@ def plot_growth_rate(
         Largest real part at each speed, 1/s.
     critical : float
         The model's critical speed, m/s.
-    realized : dict of str to float, optional
-        Label -> critical speed of a realized circuit (from its netlist's mapping check).
+    realized : dict of str to list of float, optional
+        Label -> critical speeds of realized circuits (from their netlists' mapping checks);
+        several values are drawn as the band they span.
     """
     figure, axes = plt.subplots(1, 2, figsize=(10.5, 3.4))
+    colours = ["tab:orange", "tab:green", "tab:purple", "tab:brown"]
     for axis, zoom in zip(axes, (False, True), strict=True):
         mask = np.abs(speeds - critical) <= 2.0 if zoom else np.ones(speeds.size, bool)
         axis.plot(speeds[mask], rates[mask], color="tab:blue", linewidth=1.2)
         axis.axhline(0.0, color="black", linewidth=0.6)
         axis.axvline(critical, color="tab:red", linewidth=1.0, label=f"model V_c = {critical:.4f}")
-        if zoom and realized:
-            styles = ["--", ":", "-.", (0, (1, 1))]
-            for style, (label, value) in zip(styles * 8, sorted(realized.items()), strict=False):
-                if value is not None and abs(value - critical) <= 2.0:
-                    axis.axvline(
-                        value, color="tab:gray", linestyle=style, linewidth=0.9,
-                        label=f"{label}: {value:.3f}",
-                    )  # fmt: skip
+        bands = sorted((realized or {}).items())
+        for colour, (label, values) in zip(colours * 4, bands, strict=False):
+            values = [v for v in values if v is not None]
+            if not zoom or not values:
+                continue
+            lo, hi = min(values), max(values)
+            if hi - lo > 1e-3:
+                axis.axvspan(lo, hi, color=colour, alpha=0.25, label=f"{label}: {lo:.3f}-{hi:.3f}")
+            else:
+                axis.axvline(
+                    lo, color=colour, linestyle="--", linewidth=1.0, label=f"{label}: {lo:.4f}"
+                )
         axis.set(
             xlabel="forward speed V (m/s)",
             ylabel="largest Re(eigenvalue) (1/s)",

@@ -92,9 +92,7 @@ def plot_overlay(
         factor = scales.get(state, 1.0)
         grid = _grid(reference[state], n_points)
         t, values = grid, resample(reference[state], grid)
-        axis.plot(
-            t, values * factor, color="0.55", linewidth=2.4, label=reference_label
-        )
+        axis.plot(t, values * factor, color="0.55", linewidth=2.4, label=reference_label)
         for style, (label, traces) in zip(_STYLES * 4, circuits.items(), strict=False):
             if state in traces:
                 tc = _grid(traces[state], n_points)
