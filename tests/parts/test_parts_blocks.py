@@ -79,12 +79,18 @@ ENGINES = [
 RUN = {"ngspice": run_ngspice, "builtin": partbench.run_builtin}
 
 
+# The supply-biased dead zone takes its bias from the +/-15 V pins, which only real op-amps have.
+BLOCK_KINDS = [
+    (block, kind)
+    for block in partbench.BLOCKS
+    for kind in OPAMP_KINDS
+    if not (block == "dead_zone_supplies" and kind != "tl074")
+]
+
+
 @pytest.mark.parametrize("engine", ENGINES)
-@pytest.mark.parametrize("kind", OPAMP_KINDS)
-@pytest.mark.parametrize("block", list(partbench.BLOCKS))
+@pytest.mark.parametrize(("block", "kind"), BLOCK_KINDS)
 def test_transfer_curve_from_slow_ramp(block, kind, engine):
-    if block == "dead_zone_supplies" and kind != "tl074":
-        pytest.skip("the supply bias needs real op-amps")
     x, y, reference = partbench.transfer_curve(RUN[engine], block, kind)
     assert np.ptp(x) == pytest.approx(2 * partbench.FULL_SCALE)
     assert np.max(np.abs(y - reference)) < 0.01 * partbench.FULL_SCALE
