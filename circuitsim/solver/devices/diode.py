@@ -54,22 +54,19 @@ def pnjlim(vnew: np.ndarray, vold: np.ndarray, vt: np.ndarray, vcrit: np.ndarray
         Whether any voltage was limited.
     """
     big = (vnew > vcrit) & (np.abs(vnew - vold) > 2 * vt)
-    negative = vnew < 0
-    if not (big.any() or negative.any()):
-        return vnew, False
-    v = vnew.copy()
-    if big.any():
-        vn, vo, t = vnew[big], vold[big], vt[big]
-        arg = 1 + (vn - vo) / t
-        with np.errstate(invalid="ignore", divide="ignore"):
-            from_positive = np.where(arg > 0, vo + t * np.log(np.maximum(arg, 1e-300)), vcrit[big])
-            from_negative = t * np.log(np.maximum(vn / t, 1e-300))
-        v[big] = np.where(vo > 0, from_positive, from_negative)
     floor = np.where(vold > 0, -vold - 1, 2 * vold - 1)
-    reverse = ~big & negative & (vnew < floor)
-    if reverse.any():
-        v[reverse] = floor[reverse]
-    return v, bool(big.any() or reverse.any())
+    reverse = vnew < floor  # floor < 0, so this is SPICE's "vnew < 0 and below the floor"
+    if not big.any():
+        if not reverse.any():
+            return vnew, False
+        return np.maximum(vnew, floor), True
+    # arguments kept positive so the logarithms are defined where they are not used
+    arg = 1 + (vnew - vold) / vt
+    from_positive = np.where(arg > 0, vold + vt * np.log(np.maximum(arg, 1e-300)), vcrit)
+    from_negative = vt * np.log(np.maximum(vnew, vt) / vt)
+    forward = np.where(vold > 0, from_positive, from_negative)
+    v = np.where(big, forward, np.where(reverse, floor, vnew))
+    return v, True
 
 
 class DiodeFamily(DeviceFamily):
@@ -105,6 +102,9 @@ class DiodeFamily(DeviceFamily):
         self.has_charge = bool(np.any(self.cjo > 0) or np.any(self.tt > 0))
         self.has_transit = bool(np.any(self.tt > 0))
         self.inv_vte = 1.0 / self.vte
+        self.is_over_vte = self.isat / self.vte
+        self.reverse_knee = -3 * self.vte
+        self.cubic_scale = 3 * self.vte / np.e
         m, vj, fc, cjo = self.m, self.vj, self.fc, self.cjo
         self.knee = fc * vj
         f2, f3 = (1 - fc) ** (1 + m), 1 - fc * (1 + m)
@@ -144,18 +144,18 @@ class DiodeFamily(DeviceFamily):
         self.rows.add(rhs, CURRENT_SIGNS * (cd - gd * vd))
 
     def _current(self, vd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Static current (A) and conductance (S) with gmin, as SPICE's dioload."""
-        isat = self.isat
+        """Static current (A) and conductance (S) with gmin, as SPICE's dioload.
+
+        Below -3 N Vt SPICE replaces the exponential by a cubic that tends to -IS.
+        """
         ex = np.exp(np.minimum(vd * self.inv_vte, 700.0))
-        cd = isat * (ex - 1)
-        gd = isat * ex * self.inv_vte
-        reverse = vd < -3 * self.vte
-        if reverse.any():
-            # SPICE's reverse branch: the exponential replaced by a cubic that reaches -IS.
-            vr, ir = vd[reverse], isat[reverse]
-            arg = (3 * self.vte[reverse] / (vr * np.e)) ** 3
-            cd[reverse] = -ir * (1 + arg)
-            gd[reverse] = ir * 3 * arg / vr
+        reverse = vd < self.reverse_knee
+        if not reverse.any():
+            return self.isat * (ex - 1) + self.gmin * vd, self.is_over_vte * ex + self.gmin
+        vr = np.minimum(vd, self.reverse_knee)  # negative everywhere, so 1/vr is defined
+        arg = (self.cubic_scale / vr) ** 3
+        cd = np.where(reverse, -self.isat * (1 + arg), self.isat * (ex - 1))
+        gd = np.where(reverse, 3 * self.isat * arg / vr, self.is_over_vte * ex)
         return cd + self.gmin * vd, gd + self.gmin
 
     def _charge(self, vd, cd, gd) -> tuple[np.ndarray, np.ndarray]:
