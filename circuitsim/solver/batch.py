@@ -41,7 +41,7 @@ from circuitsim.solver.waveforms import Waveforms
 SEPARATOR = "|"
 """Joins a node, element or model name to its variant number in the union circuit."""
 
-RESIDUAL_TOLERANCE = 1e-9
+RESIDUAL_TOLERANCE = 1e-8
 """Relative residual above which a low-rank (Woodbury) solve is redone with LU."""
 
 _NODE_FIELDS = ("positive", "negative", "control_positive", "control_negative", "anode", "cathode")
@@ -164,6 +164,7 @@ class BatchedMnaSystem(MnaSystem):
         self._batched_bases: OrderedDict = OrderedDict()
         self._batched_inverses: OrderedDict = OrderedDict()
         self._linearized: OrderedDict = OrderedDict()
+        self._abs_bases: dict = {}
 
     # --- union index <-> blocks -------------------------------------------------------------
 
@@ -231,24 +232,30 @@ class BatchedMnaSystem(MnaSystem):
         if not self.nonlinear:
             inverse = self._inverse(key, base)
             none = np.zeros(0, dtype=np.intp)
-            blocks = None
-            if inverse is not None:
-                blocks = np.einsum("kij,kj->ki", inverse, self.to_blocks(rhs0))
-            if blocks is None or not self._accurate(key, blocks, none, none, np.zeros(0), rhs0):
-                blocks = self._direct(base, none, none, np.zeros(0), rhs0)
+            if inverse is None:
+                return self.from_blocks(self._direct(base, none, none, np.zeros(0), rhs0))
+            blocks = np.einsum("kij,kj->ki", inverse, self.to_blocks(rhs0))
+            bad = ~self._accurate(key, blocks, none, none, np.zeros(0), rhs0)
+            if bad.any():
+                blocks[bad] = self._direct(base, none, none, np.zeros(0), rhs0, bad)
             return self.from_blocks(blocks)
         rhs = rhs0.copy()
         stamps = Stamps()
         for family in self.nonlinear:
             family.load(x_ext, ctx, stamps, rhs)
         r, c, v = stamps.triplets()
-        blocks = self._low_rank(key, base, r, c, v, rhs)
-        if blocks is None or not self._accurate(key, blocks, r, c, v, rhs):
-            # the reused inverse lost too many digits (devices far from where it was taken):
-            # take a fresh one at the present linearization, and LU if even that is poor
-            blocks = self._rebase(key, base, r, c, v, rhs)
-            if blocks is None or not self._accurate(key, blocks, r, c, v, rhs):
-                blocks = self._direct(base, r, c, v, rhs)
+        everyone = np.ones(self.n_variants, dtype=bool)
+        blocks = self._low_rank(key, r, c, v, rhs)
+        if blocks is None:
+            blocks = self._rebase(key, base, r, c, v, rhs, everyone, None)
+        bad = ~self._accurate(key, blocks, r, c, v, rhs)
+        if bad.any():
+            # the reused inverse lost too many digits for these variants (their devices moved
+            # far from where it was taken): a fresh one at the present linearization, then LU
+            blocks[bad] = self._rebase(key, base, r, c, v, rhs, bad, self._linearized.get(key))
+            bad &= ~self._accurate(key, blocks, r, c, v, rhs)
+            if bad.any():
+                blocks[bad] = self._direct(base, r, c, v, rhs, bad)
         return self.from_blocks(blocks)
 
     def _inverse(self, key, base: np.ndarray) -> np.ndarray | None:
@@ -275,29 +282,47 @@ class BatchedMnaSystem(MnaSystem):
             self.flat_positions(r, c), weights=v, minlength=base.size
         ).reshape(base.shape)
 
-    def _direct(self, base, r, c, v, rhs) -> np.ndarray:
-        """Solve (base + nonlinear stamps) block by block with LU, shape (variants, n)."""
-        stack = self._stacked(base, r, c, v)
-        self.factorizations += self.n_variants
+    def _direct(self, base, r, c, v, rhs, which=None) -> np.ndarray:
+        """Solve (base + nonlinear stamps) with LU for the variants ``which`` (default all).
+
+        Returns shape (count, n).
+        """
+        which = np.ones(self.n_variants, dtype=bool) if which is None else which
+        stack = self._stacked(base, r, c, v)[which]
+        self.factorizations += int(which.sum())
         try:
-            return np.linalg.solve(stack, self.to_blocks(rhs)[..., None])[..., 0]
+            return np.linalg.solve(stack, self.to_blocks(rhs)[which][..., None])[..., 0]
         except np.linalg.LinAlgError:
             raise SingularMatrixError(self._singular_message(stack)) from None
 
-    def _rebase(self, key, base, r, c, v, rhs) -> np.ndarray | None:
-        """Invert B + D at the present linearization, keep it for the next iterations."""
-        inverse = self._invert(self._stacked(base, r, c, v))
-        if inverse is None:
-            self._linearized.pop(key, None)
-            return None
-        ports = np.unique(np.concatenate([self.local[r], self.local[c]]))
-        z = inverse[:, :, ports]
-        self._linearized[key] = (r.copy(), c.copy(), v.copy(), inverse, ports, z, z[:, ports, :])
-        if len(self._linearized) > CACHE_SIZE:
-            self._linearized.popitem(last=False)
-        return np.einsum("kij,kj->ki", inverse, self.to_blocks(rhs))
+    def _rebase(self, key, base, r, c, v, rhs, which, cached) -> np.ndarray:
+        """Invert B + D of the variants ``which`` at the present linearization and keep it.
 
-    def _low_rank(self, key, base, r, c, v, rhs) -> np.ndarray | None:
+        Returns the solution of those variants, shape (count, n) (NaN where a block is
+        singular, so that the residual check sends them to LU).
+        """
+        stack = self._stacked(base, r, c, v)[which]
+        self.factorizations += int(which.sum())
+        try:
+            fresh = np.linalg.inv(stack)
+        except np.linalg.LinAlgError:
+            fresh = np.full_like(stack, np.nan)
+        if cached is None:
+            ports = np.unique(np.concatenate([self.local[r], self.local[c]]))
+            position = np.full(self.n_local, -1, dtype=np.intp)
+            position[ports] = np.arange(ports.size)
+            inverse = np.empty_like(base)
+            cached = _Linearization(r.copy(), c.copy(), v.copy(), inverse, ports, position)
+            self._linearized[key] = cached
+            if len(self._linearized) > CACHE_SIZE:
+                self._linearized.popitem(last=False)
+        cached.inverse[which] = fresh
+        members = which[self.variant_of[r]]
+        cached.v0[members] = v[members]
+        cached.refresh(which)
+        return np.einsum("kij,kj->ki", fresh, self.to_blocks(rhs)[which])
+
+    def _low_rank(self, key, r, c, v, rhs) -> np.ndarray | None:
         """Solve (B + D) x = rhs reusing the inverse of B + D0 taken at an earlier iterate.
 
         With P the local unknowns the nonlinear stamps touch (p of them), W = (B + D0)^-1,
@@ -308,37 +333,45 @@ class BatchedMnaSystem(MnaSystem):
         cached = self._linearized.get(key)
         if cached is None:
             return None
-        r0, c0, v0, inverse, ports, z, z_ports = cached
-        if r0.shape != r.shape or not (np.array_equal(r0, r) and np.array_equal(c0, c)):
+        if cached.r.shape != r.shape or not (
+            np.array_equal(cached.r, r) and np.array_equal(cached.c, c)
+        ):
+            del self._linearized[key]
             return None
         self._linearized.move_to_end(key)
-        p = ports.size
-        position = np.full(self.n_local, -1, dtype=np.intp)
-        position[ports] = np.arange(p)
+        p, position = cached.ports.size, cached.position
         flat = self.variant_of[r] * (p * p) + position[self.local[r]] * p + position[self.local[c]]
-        e = np.bincount(flat, weights=v - v0, minlength=self.n_variants * p * p)
+        e = np.bincount(flat, weights=v - cached.v0, minlength=self.n_variants * p * p)
         e = e.reshape(self.n_variants, p, p)
-        y = np.einsum("kij,kj->ki", inverse, self.to_blocks(rhs))
+        y = np.einsum("kij,kj->ki", cached.inverse, self.to_blocks(rhs))
+        core = np.eye(p) + e @ cached.z_ports
         try:
-            w = np.linalg.solve(np.eye(p) + e @ z_ports, e @ y[:, ports, None])
+            w = np.linalg.solve(core, e @ y[:, cached.ports, None])
         except np.linalg.LinAlgError:
             return None
-        return y - (z @ w)[..., 0]
+        return y - (cached.z @ w)[..., 0]
 
-    def _accurate(self, key, blocks, r, c, v, rhs) -> bool:
-        """True when (B + D) x = rhs holds to RESIDUAL_TOLERANCE of |B + D| |x| + |rhs|."""
+    def _accurate(self, key, blocks, r, c, v, rhs) -> np.ndarray:
+        """Per variant, shape (variants,): does (B + D) x = rhs hold to RESIDUAL_TOLERANCE
+        of |B + D| |x| + |rhs|?  (NaN solutions fail.)"""
         base = self._batched_bases[key]
+        magnitude = self._abs_bases.get(key)
+        if magnitude is None or magnitude.shape != base.shape:
+            magnitude = self._abs_bases[key] = np.abs(base)
+            if len(self._abs_bases) > CACHE_SIZE:
+                self._abs_bases.pop(next(iter(self._abs_bases)))
         product = np.einsum("kij,kj->ki", base, blocks)
-        scale = np.einsum("kij,kj->ki", np.abs(base), np.abs(blocks))
+        scale = np.einsum("kij,kj->ki", magnitude, np.abs(blocks))
         x_local = blocks.reshape(-1)
         rows = self.variant_of[r] * self.n_local + self.local[r]
         cols = self.variant_of[c] * self.n_local + self.local[c]
         size = blocks.size
         product = product.reshape(-1) + np.bincount(rows, v * x_local[cols], minlength=size)
         scale = scale.reshape(-1) + np.bincount(rows, np.abs(v * x_local[cols]), minlength=size)
-        residual = np.abs(self.to_blocks(rhs).reshape(-1) - product)
-        bound = RESIDUAL_TOLERANCE * (scale + np.abs(self.to_blocks(rhs).reshape(-1)))
-        return bool(np.all(residual <= bound))
+        target = self.to_blocks(rhs).reshape(-1)
+        residual = np.abs(target - product)
+        good = residual <= RESIDUAL_TOLERANCE * (scale + np.abs(target))
+        return good.reshape(blocks.shape).all(axis=1)
 
     def _singular_message(self, stack: np.ndarray) -> str:
         for k in range(self.n_variants):
@@ -347,6 +380,35 @@ class BatchedMnaSystem(MnaSystem):
             except np.linalg.LinAlgError:
                 return f"variant {k}: " + self.describe_singular(None)
         return self.describe_singular(None)
+
+
+@dataclass
+class _Linearization:
+    """Inverse of B + D0 (D0: the nonlinear stamps where it was taken), per variant.
+
+    ``r``, ``c``, ``v0``: the stamps' union positions and values, shape (s,); ``inverse``
+    shape (variants, n, n); ``ports`` the p local unknowns the stamps touch and ``position``
+    each local unknown's place among them (-1 if none); ``z`` = inverse[:, :, ports] and
+    ``z_ports`` = z[:, ports, :].
+    """
+
+    r: np.ndarray
+    c: np.ndarray
+    v0: np.ndarray
+    inverse: np.ndarray
+    ports: np.ndarray
+    position: np.ndarray
+    z: np.ndarray = None  # type: ignore[assignment]
+    z_ports: np.ndarray = None  # type: ignore[assignment]
+
+    def refresh(self, which: np.ndarray) -> None:
+        """Recompute z and z_ports of the variants ``which`` from the inverse."""
+        if self.z is None:
+            self.z = self.inverse[:, :, self.ports]
+            self.z_ports = self.z[:, self.ports, :]
+            return
+        self.z[which] = self.inverse[which][:, :, self.ports]
+        self.z_ports[which] = self.z[which][:, self.ports, :]
 
 
 @dataclass
