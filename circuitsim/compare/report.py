@@ -314,7 +314,8 @@ def _netlists(result, add) -> None:
         add("| state | node | G (V per unit) |")
         add("|---|---|---|")
         for name, scale in sm.states.items():
-            add(f"| {name} | `{scale.node}` | {scale.volts_per_unit:.6g} V/{scale.unit} |")
+            unit = f"({scale.unit})" if "/" in scale.unit else scale.unit
+            add(f"| {name} | `{scale.node}` | {scale.volts_per_unit:.6g} V/{unit} |")
         add("")
         for warning in info.warnings:
             add(f"- warning: {warning}")
@@ -338,11 +339,11 @@ def _netlists(result, add) -> None:
 def _value(value: float, unit: str) -> str:
     if unit.lower() == "f":
         for factor, prefix in ((1e-12, "p"), (1e-9, "n"), (1e-6, "u"), (1e-3, "m")):
-            if abs(value) < factor * 1000:
+            if abs(value) < factor * 999.5:
                 return f"{value / factor:.6g} {prefix}F"
         return f"{value:.6g} F"
     for factor, prefix in ((1e6, "M"), (1e3, "k")):
-        if abs(value) >= factor:
+        if abs(value) >= 0.9995 * factor:
             return f"{value / factor:.6g} {prefix}ohm"
     return f"{value:.6g} ohm"
 

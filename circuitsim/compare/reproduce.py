@@ -224,6 +224,8 @@ def _circuit_job(
                 report.max_error,
                 report.critical_speed_model,
                 report.critical_speed_realized,
+                _largest_real(report.eigenvalues_model),
+                _largest_real(report.eigenvalues_realized),
             )
         else:
             from circuitsim.synthesis.translator import synthesize

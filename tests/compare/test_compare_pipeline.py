@@ -12,7 +12,7 @@ import pytest
 
 from circuitsim.compare.case import run_case
 from circuitsim.compare.reproduce import Scenario, reproduce
-from circuitsim.mechanics import load_model
+from circuitsim.mechanics import eigenvalues, load_model
 from circuitsim.synthesis.options import SynthesisOptions
 
 requires_ngspice = pytest.mark.skipif(
@@ -83,4 +83,9 @@ def test_reproduce_one_short_scenario_writes_report_figures_and_honest_rows(tmp_
         png = tmp_path / result.figures[name]
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (tmp_path / "netlists" / "f10-flange-on-ideal-exact.cir").exists()
+    # The netlist's realized slowest mode, recomputed from the file, is the model's (exact values).
+    (info,) = result.circuits.values()
+    slowest = eigenvalues(load_model(), "V", [55.0])[0, 0].real
+    assert info.growth_rate_model == pytest.approx(slowest, rel=1e-9)
+    assert info.growth_rate_realized == pytest.approx(slowest, rel=1e-6)
     assert any("ngspice, ideal, exact: ok" in m for m in messages)
