@@ -72,6 +72,9 @@ class StateMetrics:
         The dominant frequencies themselves (model time).
     failures : tuple of str
         The metrics beyond their thresholds, e.g. ``("nrmsd_percent",)``.
+    error_frequency_hz : float
+        Dominant frequency of circuit - reference (model time): says which motion the error is
+        made of (the forcing, a free mode ...). NaN for identical traces.
     """
 
     state: str
@@ -84,6 +87,7 @@ class StateMetrics:
     reference_frequency_hz: float
     circuit_frequency_hz: float
     failures: tuple[str, ...] = ()
+    error_frequency_hz: float = float("nan")
 
     @property
     def passed(self) -> bool:
@@ -130,6 +134,7 @@ def measure(
         reference_frequency_hz=float(f_ref),
         circuit_frequency_hz=float(f_cand),
         failures=failures,
+        error_frequency_hz=float(signals.dominant_frequency(t, candidate - reference)),
         **values,
     )
 

@@ -281,8 +281,21 @@ def _attribution(result, add) -> None:
                 f". 55 m/s is only {result.critical_speed - 55.0:.2f} m/s below the critical "
                 f"speed, so the hunting mode excited at the start is lightly damped: its decay "
                 f"rate is {model_rate:.3f} 1/s in the model and {min(rates):.3f} to "
-                f"{max(rates):.3f} 1/s in the rounded circuits, and the circuit-minus-ODE "
-                "difference oscillates at the hunting frequency"
+                f"{max(rates):.3f} 1/s in the rounded circuits"
+            )
+        errors = [
+            r.comparison.states["y"].error_frequency_hz
+            for r in result.rows
+            if r.comparison is not None
+            and r.variant.series != "exact"
+            and "y" in r.comparison.states
+        ]
+        errors = [f for f in errors if not math.isnan(f)]
+        if errors:
+            extra += (
+                f"; the dominant frequency of circuit minus ODE is {min(errors):.2f} to "
+                f"{max(errors):.2f} Hz in these rows (hunting frequency "
+                f"{result.hunting_frequency:.3f} Hz)"
             )
         add(
             f"- Standard (E96) instead of exact resistor values, same op-amp: NRMSD grows by "

@@ -204,6 +204,8 @@ class SweepResult:
         Wall seconds of ``synthesis`` and ``simulation``.
     stats : dict
         Engine statistics (time points, Newton iterations ...).
+    traces : dict of int to (ndarray, ndarray)
+        The state's (t, values) of the variants asked for with ``keep``.
     """
 
     parameter: str
@@ -219,6 +221,7 @@ class SweepResult:
     changed: list[str] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
+    traces: dict = field(default_factory=dict)
 
     def csv_text(self) -> str:
         """``<parameter>,peak_late,peak_all`` header and one row per value, full precision."""
@@ -250,6 +253,7 @@ def run_sweep(
     window: float = 1.0,
     workers: int = 2,
     progress: Progress | None = None,
+    keep: Sequence[int] = (),
 ) -> SweepResult:
     """Simulate the circuit of every system and measure the peak |state|.
 
@@ -270,6 +274,8 @@ def run_sweep(
     window : float
         Late window, model seconds.
     progress : callable(fraction, message), optional
+    keep : sequence of int
+        Indices of variants whose mapped state trace to keep in ``SweepResult.traces``.
 
     Raises
     ------
@@ -289,13 +295,15 @@ def run_sweep(
         progress(0.0, f"{len(values)} variants; changed: {', '.join(variants.changed) or 'none'}")
     started = time.perf_counter()
     if engine == "builtin":
-        waves, stats = _run_builtin(variants.circuits, progress)
+        node = variants.scale_map.states[state].node
+        waves, stats = _run_builtin(variants.circuits, node, progress)
     elif engine == "ngspice":
         waves, stats = _run_ngspice(variants, state, workers, progress)
     else:
         raise ComparisonError(f"unknown engine {engine!r} (choose builtin or ngspice)")
     timings["simulation"] = time.perf_counter() - started
     peaks = np.array([_peaks(w, variants.scale_map, state, window) for w in waves])
+    traces = {k: map_waveforms(waves[k], variants.scale_map, [state])[state] for k in keep}
     return SweepResult(
         parameter=parameter,
         unit=unit,
@@ -309,10 +317,11 @@ def run_sweep(
         changed=variants.changed,
         timings=timings,
         stats=stats,
+        traces=traces,
     )
 
 
-def _run_builtin(circuits: list[Circuit], progress: Progress | None):
+def _run_builtin(circuits: list[Circuit], node: str, progress: Progress | None):
     from circuitsim.solver.batch import batch_transient
 
     def relay(message: str) -> None:
@@ -320,7 +329,7 @@ def _run_builtin(circuits: list[Circuit], progress: Progress | None):
         if progress and found:
             progress(min(1.0, float(found.group(1)) / float(found.group(2))), message)
 
-    result = batch_transient(circuits, progress=relay)
+    result = batch_transient(circuits, progress=relay, probes=[f"v({node})"])
     return [result.variant(k) for k in range(result.n_variants)], dict(result.stats)
 
 

@@ -142,3 +142,11 @@ def test_disjoint_time_ranges_are_an_error():
         compare_traces(
             {"x": (np.array([0.0, 1.0]), np.zeros(2))}, {"x": (np.array([2.0, 3.0]), np.zeros(2))}
         )
+
+
+def test_error_frequency_names_the_motion_the_difference_is_made_of():
+    reference = sine(T, 3.0)
+    circuit = reference + 0.01 * np.sin(2 * np.pi * 8.477 * T) * np.exp(-0.3 * T)
+    result = compare_traces({"y": (T, reference)}, {"y": (T, circuit)}, n_points=T.size)
+    assert result.states["y"].error_frequency_hz == pytest.approx(8.477, rel=1e-3)
+    assert result.states["y"].reference_frequency_hz == pytest.approx(3.0, rel=1e-4)
