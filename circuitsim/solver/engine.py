@@ -34,6 +34,11 @@ def flat_circuit(circuit: Circuit) -> Circuit:
 def _needs_flatten(circuit: Circuit) -> bool:
     if circuit.subcircuits or circuit.params:
         return True
+    for model in circuit.models.values():
+        if any(isinstance(v, Expression) for v in model.params.values()):
+            return True
+    if any(isinstance(v, Expression) for v in circuit.initial_conditions.values()):
+        return True
     for element in circuit.elements:
         if isinstance(element, SubcircuitCall):
             return True
