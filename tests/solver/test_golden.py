@@ -26,6 +26,7 @@ CASES = {
     "nested.cir": (1e-3, "all"),
     "controlled.cir": (1e-3, "all"),
     "integrator.cir": (1e-3, "all"),
+    "sources.cir": (1e-3, "all"),
     "halfwave.cir": (1e-2, "all"),
     "precision_rectifier.cir": (1e-2, "all"),
     "switch.cir": (1e-2, "voltages"),
