@@ -154,6 +154,7 @@ class Reproduction:
     figures: dict[str, str] = field(default_factory=dict)
     wall_s: float = 0.0
     workers: int = 1
+    mode_frequency: dict[float, float] = field(default_factory=dict)
 
 
 # --- jobs (module-level so the process pool can pickle them) ----------------------------------
@@ -416,6 +417,12 @@ def reproduce(
             figures[name] = f"figures/{name}.png"
     say("figures written")
 
+    # Frequency of the slowest (hunting) mode at each simulated speed, Hz: what a free-motion
+    # difference between circuit and ODE oscillates at.
+    modes = {}
+    for speed in sorted({sc.speed for sc in scenarios}):
+        slowest = eigenvalues(model, "V", [speed])[0, 0]
+        modes[speed] = float(abs(slowest.imag) / (2 * np.pi))
     result = Reproduction(
         out,
         tuple(scenarios),
@@ -430,6 +437,7 @@ def reproduce(
         time.perf_counter() - started,
         workers,
     )
+    result.mode_frequency = modes
     write_text_atomic(out / "metrics.json", json.dumps(reproduction_json(result), indent=1) + "\n")
     write_text_atomic(out / "report.md", render_report(result))
     result.wall_s = time.perf_counter() - started
