@@ -281,9 +281,9 @@ def _attribution(result, add) -> None:
         speed = max(sc.speed for sc in result.scenarios)
         if rates and model_rate is not None and speed < result.critical_speed:
             extra += (
-                f". {speed:g} m/s is only {result.critical_speed - speed:.2f} m/s below the critical "
-                f"speed, so the hunting mode excited at the start is lightly damped: its decay "
-                f"rate is {model_rate:.3f} 1/s in the model and {min(rates):.3f} to "
+                f". {speed:g} m/s is only {result.critical_speed - speed:.2f} m/s below the "
+                "critical speed, so the hunting mode excited at the start is lightly damped: "
+                f"its decay rate is {model_rate:.3f} 1/s in the model and {min(rates):.3f} to "
                 f"{max(rates):.3f} 1/s in the rounded circuits"
             )
         extra += _error_motion(result)
