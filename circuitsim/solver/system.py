@@ -21,6 +21,7 @@ from circuitsim.solver.errors import CircuitInputError, SingularMatrixError
 from circuitsim.solver.layout import Layout
 from circuitsim.solver.linalg import SingularPivot, factor
 from circuitsim.solver.options import SimulationOptions
+from circuitsim.solver.sparse_assembly import SparseAssembler
 
 IC_CONDUCTANCE = 1e10  # siemens: holds .ic nodes at their value during the transient's .op
 CACHE_SIZE = 8
@@ -95,6 +96,7 @@ class MnaSystem:
         self.node_index = np.flatnonzero(self.voltage)
         self.ic_nodes, self.ic_values = self._initial_conditions()
         self._bases: OrderedDict = OrderedDict()
+        self._assembler = None if self.dense else SparseAssembler(n, CACHE_SIZE)
         self._factors: OrderedDict = OrderedDict()
         self.factorizations = 0
         self.signals = {f"v({name.lower()})": layout.node(name) for name in layout.external_nodes}
@@ -187,7 +189,10 @@ class MnaSystem:
             for family in self.nonlinear:
                 family.load(x_ext, ctx, stamps, rhs)
             r, c, v = stamps.triplets()
-            lu = self._factor(self._add(base, r, c, v))
+            if self._assembler is not None:
+                lu = self._factor(self._assembler.add(key, base, r, c, v))
+            else:
+                lu = self._factor(self._add(base, r, c, v))
         else:
             rhs = rhs0
             lu = self._factors.get(key)
