@@ -172,3 +172,19 @@ def test_simulate_runs_op_without_tran():
     c = Circuit(elements=[VoltageSource("V1", "a", "0", dc=1.0), Resistor("R1", "a", "0", 2.0)])
     w = simulate(c)
     assert w.time.shape == (1,) and w["i(v1)"][0] == pytest.approx(-0.5)
+
+
+def test_gmin_and_source_stepping_reach_the_same_solution():
+    # Plain Newton solves this one; the fallbacks, run on their own, must land on the same
+    # answer (they are what is left when Newton fails).
+    from circuitsim.solver.dc import _Solver
+    from circuitsim.solver.engine import build_system
+
+    system = build_system(diode_circuit(1000.0, 1.0), None)
+    reference = diode_reference(1000.0, 1.0)
+    k = system.layout.node("k")
+    for method in ("gmin_stepping", "source_stepping"):
+        solver = _Solver(system, dc_op=True, clamp_ic=False, stats={})
+        ok, x = getattr(solver, method)(np.zeros(system.size))
+        assert ok, method
+        assert x[k] == pytest.approx(reference, abs=1e-6), method
