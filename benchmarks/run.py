@@ -1,0 +1,69 @@
+"""Benchmark harness: our MNA solver against ngspice, at equal accuracy, and batched sweeps.
+
+    python benchmarks/run.py [--quick] [--out DIR] [--parts wheelset golden sweep profile]
+
+Parts: ``wheelset`` (work-precision of the generated wheelset circuit, ideal and TL074 op-amps,
+against the direct ODE solution), ``golden`` (tests/solver/golden netlists: time ratio and max
+deviation against ngspice), ``sweep`` (61-variant speed sweep, batched builtin run against one
+ngspice process per variant), ``profile`` (cProfile of one builtin wheelset run). Prints text
+tables and writes <part>.json / <part>.md and machine.json into --out (default
+benchmarks/results). Not part of the test suite.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+import bench_common  # noqa: E402
+import bench_golden  # noqa: E402
+import bench_profile  # noqa: E402
+import bench_sweep  # noqa: E402
+import bench_wheelset  # noqa: E402
+
+PARTS = {
+    "wheelset": bench_wheelset,
+    "golden": bench_golden,
+    "sweep": bench_sweep,
+    "profile": bench_profile,
+}
+
+
+def log(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="fewer settings and variants")
+    parser.add_argument("--out", default=str(HERE / "results"), help="folder for JSON/markdown")
+    parser.add_argument("--parts", nargs="+", choices=list(PARTS), default=list(PARTS))
+    parser.add_argument("--sweep", action="store_true", help="only the sweep part")
+    args = parser.parse_args(argv)
+    parts = ["sweep"] if args.sweep else args.parts
+    out = Path(args.out)
+    machine = bench_common.machine()
+    print("machine: " + ", ".join(f"{k} {v}" for k, v in machine.items()))
+    bench_common.save(out, "machine", machine, "\n".join(f"- {k}: {v}" for k, v in machine.items()))
+    for name in parts:
+        module = PARTS[name]
+        log(f"== {name}")
+        started = time.perf_counter()
+        data = module.run(out / f"{name}_files", args.quick, log)
+        data["quick"] = args.quick
+        data["harness_seconds"] = time.perf_counter() - started
+        text = module.report(data)
+        print()
+        print(text)
+        bench_common.save(out, name, data, text)
+    print(f"\nwrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
