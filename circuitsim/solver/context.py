@@ -25,6 +25,16 @@ class Stamps:
         """Add ``values`` (broadcast to ``pattern.shape``) at the pattern's positions."""
         self.items.append((pattern, pattern.select(values)))
 
+    def flat(self, size: int) -> tuple[np.ndarray, np.ndarray]:
+        """All stamps as (row * size + col, values), for a C-ordered (size, size) matrix."""
+        if len(self.items) == 1:
+            pattern, values = self.items[0]
+            return pattern.flat_indices(size), values
+        return (
+            np.concatenate([p.flat_indices(size) for p, _ in self.items]),
+            np.concatenate([v for _, v in self.items]),
+        )
+
     def triplets(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """All stamps as (rows, cols, values), each shape (n,)."""
         if not self.items:

@@ -71,11 +71,12 @@ def truncation_step(
     if charges[0].size == 0:
         return np.inf
     h = times[0] - times[1]
-    diff = list(charges[: order + 2])
+    # divided differences of all charges at once: rows are time points, newest first
+    diff = np.array(charges[: order + 2])
+    t = np.array(times[: order + 2])
     for level in range(1, order + 2):
-        diff = [
-            (diff[i] - diff[i + 1]) / (times[i] - times[i + level]) for i in range(len(diff) - 1)
-        ]
+        diff = (diff[:-1] - diff[1:]) / (t[:-level] - t[level:])[:, None]
+    diff = diff[0]
     volttol = options.abstol + options.reltol * np.maximum(np.abs(currents[0]), np.abs(currents[1]))
     chargetol = (
         options.reltol
@@ -84,7 +85,7 @@ def truncation_step(
     )
     tol = np.maximum(volttol, chargetol)
     factor = method.error_constants[order - 1]
-    step = options.trtol * tol / np.maximum(options.abstol, factor * np.abs(diff[0]))
+    step = options.trtol * tol / np.maximum(options.abstol, factor * np.abs(diff))
     if order == 2:
         step = np.sqrt(step)
     return float(np.min(step))

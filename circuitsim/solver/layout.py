@@ -108,11 +108,14 @@ class MatrixPattern:
         self.rows = r[self.keep]
         self.cols = c[self.keep]
         self.flat: np.ndarray | None = None
+        self._flat_size = -1
 
-    def bind(self, size: int) -> MatrixPattern:
-        """Precompute flat indices into a C-ordered (size, size) matrix; returns self."""
-        self.flat = self.rows * size + self.cols
-        return self
+    def flat_indices(self, size: int) -> np.ndarray:
+        """Flat indices into a C-ordered (size, size) matrix (computed once per size)."""
+        if self.flat is None or self._flat_size != size:
+            self.flat = self.rows * size + self.cols
+            self._flat_size = size
+        return self.flat
 
     def select(self, values) -> np.ndarray:
         """The kept entries of ``values`` (broadcast to the pattern's shape), shape (n_kept,)."""

@@ -188,11 +188,14 @@ class MnaSystem:
             stamps = Stamps()
             for family in self.nonlinear:
                 family.load(x_ext, ctx, stamps, rhs)
-            r, c, v = stamps.triplets()
             if self._assembler is not None:
+                r, c, v = stamps.triplets()
                 lu = self._factor(self._assembler.add(key, base, r, c, v))
             else:
-                lu = self._factor(self._add(base, r, c, v))
+                flat, v = stamps.flat(self.size)
+                matrix = base.copy()
+                np.add.at(matrix.ravel(), flat, v)
+                lu = self._factor(matrix)
         else:
             rhs = rhs0
             lu = self._factors.get(key)
