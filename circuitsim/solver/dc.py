@@ -10,6 +10,7 @@ import numpy as np
 
 from circuitsim.solver.context import Stamps, StepContext
 from circuitsim.solver.errors import ConvergenceError
+from circuitsim.solver.layout import with_ground
 from circuitsim.solver.newton import newton
 from circuitsim.solver.system import MnaSystem
 
@@ -152,7 +153,7 @@ def initial_condition_solution(system: MnaSystem) -> tuple[np.ndarray, StepConte
 
 def evaluate_charges(system: MnaSystem, x: np.ndarray, ctx: StepContext) -> None:
     """Load the nonlinear devices at x only for their charges (no solve)."""
-    x_ext = np.append(x, 0.0)
+    x_ext = with_ground(x)
     ctx.first_iteration = True
     for family in system.nonlinear:
         family.load(x_ext, ctx, Stamps(), np.zeros(system.size))
@@ -160,7 +161,7 @@ def evaluate_charges(system: MnaSystem, x: np.ndarray, ctx: StepContext) -> None
 
 def finish(system: MnaSystem, x: np.ndarray, ctx: StepContext) -> None:
     """Let every device accept the solution, then store its charges (currents zero: DC)."""
-    x_ext = np.append(x, 0.0)
+    x_ext = with_ground(x)
     for family in system.families:
         family.accept(x_ext, ctx)
     ctx.a0 = 0.0

@@ -14,6 +14,12 @@ from circuitsim.solver.errors import CircuitInputError
 
 GROUND = -1
 GROUND_NAMES = ("0", "gnd")
+_GROUND_VALUE = np.zeros(1)
+
+
+def with_ground(x: np.ndarray) -> np.ndarray:
+    """``x`` extended by a trailing 0 V, so index -1 (ground) reads 0, shape (n + 1,)."""
+    return np.concatenate((x, _GROUND_VALUE))
 
 
 class Layout:

@@ -18,7 +18,7 @@ from circuitsim.netlist.circuit import Circuit
 from circuitsim.solver.context import Stamps, StepContext
 from circuitsim.solver.devices import FAMILIES, DeviceFamily
 from circuitsim.solver.errors import CircuitInputError, SingularMatrixError
-from circuitsim.solver.layout import Layout
+from circuitsim.solver.layout import Layout, with_ground
 from circuitsim.solver.linalg import SingularPivot, factor
 from circuitsim.solver.options import SimulationOptions
 from circuitsim.solver.sparse_assembly import SparseAssembler
@@ -179,7 +179,7 @@ class MnaSystem:
         self, x: np.ndarray, ctx: StepContext, rhs0: np.ndarray, clamp_ic: bool = False
     ) -> np.ndarray:
         """Linearize every device at x, solve, and return the next iterate, shape (n,)."""
-        x_ext = np.append(x, 0.0)
+        x_ext = with_ground(x)
         for family in self.discrete:
             family.update_state(x_ext, ctx)
         key, base = self.base_matrix(ctx, clamp_ic)
@@ -240,7 +240,7 @@ class MnaSystem:
             return False
         if not self.nonlinear:
             return True
-        x_ext = np.append(x_new, 0.0)
+        x_ext = with_ground(x_new)
         return all(family.converged(x_ext, ctx) for family in self.nonlinear)
 
     def worst_unknown(self, x_new: np.ndarray, x_old: np.ndarray) -> str:

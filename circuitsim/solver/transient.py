@@ -20,6 +20,7 @@ from circuitsim.solver.context import StepContext
 from circuitsim.solver.dc import initial_condition_solution, operating_point_solution
 from circuitsim.solver.errors import CircuitInputError, ConvergenceError
 from circuitsim.solver.integration import METHODS, truncation_step
+from circuitsim.solver.layout import with_ground
 from circuitsim.solver.newton import newton
 from circuitsim.solver.system import MnaSystem
 
@@ -137,7 +138,7 @@ def run_transient(
             if not fixed and system.discrete:
                 # A switch toggled inside the step: cut the step to just past the crossing,
                 # so the transition lands near where the control crosses its threshold.
-                x_ext, x_prev_ext = np.append(x_new, 0.0), np.append(xs[0], 0.0)
+                x_ext, x_prev_ext = with_ground(x_new), with_ground(xs[0])
                 fraction = min(f.transition_fraction(x_ext, x_prev_ext) for f in system.discrete)
                 if fraction < 1 - TRANSITION_OVERSHOOT and h * fraction > 10 * min_step:
                     stats["rejected"] += 1
@@ -153,7 +154,7 @@ def run_transient(
                     new_h = min(
                         new_h, truncation_step(method, order, step_times, step_q, step_i, options)
                     )
-                x_ext, x_prev_ext = np.append(x_new, 0.0), np.append(xs[0], 0.0)
+                x_ext, x_prev_ext = with_ground(x_new), with_ground(xs[0])
                 for family in system.discrete:
                     new_h = min(new_h, family.truncate(x_ext, x_prev_ext, h))
                 if new_h > 0.9 * h:
@@ -178,7 +179,7 @@ def run_transient(
             break
 
         t = next_break if landing else t + h
-        x_ext = np.append(x_new, 0.0)
+        x_ext = with_ground(x_new)
         toggled = [family.accept(x_ext, ctx) for family in system.families]
         times.insert(0, t)
         xs.insert(0, x_new)
