@@ -445,10 +445,16 @@ class BatchResult:
         )
 
 
+def _signal_name(probe: str) -> str:
+    key = probe.strip().lower()
+    return key if key.startswith(("v(", "i(")) else f"v({key})"
+
+
 def batch_transient(
     circuits: Sequence[Circuit],
     options: SimulationOptions | None = None,
     progress: Callable[[str], None] | None = None,
+    probes: Sequence[str] | None = None,
 ) -> BatchResult:
     """Run the ``.tran`` of variant 0 on all variants together.
 
@@ -461,6 +467,9 @@ def batch_transient(
         Default: ngspice's, overridden by variant 0's ``.options``.
     progress : callable, optional
         Receives the transient's progress lines (``"transient: t = ... s of ... s, ..."``).
+    probes : sequence of str, optional
+        Keep only these signals (``"v(y)"``, ``"i(v1)"``); all when None. A sweep of many
+        long variants needs only one.
 
     Returns
     -------
@@ -490,12 +499,18 @@ def batch_transient(
     signals: dict[str, np.ndarray] = {}
     variants = len(flats)
     columns: dict[str, list] = {}
+    wanted = None if probes is None else {_signal_name(p) for p in probes}
     for name, index in system.signals.items():
         found = _SUFFIX.search(name)
         if found is None:
             continue
         local = _SUFFIX.sub("", name)
+        if wanted is not None and local not in wanted:
+            continue
         columns.setdefault(local, [None] * variants)[int(found.group(1))] = index
+    if wanted is not None and wanted - set(columns):
+        missing = ", ".join(sorted(wanted - set(columns)))
+        raise CircuitInputError(f"batch_transient: no signal {missing}")
     for local, indices in columns.items():
         signals[local] = np.stack(
             [solutions[:, i] if i >= 0 else np.zeros(len(times)) for i in indices]
