@@ -14,36 +14,61 @@ import numpy as np
 
 from circuitsim.solver.layout import MatrixPattern, VectorPattern
 
+_CONDUCTANCE_SIGNS = np.array([[1.0], [-1.0], [-1.0], [1.0]])  # (p,p) (p,n) (n,p) (n,n)
+
 
 class Stamps:
-    """Matrix stamps collected from device families: (pattern, values) pairs."""
+    """Matrix stamps collected from device families.
+
+    ``items`` are (pattern, values) pairs. ``ports`` are conductances between node pairs,
+    recorded as such (pattern, p, n, g) so that the engine can treat them as a low-rank update
+    of the matrix; :meth:`triplets` and :meth:`flat` include them like any other stamp.
+    """
 
     def __init__(self) -> None:
         self.items: list[tuple[MatrixPattern, np.ndarray]] = []
+        self.ports: list[tuple[MatrixPattern, np.ndarray, np.ndarray, np.ndarray]] = []
 
     def add(self, pattern: MatrixPattern, values) -> None:
         """Add ``values`` (broadcast to ``pattern.shape``) at the pattern's positions."""
         self.items.append((pattern, pattern.select(values)))
 
+    def add_conductances(
+        self, pattern: MatrixPattern, p: np.ndarray, n: np.ndarray, g: np.ndarray
+    ) -> None:
+        """Conductances ``g`` (S, shape (m,)) between nodes p and n (``-1`` ground).
+
+        ``pattern`` is ``two_terminal_pattern(p, n)``, made once by the family.
+        """
+        self.ports.append((pattern, p, n, g))
+
+    def _all(self) -> list[tuple[MatrixPattern, np.ndarray]]:
+        if not self.ports:
+            return self.items
+        converted = [(pat, pat.select(_CONDUCTANCE_SIGNS * g)) for pat, _, _, g in self.ports]
+        return self.items + converted
+
     def flat(self, size: int) -> tuple[np.ndarray, np.ndarray]:
         """All stamps as (row * size + col, values), for a C-ordered (size, size) matrix."""
-        if len(self.items) == 1:
-            pattern, values = self.items[0]
+        items = self._all()
+        if len(items) == 1:
+            pattern, values = items[0]
             return pattern.flat_indices(size), values
         return (
-            np.concatenate([p.flat_indices(size) for p, _ in self.items]),
-            np.concatenate([v for _, v in self.items]),
+            np.concatenate([p.flat_indices(size) for p, _ in items]),
+            np.concatenate([v for _, v in items]),
         )
 
     def triplets(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """All stamps as (rows, cols, values), each shape (n,)."""
-        if not self.items:
+        items = self._all()
+        if not items:
             empty = np.zeros(0, dtype=np.intp)
             return empty, empty, np.zeros(0)
         return (
-            np.concatenate([p.rows for p, _ in self.items]),
-            np.concatenate([p.cols for p, _ in self.items]),
-            np.concatenate([v for _, v in self.items]),
+            np.concatenate([p.rows for p, _ in items]),
+            np.concatenate([p.cols for p, _ in items]),
+            np.concatenate([v for _, v in items]),
         )
 
 

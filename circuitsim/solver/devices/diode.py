@@ -24,7 +24,6 @@ CHARGE = 1.6021766208e-19  # C
 TEMPERATURE = 300.15  # K (27 C)
 THERMAL_VOLTAGE = BOLTZMANN * TEMPERATURE / CHARGE
 
-CONDUCTANCE_SIGNS = np.array([[1.0], [-1.0], [-1.0], [1.0]])  # (p,p) (p,n) (n,p) (n,n)
 CURRENT_SIGNS = np.array([[-1.0], [1.0]])  # rhs of anode, cathode
 
 DEFAULTS = {
@@ -140,7 +139,7 @@ class DiodeFamily(DeviceFamily):
             cd = cd + icap
             gd = gd + gcap
         self.vd, self.cd, self.gd = vd, cd, gd
-        stamps.add(self.pattern, CONDUCTANCE_SIGNS * gd)
+        stamps.add_conductances(self.pattern, self.junction, self.cathode, gd)
         self.rows.add(rhs, CURRENT_SIGNS * (cd - gd * vd))
 
     def _current(self, vd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
