@@ -20,7 +20,6 @@ from circuitsim.solver.devices import FAMILIES, DeviceFamily
 from circuitsim.solver.errors import CircuitInputError, SingularMatrixError
 from circuitsim.solver.layout import Layout, with_ground
 from circuitsim.solver.linalg import SingularPivot, factor
-from circuitsim.solver.low_rank import LowRankSolver
 from circuitsim.solver.options import SimulationOptions
 from circuitsim.solver.sparse_assembly import SparseAssembler
 
@@ -98,9 +97,6 @@ class MnaSystem:
         self.ic_nodes, self.ic_values = self._initial_conditions()
         self._bases: OrderedDict = OrderedDict()
         self._assembler = None if self.dense else SparseAssembler(n, CACHE_SIZE)
-        # sparse systems: Newton iterations as low-rank updates of the factored base
-        self._woodbury: OrderedDict = OrderedDict()
-        self._no_woodbury: set = set()
         self._factors: OrderedDict = OrderedDict()
         self.factorizations = 0
         self.signals = {f"v({name.lower()})": layout.node(name) for name in layout.external_nodes}
@@ -193,9 +189,6 @@ class MnaSystem:
             for family in self.nonlinear:
                 family.load(x_ext, ctx, stamps, rhs)
             if self._assembler is not None:
-                x_new = self._solve_low_rank(key, base, stamps, rhs)
-                if x_new is not None:
-                    return x_new
                 r, c, v = stamps.triplets()
                 lu = self._factor(self._assembler.add(key, base, r, c, v))
             else:
@@ -212,32 +205,6 @@ class MnaSystem:
                 if len(self._factors) > CACHE_SIZE:
                     self._factors.popitem(last=False)
         return lu.solve(rhs)
-
-    def _solve_low_rank(self, key, base, stamps: Stamps, rhs: np.ndarray) -> np.ndarray | None:
-        """Solve through :class:`LowRankSolver` when all nonlinear stamps are conductances."""
-        if stamps.items or not stamps.ports or key in self._no_woodbury:
-            return None
-        if len(stamps.ports) == 1:
-            _, p, n, g = stamps.ports[0]
-        else:
-            p = np.concatenate([port[1] for port in stamps.ports])
-            n = np.concatenate([port[2] for port in stamps.ports])
-            g = np.concatenate([port[3] for port in stamps.ports])
-        solver = self._woodbury.get(key)
-        if solver is None or not solver.matches(p, n):
-            try:
-                lu = factor(base)
-            except SingularPivot:
-                self._no_woodbury.add(key)
-                return None
-            self.factorizations += 1
-            solver = LowRankSolver(base, lu, p, n)
-            self._woodbury[key] = solver
-            if len(self._woodbury) > CACHE_SIZE:
-                self._woodbury.popitem(last=False)
-        else:
-            self._woodbury.move_to_end(key)
-        return solver.solve(g, rhs)
 
     def _factor(self, matrix):
         self.factorizations += 1
