@@ -35,8 +35,8 @@ SERIES = ("exact", "E96")
 FREE_SPEEDS = (54.0, 57.0)
 
 #: (engine, op-amp) pairs left out of a default run, with the reason the report prints. Our
-#: solver runs the ideal circuits in seconds, but the TL074 macromodel circuits take minutes of
-#: CPU per model second (docs/validation.md has the measurement): far beyond the run's
+#: solver runs the ideal circuits in seconds, but each TL074 macromodel circuit takes 25-65 s
+#: here (an ``--all`` run took 330 s on two cores; docs/validation.md): beyond the run's
 #: two-minute budget. ``reproduce(..., skip={})`` (``circuitsim reproduce --all``) runs them.
 DEFAULT_SKIP = {
     ("builtin", "tl074"): "skipped: too slow for the time budget (`--all` runs it)",
