@@ -191,7 +191,7 @@ def _metrics(result, add) -> None:
             f"| {_metric(c, 'y', 'peak_ratio', '.4f')} "
             f"| {_metric(c, 'y', 'frequency_ratio', '.4f')} | {_fmt(lag, '+.4f')} "
             f"| {_metric(c, 'y', 'error_frequency_hz', '.3f')} "
-            f"| {'pass' if c.passed else 'FAIL'} | {row.simulation_s:.1f} |"
+            f"| {_verdict(c)} | {row.simulation_s:.1f} |"
         )
     add("")
     _acceptance(result, add)
@@ -200,6 +200,27 @@ def _metrics(result, add) -> None:
         if fig:
             add(f"![circuit over ODE, {scenario.title}]({fig})")
             add("")
+
+
+_SHORT = {
+    "nrmsd_percent": "NRMSD",
+    "max_abs_error": "max err",
+    "peak_ratio": "peak",
+    "frequency_ratio": "freq",
+    "phase_lag_s": "lag",
+}
+
+
+def _verdict(comparison) -> str:
+    """``pass``, or ``FAIL:`` and what failed where (``psi peak, y_dot NRMSD``)."""
+    if comparison.passed:
+        return "pass"
+    failed = [
+        f"{m.state} {_SHORT.get(name, name)}"
+        for m in comparison.states.values()
+        for name in m.failures
+    ]
+    return "FAIL: " + ", ".join(failed)
 
 
 def _acceptance(result, add) -> None:
@@ -373,7 +394,7 @@ def _netlists(result, add) -> None:
             error = "" if math.isnan(entry.error) else format(entry.error, "+.2e")
             add(
                 f"| {entry.part} | {_value(entry.value, entry.unit)} | {entry.series} "
-                f"| {entry.role} | {error} |"
+                f"| {entry.role.replace('|', chr(92) + '|')} | {error} |"
             )
         add("")
         add("</details>")
