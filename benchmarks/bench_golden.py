@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from bench_common import simulate_subprocess, table, wall
+from bench_common import best_of, simulate_subprocess, table
 
 from circuitsim.interop.ngspice import run_ngspice
 from circuitsim.netlist.reader import read_netlist
@@ -38,8 +38,8 @@ def run(folder: Path, quick: bool, log) -> dict:
     rows = []
     for path in sorted(GOLDEN.glob("*.cir")):
         row: dict = {"netlist": path.name}
-        theirs, t_ng = wall(run_ngspice, path)
-        ours, t_ours = wall(lambda p=path: simulate(read_netlist(p)))
+        theirs, t_ng = best_of(run_ngspice, path)
+        ours, t_ours = best_of(lambda p=path: simulate(read_netlist(p)))
         process, error = simulate_subprocess(path)
         row.update(ngspice_s=t_ng, builtin_s=t_ours, builtin_process_s=process)
         if isinstance(theirs, Exception):

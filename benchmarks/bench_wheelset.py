@@ -13,7 +13,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from bench_common import simulate_subprocess, table, wall
+from bench_common import best_of, simulate_subprocess, table
 
 from circuitsim.compare.mapping import map_waveforms, resample
 from circuitsim.compare.signals import nrmsd_percent
@@ -81,11 +81,11 @@ def run(folder: Path, quick: bool, log) -> dict:
                     path = variant(circuit, reltol, tmax, folder, f"wheelset_{opamp}")
                     row = {"engine": engine, "reltol": reltol, "tmax": tmax, "netlist": path.name}
                     if engine == "ngspice":
-                        waves, seconds = wall(run_ngspice, path, ["v(y)"])
+                        waves, seconds = best_of(run_ngspice, path, ["v(y)"])
                     else:
                         from circuitsim.netlist.reader import read_netlist
 
-                        waves, seconds = wall(lambda p=path: simulate(read_netlist(p)))
+                        waves, seconds = best_of(lambda p=path: simulate(read_netlist(p)))
                     if isinstance(waves, Exception):
                         row.update(error=f"{type(waves).__name__}: {waves}", wall_s=seconds)
                         log(f"  {opamp} {engine} reltol={reltol:g} tmax={tmax:g}: FAILED {waves}")

@@ -44,8 +44,12 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default=str(HERE / "results"), help="folder for JSON/markdown")
     parser.add_argument("--parts", nargs="+", choices=list(PARTS), default=list(PARTS))
     parser.add_argument("--sweep", action="store_true", help="only the sweep part")
+    parser.add_argument(
+        "--repeat", type=int, default=1, help="wheelset/golden: best of N runs (default 1)"
+    )
     args = parser.parse_args(argv)
     parts = ["sweep"] if args.sweep else args.parts
+    bench_common.REPEAT[0] = args.repeat
     out = Path(args.out)
     machine = bench_common.machine()
     print("machine: " + ", ".join(f"{k} {v}" for k, v in machine.items()))

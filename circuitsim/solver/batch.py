@@ -161,6 +161,10 @@ class BatchedMnaSystem(MnaSystem):
         self.variant_of, self.local = variant_of, local
         self.G_blocks = self._blocks(self.G)
         self.M_blocks = self._blocks(self.M)
+        touched = np.flatnonzero(
+            np.any(self.M_blocks != 0, axis=(0, 1)) | np.any(self.M_blocks != 0, axis=(0, 2))
+        )
+        self.charge_ports = touched.astype(np.intp)
         self._batched_bases: OrderedDict = OrderedDict()
         self._batched_inverses: OrderedDict = OrderedDict()
         self._linearized: OrderedDict = OrderedDict()
@@ -245,14 +249,17 @@ class BatchedMnaSystem(MnaSystem):
             family.load(x_ext, ctx, stamps, rhs)
         r, c, v = stamps.triplets()
         everyone = np.ones(self.n_variants, dtype=bool)
-        blocks = self._low_rank(key, r, c, v, rhs)
+        # the reused inverse does not depend on the step: a0 M is part of the low-rank update
+        shared = key[1:]
+        blocks = self._low_rank(shared, ctx.a0, r, c, v, rhs)
         if blocks is None:
-            blocks = self._rebase(key, base, r, c, v, rhs, everyone, None)
+            blocks = self._rebase(shared, ctx.a0, base, r, c, v, rhs, everyone, None)
         bad = ~self._accurate(key, blocks, r, c, v, rhs)
         if bad.any():
             # the reused inverse lost too many digits for these variants (their devices moved
             # far from where it was taken): a fresh one at the present linearization, then LU
-            blocks[bad] = self._rebase(key, base, r, c, v, rhs, bad, self._linearized.get(key))
+            cached = self._linearized.get(shared)
+            blocks[bad] = self._rebase(shared, ctx.a0, base, r, c, v, rhs, bad, cached)
             bad &= ~self._accurate(key, blocks, r, c, v, rhs)
             if bad.any():
                 blocks[bad] = self._direct(base, r, c, v, rhs, bad)
@@ -295,8 +302,8 @@ class BatchedMnaSystem(MnaSystem):
         except np.linalg.LinAlgError:
             raise SingularMatrixError(self._singular_message(stack)) from None
 
-    def _rebase(self, key, base, r, c, v, rhs, which, cached) -> np.ndarray:
-        """Invert B + D of the variants ``which`` at the present linearization and keep it.
+    def _rebase(self, key, a0, base, r, c, v, rhs, which, cached) -> np.ndarray:
+        """Invert G + a0 M + D of the variants ``which`` at the present linearization, keep it.
 
         Returns the solution of those variants, shape (count, n) (NaN where a block is
         singular, so that the residual check sends them to LU).
@@ -308,27 +315,31 @@ class BatchedMnaSystem(MnaSystem):
         except np.linalg.LinAlgError:
             fresh = np.full_like(stack, np.nan)
         if cached is None:
-            ports = np.unique(np.concatenate([self.local[r], self.local[c]]))
+            ports = np.unique(np.concatenate([self.local[r], self.local[c], self.charge_ports]))
             position = np.full(self.n_local, -1, dtype=np.intp)
             position[ports] = np.arange(ports.size)
             inverse = np.empty_like(base)
             cached = _Linearization(r.copy(), c.copy(), v.copy(), inverse, ports, position)
+            cached.a0 = np.full(self.n_variants, a0)
+            cached.m_ports = self.M_blocks[:, ports][:, :, ports]
             self._linearized[key] = cached
             if len(self._linearized) > CACHE_SIZE:
                 self._linearized.popitem(last=False)
         cached.inverse[which] = fresh
         members = which[self.variant_of[r]]
         cached.v0[members] = v[members]
+        cached.a0[which] = a0
         cached.refresh(which)
         return np.einsum("kij,kj->ki", fresh, self.to_blocks(rhs)[which])
 
-    def _low_rank(self, key, r, c, v, rhs) -> np.ndarray | None:
-        """Solve (B + D) x = rhs reusing the inverse of B + D0 taken at an earlier iterate.
+    def _low_rank(self, key, a0, r, c, v, rhs) -> np.ndarray | None:
+        """Solve (G + a0 M + D) x = rhs reusing the inverse of G + a0' M + D0 taken earlier.
 
-        With P the local unknowns the nonlinear stamps touch (p of them), W = (B + D0)^-1,
-        Z = W[:, P], E = D - D0 (nonzero on P x P only) and y = W rhs:
-        x = y - Z (I + E_PP Z_P)^-1 E_PP y_P (the Woodbury identity). Only a (variants, p, p)
-        system is factored per Newton iteration. None when there is nothing to reuse.
+        With P the local unknowns the nonlinear stamps and the charges touch (p of them),
+        W = (G + a0' M + D0)^-1, Z = W[:, P], E = (a0 - a0') M + D - D0 (nonzero on P x P
+        only) and y = W rhs: x = y - Z (I + E_PP Z_P)^-1 E_PP y_P (the Woodbury identity).
+        Only a (variants, p, p) system is factored per Newton iteration, whatever the step.
+        None when there is nothing to reuse.
         """
         cached = self._linearized.get(key)
         if cached is None:
@@ -342,7 +353,7 @@ class BatchedMnaSystem(MnaSystem):
         p, position = cached.ports.size, cached.position
         flat = self.variant_of[r] * (p * p) + position[self.local[r]] * p + position[self.local[c]]
         e = np.bincount(flat, weights=v - cached.v0, minlength=self.n_variants * p * p)
-        e = e.reshape(self.n_variants, p, p)
+        e = e.reshape(self.n_variants, p, p) + (a0 - cached.a0)[:, None, None] * cached.m_ports
         y = np.einsum("kij,kj->ki", cached.inverse, self.to_blocks(rhs))
         core = np.eye(p) + e @ cached.z_ports
         try:
@@ -400,6 +411,8 @@ class _Linearization:
     position: np.ndarray
     z: np.ndarray = None  # type: ignore[assignment]
     z_ports: np.ndarray = None  # type: ignore[assignment]
+    a0: np.ndarray = None  # type: ignore[assignment]
+    m_ports: np.ndarray = None  # type: ignore[assignment]
 
     def refresh(self, which: np.ndarray) -> None:
         """Recompute z and z_ports of the variants ``which`` from the inverse."""
