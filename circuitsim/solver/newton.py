@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from circuitsim.solver.context import StepContext
+from circuitsim.solver.layout import with_ground
 from circuitsim.solver.system import MnaSystem
 
 
@@ -45,6 +46,8 @@ def newton(
         The last iterate. The one before it is left in ``ctx.x_previous`` (to name the worst
         unknown when Newton fails).
     """
+    if system.ports is not None:
+        return _newton_at_ports(system, x0, ctx, rhs0, max_iterations, clamp_ic)
     x = x0
     init_junction = ctx.init_junction
     for iteration in range(1, max_iterations + 1):
@@ -61,6 +64,65 @@ def newton(
         else:
             done = ctx.noncon == 0 and iteration > 1 and system.converged(x_new, x, ctx)
         ctx.x_previous, x = x, x_new
+        if done:
+            ctx.init_junction = False
+            return True, iteration, x
+    ctx.init_junction = False
+    return False, max_iterations, x
+
+
+def _newton_at_ports(
+    system: MnaSystem,
+    x0: np.ndarray,
+    ctx: StepContext,
+    rhs0: np.ndarray,
+    max_iterations: int,
+    clamp_ic: bool,
+) -> tuple[bool, int, np.ndarray]:
+    """:func:`newton` with every iteration an m x m solve at the junction ports.
+
+    The same iterates and the same convergence test as the general path (see
+    port_solver.py). A solution is checked by its residual when it would be accepted and from
+    the third iteration on (a slow Newton may be a sign of a poor update); a failed check
+    refactors at the present linearization and the iteration's solution is recomputed exactly.
+    """
+    ports = system.ports
+    discrete = system.discrete
+    x = x0
+    v = ports.voltages(x)
+    init_junction = ctx.init_junction
+    for iteration in range(1, max_iterations + 1):
+        ctx.first_iteration = iteration == 1
+        ctx.init_junction = init_junction and iteration == 1
+        ctx.noncon = 0
+        if discrete:
+            x_ext = with_ground(x)
+            for family in discrete:
+                family.update_state(x_ext, ctx)
+        key, base = system.base_matrix(ctx, clamp_ic)
+        g, ieq = system.load_ports(v, ctx)
+        solver = system.port_solver(key, base, g)
+        x_new, exact = solver.solve(g, ieq, rhs0)
+        if not np.all(np.isfinite(x_new)) and not exact:
+            system.rebuild_port_solver(solver, g)
+            x_new, exact = solver.solve(g, ieq, rhs0)
+        if not np.all(np.isfinite(x_new)):
+            ctx.init_junction = False
+            ctx.x_previous = x
+            return False, iteration, x_new
+        v_new = ports.voltages(x_new)
+        done = (
+            ctx.noncon == 0
+            and iteration > 1
+            and system.close(x_new, x)
+            and system.ports_converged(v_new, ctx)
+        )
+        if (done or iteration > 2) and not exact and not solver.accurate(x_new, g, ieq, rhs0):
+            system.rebuild_port_solver(solver, g)
+            x_new, _ = solver.solve(g, ieq, rhs0)
+            v_new = ports.voltages(x_new)
+            done = done and system.close(x_new, x) and system.ports_converged(v_new, ctx)
+        ctx.x_previous, x, v = x, x_new, v_new
         if done:
             ctx.init_junction = False
             return True, iteration, x

@@ -21,6 +21,7 @@ from circuitsim.solver.errors import CircuitInputError, SingularMatrixError
 from circuitsim.solver.layout import Layout, with_ground
 from circuitsim.solver.linalg import SingularPivot, factor
 from circuitsim.solver.options import SimulationOptions
+from circuitsim.solver.port_solver import Ports, PortSolver
 from circuitsim.solver.sparse_assembly import SparseAssembler
 
 IC_CONDUCTANCE = 1e10  # siemens: holds .ic nodes at their value during the transient's .op
@@ -98,6 +99,21 @@ class MnaSystem:
         self._bases: OrderedDict = OrderedDict()
         self._assembler = None if self.dense else SparseAssembler(n, CACHE_SIZE)
         self._factors: OrderedDict = OrderedDict()
+        # Newton confined to the junction ports (port_solver.py) when every nonlinear family
+        # is a set of two-terminal junctions; subclasses that solve differently opt out.
+        self._port_solvers: OrderedDict = OrderedDict()
+        self.ports: Ports | None = None
+        if (
+            self.nonlinear
+            and all(f.port_nodes is not None for f in self.nonlinear)
+            and type(self).solve_linearized is MnaSystem.solve_linearized
+        ):
+            p = np.concatenate([f.port_nodes[0] for f in self.nonlinear])
+            q = np.concatenate([f.port_nodes[1] for f in self.nonlinear])
+            self.ports = Ports(n, p, q)
+            bounds = np.cumsum([0] + [f.port_nodes[0].size for f in self.nonlinear])
+            self._port_slices = [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+        self.port_rebuilds = 0
         self.factorizations = 0
         self.signals = {f"v({name.lower()})": layout.node(name) for name in layout.external_nodes}
         for family in self.families:
@@ -206,6 +222,48 @@ class MnaSystem:
                     self._factors.popitem(last=False)
         return lu.solve(rhs)
 
+    # --- Newton at the junction ports (see port_solver.py) -----------------------------------
+
+    def load_ports(self, v: np.ndarray, ctx: StepContext) -> tuple[np.ndarray, np.ndarray]:
+        """Junction conductances g (S) and companion currents ieq (A) at port voltages v."""
+        if len(self.nonlinear) == 1:
+            return self.nonlinear[0].port_load(v, ctx)
+        pairs = zip(self.nonlinear, self._port_slices, strict=True)
+        parts = [f.port_load(v[s], ctx) for f, s in pairs]
+        return np.concatenate([g for g, _ in parts]), np.concatenate([i for _, i in parts])
+
+    def ports_converged(self, v: np.ndarray, ctx: StepContext) -> bool:
+        """Every junction family's current check at port voltages v."""
+        if len(self.nonlinear) == 1:
+            return self.nonlinear[0].port_converged(v, ctx)
+        pairs = zip(self.nonlinear, self._port_slices, strict=True)
+        return all(f.port_converged(v[s], ctx) for f, s in pairs)
+
+    def port_solver(self, key, base, g: np.ndarray) -> PortSolver:
+        """The cached solver of this base, or a new one factored at conductances g."""
+        solver = self._port_solvers.get(key)
+        if solver is not None:
+            self._port_solvers.move_to_end(key)
+            return solver
+        self.factorizations += 1
+        try:
+            solver = PortSolver(base, self.ports, g)
+        except SingularPivot as exc:
+            raise SingularMatrixError(self.describe_singular(exc.index)) from None
+        self._port_solvers[key] = solver
+        if len(self._port_solvers) > CACHE_SIZE:
+            self._port_solvers.popitem(last=False)
+        return solver
+
+    def rebuild_port_solver(self, solver: PortSolver, g: np.ndarray) -> None:
+        """Refactor ``solver`` at conductances g (after a failed residual check)."""
+        self.factorizations += 1
+        self.port_rebuilds += 1
+        try:
+            solver.rebuild(g)
+        except SingularPivot as exc:
+            raise SingularMatrixError(self.describe_singular(exc.index)) from None
+
     def _factor(self, matrix):
         self.factorizations += 1
         try:
@@ -234,9 +292,18 @@ class MnaSystem:
         """SPICE's per-unknown tolerance: reltol * max(|new|, |old|) + vntol or abstol."""
         return self.options.reltol * np.maximum(np.abs(x_new), np.abs(x_old)) + self.abs_tol
 
+    def close(self, x_new: np.ndarray, x_old: np.ndarray) -> bool:
+        """Every unknown within reltol * max(|new|, |old|) + vntol (abstol for currents)."""
+        return bool(
+            np.all(
+                np.abs(x_new - x_old)
+                <= self.options.reltol * np.maximum(np.abs(x_new), np.abs(x_old)) + self.abs_tol
+            )
+        )
+
     def converged(self, x_new: np.ndarray, x_old: np.ndarray, ctx: StepContext) -> bool:
         """Every unknown within tolerance and every nonlinear device's current check passed."""
-        if np.any(np.abs(x_new - x_old) > self.tolerance(x_new, x_old)):
+        if not self.close(x_new, x_old):
             return False
         if not self.nonlinear:
             return True

@@ -46,6 +46,10 @@ class DeviceFamily:
     element_types: ClassVar[tuple[type, ...]] = ()
     nonlinear: ClassVar[bool] = False
     discrete: ClassVar[bool] = False
+    # (p, n) node indices of two-terminal junctions, set by nonlinear families whose whole
+    # stamp is a conductance plus a current at these ports (then ``port_load`` and
+    # ``port_converged`` are implemented and the engine may run Newton at the ports only).
+    port_nodes: tuple[np.ndarray, np.ndarray] | None = None
 
     def __init__(
         self,
@@ -109,6 +113,15 @@ class DeviceFamily:
     def converged(self, x_ext: np.ndarray, ctx: StepContext) -> bool:
         """Device-level convergence test at the new iterate (SPICE's current check)."""
         return True
+
+    def port_load(self, v: np.ndarray, ctx: StepContext) -> tuple[np.ndarray, np.ndarray]:
+        """Linearize at port voltages v (shape (m,), volts): conductance g (S) and current
+        ieq (A) such that the current from p to n through each port is g v + ieq."""
+        raise NotImplementedError
+
+    def port_converged(self, v: np.ndarray, ctx: StepContext) -> bool:
+        """:meth:`converged` at port voltages v."""
+        raise NotImplementedError
 
     # --- transient ------------------------------------------------------------------------
 
