@@ -364,15 +364,16 @@ class BatchedMnaSystem(MnaSystem):
 
     def _accurate(self, key, blocks, r, c, v, rhs) -> np.ndarray:
         """Per variant, shape (variants,): does (B + D) x = rhs hold to RESIDUAL_TOLERANCE
-        of |B + D| |x| + |rhs|?  (NaN solutions fail.)"""
+        of rowsum|B| max|x| + |D| |x| + |rhs|?  (NaN solutions fail.)"""
         base = self._batched_bases[key]
-        magnitude = self._abs_bases.get(key)
-        if magnitude is None or magnitude.shape != base.shape:
-            magnitude = self._abs_bases[key] = np.abs(base)
+        row_sums = self._abs_bases.get(key)
+        if row_sums is None or row_sums.shape != base.shape[:2]:
+            # |B| |x| <= (row sums of |B|) max|x|: a bound that needs no second product
+            row_sums = self._abs_bases[key] = np.abs(base).sum(axis=2)
             if len(self._abs_bases) > CACHE_SIZE:
                 self._abs_bases.pop(next(iter(self._abs_bases)))
         product = np.einsum("kij,kj->ki", base, blocks)
-        scale = np.einsum("kij,kj->ki", magnitude, np.abs(blocks))
+        scale = row_sums * np.max(np.abs(blocks), axis=1, keepdims=True)
         x_local = blocks.reshape(-1)
         rows = self.variant_of[r] * self.n_local + self.local[r]
         cols = self.variant_of[c] * self.n_local + self.local[c]
