@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from circuitsim.compare.case import run_case
-from circuitsim.compare.reproduce import Scenario, reproduce
+from circuitsim.compare.reproduce import DEFAULT_SKIP, Scenario, reproduce
 from circuitsim.mechanics import eigenvalues, load_model
 from circuitsim.synthesis.options import SynthesisOptions
 
@@ -72,18 +72,28 @@ def test_reproduce_one_short_scenario_writes_report_figures_and_honest_rows(tmp_
         tmp_path,
         progress=messages.append,
         scenarios=(scenario,),
-        opamps=("ideal",),
+        opamps=("ideal", "tl074"),
         series=("exact",),
-        engines=("ngspice", "no-such-engine"),
+        engines=("ngspice", "builtin", "no-such-engine"),
         free_speeds=(),
         workers=2,
     )
-    assert [r.status for r in result.rows] == [
-        "ok",
-        "not available: unknown engine 'no-such-engine' (choose builtin, ngspice)",
+    unknown = "not available: unknown engine 'no-such-engine' (choose builtin, ngspice)"
+    statuses = [(r.variant.opamp, r.variant.engine, r.status) for r in result.rows]
+    assert statuses == [
+        ("ideal", "ngspice", "ok"),
+        ("ideal", "builtin", "ok"),
+        ("ideal", "no-such-engine", unknown),
+        ("tl074", "ngspice", "ok"),
+        ("tl074", "builtin", DEFAULT_SKIP[("builtin", "tl074")]),
+        ("tl074", "no-such-engine", unknown),
     ]
+    for row in result.rows:
+        assert (row.comparison is not None) == (row.status == "ok")
+        if row.comparison is not None:
+            assert row.comparison.states["y"].nrmsd_percent < 0.5
+            assert row.comparison.states["y_dot"].nrmsd_percent < 0.5
     ok = result.rows[0].comparison
-    assert ok.states["y"].nrmsd_percent < 0.5 and ok.states["y_dot"].nrmsd_percent < 0.5
     report = (tmp_path / "report.md").read_text()
     assert "not available: unknown engine" in report
     assert "netlists/f10-flange-on-ideal-exact.cir" in report
@@ -97,7 +107,7 @@ def test_reproduce_one_short_scenario_writes_report_figures_and_honest_rows(tmp_
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (tmp_path / "netlists" / "f10-flange-on-ideal-exact.cir").exists()
     # The netlist's realized slowest mode, recomputed from the file, is the model's (exact values).
-    (info,) = result.circuits.values()
+    info = result.circuits[(scenario.name, "ideal", "exact")]
     slowest = eigenvalues(load_model(), "V", [55.0])[0, 0].real
     assert info.growth_rate_model == pytest.approx(slowest, rel=1e-9)
     assert info.growth_rate_realized == pytest.approx(slowest, rel=1e-6)
