@@ -601,7 +601,7 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:
         description=(
             "Translate the model scenario into its op-amp circuit, simulate the circuit with "
             "the chosen engine, map node voltages back to physical states through the scale "
-            "map, solve the ODE directly, and print per state: %%NRMSD, max abs error, peak "
+            "map, solve the ODE directly, and print per state: %NRMSD, max abs error, peak "
             "ratio, dominant-frequency ratio and phase lag (positive: the circuit lags). Exit "
             "code 1 when a metric is beyond its threshold, 2 on an error. See "
             "docs/validation.md."
@@ -742,8 +742,8 @@ def _add_reproduce(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--all",
         action="store_true",
-        help="also run what a default run skips for time (our solver on the TL074 circuits: "
-        "many minutes)",
+        help="also run what a default run skips for time (our solver on the 12 TL074 circuits: "
+        "a few minutes)",
     )
     parser.set_defaults(func=_run_reproduce)
 
