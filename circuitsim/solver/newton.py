@@ -82,15 +82,17 @@ def _newton_at_ports(
     """:func:`newton` with every iteration an m x m solve at the junction ports.
 
     The same iterates and the same convergence test as the general path (see
-    port_solver.py). A solution is checked by its residual when it would be accepted and from
-    the third iteration on (a slow Newton may be a sign of a poor update); a failed check
-    refactors at the present linearization and the iteration's solution is recomputed exactly.
+    port_solver.py). A solution is refined and checked when it would be accepted and from the
+    third iteration on (a slow Newton may be a sign of a poor update); a failed check refactors
+    at the present linearization and the iteration's solution is recomputed exactly.
     """
     ports = system.ports
     discrete = system.discrete
     x = x0
     v = ports.voltages(x)
     init_junction = ctx.init_junction
+    last = None  # (g, ieq, solver, rebuilds) of the previous iteration
+    checked = False
     for iteration in range(1, max_iterations + 1):
         ctx.first_iteration = iteration == 1
         ctx.init_junction = init_junction and iteration == 1
@@ -102,7 +104,19 @@ def _newton_at_ports(
         key, base = system.base_matrix(ctx, clamp_ic)
         g, ieq = system.load_ports(v, ctx)
         solver = system.port_solver(key, base, g)
-        x_new, exact = solver.solve(g, ieq, rhs0)
+        if (
+            last is not None
+            and g is last[0]
+            and ieq is last[1]
+            and solver is last[2]
+            and solver.rebuilds == last[3]
+        ):
+            # every junction bypassed and the matrix unchanged: the same linear system as the
+            # last iteration, whose solution x is
+            x_new, exact = x, checked
+        else:
+            x_new, exact = solver.solve(g, ieq, rhs0)
+        last = (g, ieq, solver, solver.rebuilds)
         if not np.all(np.isfinite(x_new)) and not exact:
             system.rebuild_port_solver(solver, g)
             x_new, exact = solver.solve(g, ieq, rhs0)
@@ -117,11 +131,16 @@ def _newton_at_ports(
             and system.close(x_new, x)
             and system.ports_converged(v_new, ctx)
         )
-        if (done or iteration > 2) and not exact and not solver.accurate(x_new, g, ieq, rhs0):
-            system.rebuild_port_solver(solver, g)
-            x_new, _ = solver.solve(g, ieq, rhs0)
+        if (done or iteration > 2) and not exact:
+            tol = system.options.reltol * np.abs(x_new) + system.abs_tol
+            refined = solver.refine(x_new, g, ieq, rhs0, tol)
+            if refined is None:
+                system.rebuild_port_solver(solver, g)
+                refined, _ = solver.solve(g, ieq, rhs0)
+            x_new, exact = refined, True
             v_new = ports.voltages(x_new)
             done = done and system.close(x_new, x) and system.ports_converged(v_new, ctx)
+        checked = exact
         ctx.x_previous, x, v = x, x_new, v_new
         if done:
             ctx.init_junction = False

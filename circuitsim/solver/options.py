@@ -53,6 +53,10 @@ class SimulationOptions:
     max_steps : int
         Bound on attempted time steps (accepted + rejected); past it the run fails with a
         ConvergenceError instead of running on.
+    bypass : int
+        1 (ngspice's default): after the first Newton iteration, a junction whose voltage and
+        linearized current are within tolerance of its last evaluation keeps that evaluation.
+        0 evaluates every junction at every iteration.
     """
 
     reltol: float = 1e-3
@@ -70,6 +74,7 @@ class SimulationOptions:
     fixed_step: float | None = None
     dense_limit: int = 150
     max_steps: int = 2_000_000
+    bypass: int = 1
 
     def __post_init__(self) -> None:
         self.method = str(self.method).lower()

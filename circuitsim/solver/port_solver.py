@@ -17,10 +17,11 @@ m x m solve: with ``dg = g - g_ref`` and port voltages ``v = W^T x``,
 (the Woodbury identity). Why g_ref and not g = 0: with the junctions removed, an ideal op-amp
 whose loop closes only through diodes (a precision rectifier) is an open loop of gain 1e6, and
 updates from that base lose digits; a base taken at a real linearization keeps such loops
-closed while the junctions stay near their state. Solutions are checked componentwise by their
-residual (:meth:`PortSolver.accurate`); on failure the caller rebuilds the factors at the
-present conductances, which makes the update exact (dg = 0) at the cost of one factorization,
-what a direct solve costs anyway.
+closed while the junctions stay near their state. Updated solutions are checked by one step of
+iterative refinement against the full matrix (:meth:`PortSolver.refine`): the correction is
+an estimate of their error, which must be far below Newton's tolerance; on failure the caller
+rebuilds the factors at the present conductances, which makes the update exact (dg = 0) at
+the cost of one factorization, what a direct solve costs anyway.
 """
 
 from __future__ import annotations
@@ -31,12 +32,11 @@ from scipy.linalg import get_lapack_funcs
 
 from circuitsim.solver.linalg import factor
 
-_GESV = get_lapack_funcs("gesv", dtype=np.float64)
+_GETRF, _GETRS = get_lapack_funcs(("getrf", "getrs"), dtype=np.float64)
 
-# Componentwise backward error an updated solution may have, relative to |A| |x| + |r|.
-# Partial-pivoting LU of these MNA matrices reaches 1e-16..1e-14; an update is kept only while
-# it stays within a small factor of that.
-RESIDUAL_LIMIT = 1e-12
+# An updated solution is accepted when its error estimate (one refinement step) is below this
+# fraction of Newton's tolerance in every unknown.
+REFINE_FRACTION = 1e-3
 
 
 class Ports:
@@ -87,18 +87,16 @@ class PortSolver:
     def __init__(self, base, ports: Ports, g_ref: np.ndarray):
         self.base = base
         self.ports = ports
+        self.rebuilds = -1
         self.rebuild(g_ref)
 
     def rebuild(self, g_ref: np.ndarray) -> None:
         """Refactor at new reference conductances (raises SingularPivot if singular)."""
         ports = self.ports
+        self.rebuilds += 1
         shifted = ports.stamped(self.base, g_ref)
         self.lu = factor(shifted)
-        if isinstance(shifted, np.ndarray):
-            self.shifted, self.abs_shifted = shifted, np.abs(shifted)
-        else:
-            self.shifted = shifted.tocsr()
-            self.abs_shifted = abs(self.shifted)
+        self.shifted = shifted if isinstance(shifted, np.ndarray) else shifted.tocsr()
         self.g_ref = g_ref.copy()
         self.z = np.asarray(self.lu.solve(ports.w)).reshape(ports.w.shape)
         self.k = ports.wt @ self.z
@@ -127,15 +125,31 @@ class PortSolver:
             return y0 - self.z @ ieq, True
         kernel = self.k * dg
         kernel.flat[:: kernel.shape[0] + 1] += 1.0
-        _, _, v, info = _GESV(kernel, v0 - self.k @ ieq, overwrite_a=True, overwrite_b=True)
+        lu, piv, info = _GETRF(kernel, overwrite_a=True)
         if info != 0:
             return np.full_like(y0, np.nan), False
+        self._kernel = (lu, piv, dg)
+        v, _ = _GETRS(lu, piv, v0 - self.k @ ieq)
         return y0 - self.z @ (ieq + dg * v), False
 
-    def accurate(self, x: np.ndarray, g: np.ndarray, ieq: np.ndarray, rhs0: np.ndarray) -> bool:
-        """Componentwise backward error of x within RESIDUAL_LIMIT."""
+    def refine(
+        self, x: np.ndarray, g: np.ndarray, ieq: np.ndarray, rhs0: np.ndarray, tol: np.ndarray
+    ) -> np.ndarray | None:
+        """One step of iterative refinement of an updated solution x; None if inaccurate.
+
+        The residual of x against the full matrix A is solved through the same update; the
+        correction is the error estimate of x. x is accepted (corrected) when every
+        component's correction is within REFINE_FRACTION of ``tol`` (Newton's per-unknown
+        tolerance, reltol |x| + vntol/abstol), so an update that lost digits never passes for
+        a converged solution.
+        """
         ports = self.ports
-        port = (g - self.g_ref) * (ports.wt @ x) + ieq
-        residual = self.shifted @ x + ports.w @ port - rhs0
-        scale = self.abs_shifted @ np.abs(x) + ports.abs_w @ np.abs(port) + np.abs(rhs0)
-        return bool(np.all(np.abs(residual) <= RESIDUAL_LIMIT * scale))
+        lu, piv, dg = self._kernel
+        port = dg * (ports.wt @ x) + ieq
+        residual = rhs0 - self.shifted @ x - ports.w @ port
+        y = self.lu.solve(residual)
+        v, _ = _GETRS(lu, piv, ports.wt @ y)
+        correction = y - self.z @ (dg * v)
+        if np.count_nonzero(np.abs(correction) > REFINE_FRACTION * tol):
+            return None
+        return x + correction
