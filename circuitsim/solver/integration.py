@@ -12,6 +12,7 @@ and chgtol, scaled by trtol.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,22 +71,28 @@ def truncation_step(
     """
     if charges[0].size == 0:
         return np.inf
-    h = times[0] - times[1]
-    # divided differences of all charges at once: rows are time points, newest first
-    diff = np.array(charges[: order + 2])
-    t = np.array(times[: order + 2])
-    for level in range(1, order + 2):
-        diff = (diff[:-1] - diff[1:]) / (t[:-level] - t[level:])[:, None]
-    diff = diff[0]
-    volttol = options.abstol + options.reltol * np.maximum(np.abs(currents[0]), np.abs(currents[1]))
-    chargetol = (
-        options.reltol
-        * np.maximum(np.maximum(np.abs(charges[0]), np.abs(charges[1])), options.chgtol)
-        / h
-    )
+    t0, t1, t2 = times[0], times[1], times[2]
+    h = t0 - t1
+    q0, q1, q2 = charges[0], charges[1], charges[2]
+    # divided differences of all charges at once, time differences as Python floats
+    d1a = (q0 - q1) * (1.0 / h)
+    d1b = (q1 - q2) * (1.0 / (t1 - t2))
+    diff = (d1a - d1b) * (1.0 / (t0 - t2))
+    if order == 2:
+        t3 = times[3]
+        d1c = (q2 - charges[3]) * (1.0 / (t2 - t3))
+        diff = (diff - (d1b - d1c) * (1.0 / (t1 - t3))) * (1.0 / (t0 - t3))
+    reltol = options.reltol
+    volttol = np.maximum(np.abs(currents[0]), np.abs(currents[1]))
+    volttol *= reltol
+    volttol += options.abstol
+    chargetol = np.maximum(np.abs(q0), np.abs(q1))
+    np.maximum(chargetol, options.chgtol, out=chargetol)
+    chargetol *= reltol / h
     tol = np.maximum(volttol, chargetol)
     factor = method.error_constants[order - 1]
-    step = options.trtol * tol / np.maximum(options.abstol, factor * np.abs(diff))
-    if order == 2:
-        step = np.sqrt(step)
-    return float(np.min(step))
+    denominator = np.abs(diff)
+    denominator *= factor
+    np.maximum(denominator, options.abstol, out=denominator)
+    step = options.trtol * float(np.min(tol / denominator))
+    return math.sqrt(step) if order == 2 else step

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from circuitsim.solver.context import StepContext
@@ -71,6 +73,14 @@ def newton(
     return False, max_iterations, x
 
 
+def finite(x: np.ndarray) -> bool:
+    """Whether every entry of x is finite (one reduction: a NaN or inf makes the sum so)."""
+    return math.isfinite(_SUM(x))
+
+
+_SUM = np.add.reduce
+
+
 def _newton_at_ports(
     system: MnaSystem,
     x0: np.ndarray,
@@ -117,10 +127,10 @@ def _newton_at_ports(
         else:
             x_new, exact = solver.solve(g, ieq, rhs0)
         last = (g, ieq, solver, solver.rebuilds)
-        if not np.all(np.isfinite(x_new)) and not exact:
+        if not finite(x_new) and not exact:
             system.rebuild_port_solver(solver, g)
             x_new, exact = solver.solve(g, ieq, rhs0)
-        if not np.all(np.isfinite(x_new)):
+        if not finite(x_new):
             ctx.init_junction = False
             ctx.x_previous = x
             return False, iteration, x_new

@@ -121,7 +121,7 @@ class PortSolver:
         """
         y0, v0 = self._source_solution(rhs0)
         dg = g - self.g_ref
-        if not dg.any():
+        if not np.count_nonzero(dg):
             return y0 - self.z @ ieq, True
         kernel = self.k * dg
         kernel.flat[:: kernel.shape[0] + 1] += 1.0

@@ -294,12 +294,8 @@ class MnaSystem:
 
     def close(self, x_new: np.ndarray, x_old: np.ndarray) -> bool:
         """Every unknown within reltol * max(|new|, |old|) + vntol (abstol for currents)."""
-        return bool(
-            np.all(
-                np.abs(x_new - x_old)
-                <= self.options.reltol * np.maximum(np.abs(x_new), np.abs(x_old)) + self.abs_tol
-            )
-        )
+        tol = self.options.reltol * np.maximum(np.abs(x_new), np.abs(x_old)) + self.abs_tol
+        return not np.count_nonzero(np.abs(x_new - x_old) > tol)
 
     def converged(self, x_new: np.ndarray, x_old: np.ndarray, ctx: StepContext) -> bool:
         """Every unknown within tolerance and every nonlinear device's current check passed."""

@@ -178,7 +178,7 @@ class DiodeFamily(DeviceFamily):
         """
         ex = np.exp(np.minimum(vd * self.inv_vte, 700.0))
         reverse = vd < self.reverse_knee
-        if not reverse.any():
+        if not np.count_nonzero(reverse):
             return self.isat * (ex - 1) + self.gmin * vd, self.is_over_vte * ex + self.gmin
         vr = np.minimum(vd, self.reverse_knee)  # negative everywhere, so 1/vr is defined
         arg = (self.cubic_scale / vr) ** 3

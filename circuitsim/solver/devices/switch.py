@@ -72,8 +72,8 @@ class SwitchFamily(DeviceFamily):
             # Inside the band the state is kept: the accepted one at the first iteration of
             # a time point, then the one of the previous iteration (ngspice's swload).
             keep = self.accepted if ctx.first_iteration else self.state
-            new = np.where(vc > self.on_above, True, np.where(vc < self.off_below, False, keep))
-        if np.any(new != self.state):
+            new = (keep | (vc > self.on_above)) & (vc >= self.off_below)
+        if np.count_nonzero(new != self.state):
             self.state = new
             self.version += 1
             ctx.noncon += 1
@@ -107,6 +107,7 @@ class SwitchFamily(DeviceFamily):
         return float(fraction.min())
 
     def accept(self, x_ext: np.ndarray, ctx: StepContext) -> bool:
-        toggled = bool(np.any(self.state != self.accepted))
+        if not np.count_nonzero(self.state != self.accepted):
+            return False
         self.accepted = self.state.copy()
-        return toggled
+        return True
