@@ -18,6 +18,7 @@ import numpy as np
 
 from circuitsim.solver.context import StepContext
 from circuitsim.solver.dc import initial_condition_solution, operating_point_solution
+from circuitsim.solver.devices.base import DeviceFamily
 from circuitsim.solver.errors import CircuitInputError, ConvergenceError
 from circuitsim.solver.integration import METHODS, truncation_step
 from circuitsim.solver.layout import with_ground
@@ -70,6 +71,9 @@ def run_transient(
         x, ctx0 = initial_condition_solution(system)
     else:
         x, ctx0 = operating_point_solution(system, dc_op=False, clamp_ic=True, stats=stats)
+    x_prev_ext = with_ground(x)
+    # families whose accept hook does something (the default does nothing)
+    accepting = [f for f in system.families if type(f).accept is not DeviceFamily.accept]
     times = [0.0]  # newest first, at most HISTORY
     xs = [x]
     charges = [ctx0.q.copy()]
@@ -135,10 +139,10 @@ def run_transient(
                     raise _failure(system, "time step too small", t + h, h, ctx, x_new)
                 continue
             system.linear_charges(x_new, ctx)
+            x_ext = with_ground(x_new)
             if not fixed and system.discrete:
                 # A switch toggled inside the step: cut the step to just past the crossing,
                 # so the transition lands near where the control crosses its threshold.
-                x_ext, x_prev_ext = with_ground(x_new), with_ground(xs[0])
                 fraction = min(f.transition_fraction(x_ext, x_prev_ext) for f in system.discrete)
                 if fraction < 1 - TRANSITION_OVERSHOOT and h * fraction > 10 * min_step:
                     stats["rejected"] += 1
@@ -154,7 +158,6 @@ def run_transient(
                     new_h = min(
                         new_h, truncation_step(method, order, step_times, step_q, step_i, options)
                     )
-                x_ext, x_prev_ext = with_ground(x_new), with_ground(xs[0])
                 for family in system.discrete:
                     new_h = min(new_h, family.truncate(x_ext, x_prev_ext, h))
                 if new_h > 0.9 * h:
@@ -179,12 +182,12 @@ def run_transient(
             break
 
         t = next_break if landing else t + h
-        x_ext = with_ground(x_new)
-        toggled = [family.accept(x_ext, ctx) for family in system.families]
+        x_prev_ext = x_ext
+        toggled = [family.accept(x_ext, ctx) for family in accepting]
         times.insert(0, t)
         xs.insert(0, x_new)
-        charges.insert(0, ctx.q.copy())
-        currents.insert(0, ctx.qdot.copy())
+        charges.insert(0, ctx.q)  # a fresh context per attempt: no copies needed
+        currents.insert(0, ctx.qdot)
         del times[HISTORY:], xs[HISTORY:], charges[HISTORY:], currents[HISTORY:]
         out_t.append(t)
         out_x.append(x_new)

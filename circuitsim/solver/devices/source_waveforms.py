@@ -70,19 +70,23 @@ class SourceValues:
         self.period = np.where(finite_p, pu["period"], tstop)
         f = self.sin["frequency"]
         self.frequency = np.where(f != 0, f, 1.0 / tstop)
+        self._omega = 2 * np.pi * self.frequency
+        self._phase = np.deg2rad(self.sin["phase"])
+        self._damped = bool(np.count_nonzero(self.sin["damping"]))
+        self._delayed = bool(np.count_nonzero(self.sin["delay"]))
 
     def values(self, time: float, dc_op: bool = False) -> np.ndarray:
         """Source values at ``time`` (s), shape (m,); ``dc_op`` for a stand-alone ``.op``."""
         out = self.dc.copy()
         if self.sin_index:
             s = self.sin
-            td = s["delay"]
-            phase = np.deg2rad(s["phase"])
-            tau = np.maximum(time - td, 0.0)
-            wave = s["offset"] + s["amplitude"] * np.sin(
-                2 * np.pi * self.frequency * tau + phase
-            ) * np.exp(-s["damping"] * tau)
-            out[self.sin_index] = wave
+            # (the delay and damping terms only where some source has them: this runs once
+            # per time step)
+            tau = np.maximum(time - s["delay"], 0.0) if self._delayed else time
+            wave = s["amplitude"] * np.sin(self._omega * tau + self._phase)
+            if self._damped:
+                wave *= np.exp(-s["damping"] * tau)
+            out[self.sin_index] = wave + s["offset"]
         if self.pulse_index:
             out[self.pulse_index] = self._pulse(time)
         for i, t, v in self.pwl:
