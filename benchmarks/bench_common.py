@@ -80,7 +80,14 @@ def machine() -> dict:
         pass
     import os
 
+    commit = subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"],
+        capture_output=True,
+        text=True,
+        cwd=Path(__file__).parent,
+    ).stdout.strip()
     return {
+        "commit": commit or "?",
         "nproc": os.cpu_count(),
         "cpu": cpu,
         "python": platform.python_version(),

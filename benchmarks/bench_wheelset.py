@@ -73,7 +73,7 @@ def run(folder: Path, quick: bool, log) -> dict:
         )
         circuit, scale_map = generated.synthesis.circuit, generated.synthesis.scale_map
         tmax0 = circuit.transient.tmax
-        tmaxes = (tmax0, 4 * tmax0, 16 * tmax0) if not quick else (tmax0,)
+        tmaxes = (tmax0, 4 * tmax0, 8 * tmax0, 16 * tmax0) if not quick else (tmax0,)
         rows = []
         for engine, reltols in (("ngspice", reltols_ng), ("builtin", reltols_ours)):
             for reltol in reltols:
