@@ -123,13 +123,15 @@ def _newton_at_ports(
         ):
             # every junction bypassed and the matrix unchanged: the same linear system as the
             # last iteration, whose solution x is
-            x_new, exact = x, checked
+            x_new, checked_new = x, checked
         else:
             x_new, exact = solver.solve(g, ieq, rhs0)
+            checked_new = False
+            if not exact and not finite(x_new):
+                system.rebuild_port_solver(solver, g)
+                x_new, _ = solver.solve(g, ieq, rhs0)
+                checked_new = True
         last = (g, ieq, solver, solver.rebuilds)
-        if not finite(x_new) and not exact:
-            system.rebuild_port_solver(solver, g)
-            x_new, exact = solver.solve(g, ieq, rhs0)
         if not finite(x_new):
             ctx.init_junction = False
             ctx.x_previous = x
@@ -141,16 +143,19 @@ def _newton_at_ports(
             and system.close(x_new, x)
             and system.ports_converged(v_new, ctx)
         )
-        if (done or iteration > 2) and not exact:
+        if (done or iteration > 2) and not checked_new:
+            # every solution that may be accepted is checked: one refinement step against the
+            # full matrix, or a fresh factorization at this linearization if that fails
             tol = system.options.reltol * np.abs(x_new) + system.abs_tol
             refined = solver.refine(x_new, g, ieq, rhs0, tol)
             if refined is None:
                 system.rebuild_port_solver(solver, g)
                 refined, _ = solver.solve(g, ieq, rhs0)
-            x_new, exact = refined, True
+                last = (g, ieq, solver, solver.rebuilds)
+            x_new, checked_new = refined, True
             v_new = ports.voltages(x_new)
             done = done and system.close(x_new, x) and system.ports_converged(v_new, ctx)
-        checked = exact
+        checked = checked_new
         ctx.x_previous, x, v = x, x_new, v_new
         if done:
             ctx.init_junction = False

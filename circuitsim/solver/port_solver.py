@@ -121,6 +121,7 @@ class PortSolver:
         """
         y0, v0 = self._source_solution(rhs0)
         dg = g - self.g_ref
+        self._dg, self._kernel = dg, None
         if not np.count_nonzero(dg):
             return y0 - self.z @ ieq, True
         kernel = self.k * dg
@@ -128,14 +129,14 @@ class PortSolver:
         lu, piv, info = _GETRF(kernel, overwrite_a=True)
         if info != 0:
             return np.full_like(y0, np.nan), False
-        self._kernel = (lu, piv, dg)
+        self._kernel = (lu, piv)
         v, _ = _GETRS(lu, piv, v0 - self.k @ ieq)
         return y0 - self.z @ (ieq + dg * v), False
 
     def refine(
         self, x: np.ndarray, g: np.ndarray, ieq: np.ndarray, rhs0: np.ndarray, tol: np.ndarray
     ) -> np.ndarray | None:
-        """One step of iterative refinement of an updated solution x; None if inaccurate.
+        """One step of iterative refinement of the last solution x; None if inaccurate.
 
         The residual of x against the full matrix A is solved through the same update; the
         correction is the error estimate of x. x is accepted (corrected) when every
@@ -144,12 +145,13 @@ class PortSolver:
         a converged solution.
         """
         ports = self.ports
-        lu, piv, dg = self._kernel
+        dg = self._dg
         port = dg * (ports.wt @ x) + ieq
         residual = rhs0 - self.shifted @ x - ports.w @ port
-        y = self.lu.solve(residual)
-        v, _ = _GETRS(lu, piv, ports.wt @ y)
-        correction = y - self.z @ (dg * v)
+        correction = self.lu.solve(residual)
+        if self._kernel is not None:
+            v, _ = _GETRS(*self._kernel, ports.wt @ correction)
+            correction = correction - self.z @ (dg * v)
         if np.count_nonzero(np.abs(correction) > REFINE_FRACTION * tol):
             return None
         return x + correction
