@@ -838,6 +838,16 @@ def _sweep_bar(fraction: float, message: str) -> None:
 
 
 def _run_sweep(args: argparse.Namespace) -> int:
+    from circuitsim.compare.errors import ComparisonError
+
+    try:
+        return _sweep(args)
+    except ComparisonError as exc:
+        print(f"\ncircuitsim sweep: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _sweep(args: argparse.Namespace) -> int:
     from circuitsim.compare.sweep import parse_values, run_sweep, save_sweep
     from circuitsim.mechanics import critical_speed, load_model
     from circuitsim.synthesis.options import SynthesisOptions

@@ -159,3 +159,28 @@ def test_sweep_cli_writes_csv_and_plot(tmp_path):
         system = model.system(parameters={"V": float(row[0])}, nonlinear={"flange": True})
         exact = solve(system, t_span=(0.0, 0.1)).max_abs("y")
         assert float(row[2]) == pytest.approx(exact, rel=0.02)
+
+
+def test_sweep_values_grid_includes_stop():
+    from circuitsim.compare.sweep import parse_values
+
+    values = parse_values("40:70:0.5")
+    assert values.size == 61 and values[0] == 40.0 and values[-1] == pytest.approx(70.0)
+    assert list(parse_values("1, 2.5,4")) == [1.0, 2.5, 4.0]
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["--param", "speed", "--values", "5:1:1"],
+        ["--param", "speed", "--param", "freq", "--values", "1:2:1"],
+        ["--param", "no_such_parameter", "--values", "1:2:1"],
+    ],
+    ids=["empty-range", "two-swept", "unknown"],
+)
+def test_sweep_cli_refuses_bad_input(argv, tmp_path, capsys):
+    from circuitsim.cli import main
+
+    assert main(["sweep", *argv, "--out", str(tmp_path)]) == 2
+    assert "error" in capsys.readouterr().err
+    assert not (tmp_path / "sweep.csv").exists()
