@@ -802,6 +802,7 @@ def _add_sweep(sub: argparse._SubParsersAction) -> None:
     for action in parser._actions:  # --param also names the swept parameter (no '=')
         if action.dest == "param":
             action.type = _sweep_param_item
+            action.metavar = "NAME[=VALUE]"
             action.help = (
                 "NAME: the parameter to sweep (speed, freq, amplitude or any model parameter); "
                 "NAME=VALUE: set a fixed parameter in its SI unit (repeatable)"
