@@ -114,6 +114,10 @@ class DiodeFamily(DeviceFamily):
         self.ext_linear = cjo / f2 * f3
         self.ext_quadratic = cjo / f2 * m / (2 * vj)
         self.ext_slope = cjo / f2 * m / vj
+        self.ext_offset = self.ext_linear + self.ext_quadratic * self.knee
+        self.inv_vj = 1.0 / vj
+        self.neg_m = -m
+        self.three_vte = 3 * self.vte
         self.slots = layout.add_charges(len(elements)) if self.has_charge else None
         m = len(elements)
         self.vd = np.zeros(m)  # linearization point of the last load
@@ -182,9 +186,10 @@ class DiodeFamily(DeviceFamily):
             return self.isat * (ex - 1) + self.gmin * vd, self.is_over_vte * ex + self.gmin
         vr = np.minimum(vd, self.reverse_knee)  # negative everywhere, so 1/vr is defined
         arg = (self.cubic_scale / vr) ** 3
-        cd = np.where(reverse, -self.isat * (1 + arg), self.isat * (ex - 1))
-        gd = np.where(reverse, 3 * self.isat * arg / vr, self.is_over_vte * ex)
-        return cd + self.gmin * vd, gd + self.gmin
+        # both branches as IS (e - 1) and IS/(N Vt) f: the cubic is e = -arg, f = 3 N Vt arg / vr
+        cd = self.isat * (np.where(reverse, -arg, ex) - 1.0) + self.gmin * vd
+        gd = self.is_over_vte * np.where(reverse, self.three_vte * arg / vr, ex) + self.gmin
+        return cd, gd
 
     def _charge(self, vd, cd, gd) -> tuple[np.ndarray, np.ndarray]:
         """Depletion plus diffusion charge (C) and capacitance (F).
@@ -192,13 +197,10 @@ class DiodeFamily(DeviceFamily):
         Below FC*VJ the depletion charge is SPICE's power law; above it, its linear-quadratic
         continuation, written here as the power law at the knee plus the extension.
         """
-        below = np.minimum(vd, self.knee)
-        arg = 1 - below / self.vj
-        sarg = arg ** (-self.m)
+        arg = 1 - np.minimum(vd, self.knee) * self.inv_vj
+        sarg = arg**self.neg_m
         excess = np.maximum(vd - self.knee, 0.0)
-        q = self.q_scale * (1 - arg * sarg) + excess * (
-            self.ext_linear + self.ext_quadratic * (vd + self.knee)
-        )
+        q = self.q_scale * (1 - arg * sarg) + excess * (self.ext_offset + self.ext_quadratic * vd)
         c = self.cjo * sarg + self.ext_slope * excess
         if self.has_transit:
             q = q + self.tt * cd
