@@ -1,0 +1,418 @@
+"""Verbs from a model to its circuit and back: generate, compare, reproduce, sweep."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from circuitsim.cli.common import (
+    add_model_options,
+    add_scenario_options,
+    parameter_assignment,
+    progress,
+    scenario_system,
+    state_range,
+)
+
+
+def _add_generate(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "generate",
+        help="write the model's op-amp analog-computer netlist, scale file and BOM",
+        description=(
+            "Translate the model into an op-amp circuit (one integrator and one inverter per "
+            "state, |x| or dead-zone blocks for the piecewise-linear terms, the paper's part "
+            "names for the wheelset) and write FILE.cir, FILE.scale.json (how node voltages "
+            "map back to states) and FILE.bom.csv (parts, rounding errors). The written "
+            "netlist is read back and its coefficients checked against the model. See "
+            "docs/translator.md."
+        ),
+    )
+    add_model_options(parser)
+    add_scenario_options(parser)
+    parser.add_argument(
+        "--opamp", choices=("ideal", "tl074"), default="ideal", help="op-amp model (default ideal)"
+    )
+    parser.add_argument(
+        "--nonlinear",
+        choices=("abs", "deadzone"),
+        default="abs",
+        help="piecewise-linear terms from |x| blocks (the paper's form, default) or one "
+        "dead-zone block",
+    )
+    parser.add_argument(
+        "--scaling",
+        choices=("auto", "unity"),
+        default="auto",
+        help="auto: volts per unit from the direct solution's peaks to --swing (default); "
+        "unity: 1 V per SI unit (the paper's mapping)",
+    )
+    parser.add_argument(
+        "--swing", type=float, default=5.0, metavar="VOLTS", help="target peak, V (default 5)"
+    )
+    parser.add_argument(
+        "--range",
+        type=state_range,
+        action="append",
+        default=[],
+        metavar="STATE=PEAK",
+        help="expected peak of a state in SI units, instead of the direct solution's (repeatable)",
+    )
+    parser.add_argument(
+        "--time-scale",
+        type=float,
+        default=1.0,
+        metavar="K",
+        help="one model second takes 1/K circuit seconds (default 1, real time)",
+    )
+    parser.add_argument(
+        "--series",
+        choices=("E96", "E24", "exact"),
+        default="E96",
+        help="resistor values (default E96)",
+    )
+    parser.add_argument(
+        "--dialect",
+        choices=("ngspice", "ltspice", "multisim"),
+        default="ngspice",
+        help="netlist dialect (default ngspice)",
+    )
+    parser.add_argument(
+        "--tstop", type=float, metavar="T", help="model seconds to simulate (default 5)"
+    )
+    parser.add_argument(
+        "--switch-at",
+        type=float,
+        metavar="T",
+        help="close the nonlinear switches (S1) at model time T instead of from the start; "
+        "'inf' keeps them open (the linear circuit with the blocks in place)",
+    )
+    parser.add_argument("-o", "--output", required=True, metavar="FILE.cir", help="netlist file")
+    parser.set_defaults(func=_run_generate)
+
+
+def _run_generate(args: argparse.Namespace) -> int:
+    from circuitsim.synthesis.generate import generate, switch_at
+    from circuitsim.synthesis.options import SynthesisOptions
+
+    system = switch_at(scenario_system(args), args.switch_at)
+    options = SynthesisOptions(
+        opamp=args.opamp,
+        nonlinear=args.nonlinear,
+        scaling=args.scaling,
+        swing=args.swing,
+        time_scale=args.time_scale,
+        series=args.series,
+        t_stop=args.tstop,
+        ranges=dict(args.range),
+    )
+    result = generate(system, args.output, options, args.dialect)
+    for warning in result.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    print(f"wrote {result.netlist}, {result.scale_file}, {result.bom_file}")
+    print(result.report.summary())
+    return 0 if result.report.ok else 1
+
+
+def _add_compare(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "compare",
+        help="generate the circuit, simulate it, solve the ODE and compare them state by state",
+        description=(
+            "Translate the model scenario into its op-amp circuit, simulate the circuit with "
+            "the chosen engine, map node voltages back to physical states through the scale "
+            "map, solve the ODE directly, and print per state: %NRMSD, max abs error, peak "
+            "ratio, dominant-frequency ratio and phase lag (positive: the circuit lags). Exit "
+            "code 1 when a metric is beyond its threshold, 2 on an error. See "
+            "docs/validation.md."
+        ),
+    )
+    add_model_options(parser)
+    add_scenario_options(parser)
+    parser.add_argument(
+        "--opamp", choices=("ideal", "tl074"), default="ideal", help="op-amp model (default ideal)"
+    )
+    parser.add_argument(
+        "--series",
+        choices=("exact", "E96", "E24"),
+        default="exact",
+        help="resistor values (default exact: the design itself; E96 shows what standard "
+        "parts cost)",
+    )
+    parser.add_argument(
+        "--engine",
+        choices=("builtin", "ngspice"),
+        default="builtin",
+        help="circuit simulator (default builtin, our MNA solver; with --opamp tl074 it takes "
+        "tens of seconds, ngspice a second)",
+    )
+    parser.add_argument(
+        "--tstop", type=float, metavar="T", help="model seconds to simulate (default 5)"
+    )
+    parser.add_argument(
+        "--max-nrmsd",
+        type=float,
+        metavar="PERCENT",
+        help="NRMSD threshold (default 0.5 for ideal op-amps, 2 for tl074)",
+    )
+    parser.add_argument(
+        "--tolerance",
+        type=float,
+        default=0.01,
+        metavar="FRACTION",
+        help="allowed |peak ratio - 1| and |frequency ratio - 1| (default 0.01)",
+    )
+    parser.add_argument(
+        "--netlist", metavar="FILE.cir", help="also write the netlist, scale file and BOM here"
+    )
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--plot", metavar="FILE.png", help="draw the circuit traces over the ODE's")
+    parser.set_defaults(func=_run_compare, error_exit_code=2)
+
+
+def _run_compare(args: argparse.Namespace) -> int:
+    import json
+    from dataclasses import replace
+
+    from circuitsim.compare import Thresholds
+    from circuitsim.compare.case import run_case
+    from circuitsim.synthesis.options import SynthesisOptions
+
+    thresholds = replace(
+        Thresholds.for_opamp(args.opamp),
+        peak_ratio_tolerance=args.tolerance,
+        frequency_ratio_tolerance=args.tolerance,
+    )
+    if args.max_nrmsd is not None:
+        thresholds = replace(thresholds, nrmsd_percent=args.max_nrmsd)
+    options = SynthesisOptions(opamp=args.opamp, series=args.series, t_stop=args.tstop)
+    label = f"{args.engine}, {args.opamp}, {args.series}"
+    case = run_case(
+        scenario_system(args), options, args.engine, thresholds, args.netlist, label=label
+    )
+    comparison = case.comparison
+    if args.plot:
+        from circuitsim.compare.plots import plot_overlay
+
+        plot_overlay(
+            args.plot,
+            case.reference,
+            {label: case.circuit},
+            units={state: m.unit for state, m in comparison.states.items()},
+            title=f"circuit over ODE ({label})",
+            errors=True,
+        )
+    report = case.report
+    if args.json:
+        data = comparison.to_json()
+        data.update(
+            engine=args.engine,
+            opamp=args.opamp,
+            series=args.series,
+            netlist=None if case.netlist is None else str(case.netlist),
+            critical_speed_model=getattr(report, "critical_speed_model", None),
+            critical_speed_circuit=getattr(report, "critical_speed_realized", None),
+            timings_s=case.timings,
+        )
+        print(json.dumps(data, indent=1))
+    else:
+        print(f"circuit ({label}) against the ODE")
+        print(comparison.table())
+        if report is not None:
+            print(report.summary())
+        print("PASS" if comparison.passed else "FAIL: " + ", ".join(comparison.failures()))
+    return 0 if comparison.passed else 1
+
+
+def _add_reproduce(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "reproduce",
+        help="the paper's figures and a validation report (all scenarios, circuits, engines)",
+        description=(
+            "Solve the paper's six forced-response scenarios (V = 55 m/s; 3, 5, 10 Hz; flange "
+            "off/on) and the free responses at 54 and 57 m/s, generate each scenario's circuit "
+            "with ideal and TL074 op-amps and exact and E96 values, simulate them with every "
+            "available engine, and write figures/ (Fig. 3, 4, 6, critical speed), netlists/, "
+            "report.md and metrics.json. Progress on stderr. See docs/validation.md."
+        ),
+    )
+    parser.add_argument(
+        "--out", default="reproduction", metavar="DIR", help="output folder (default reproduction)"
+    )
+    parser.add_argument(
+        "--engine",
+        action="append",
+        choices=("builtin", "ngspice"),
+        help="engine to run (repeatable; default both)",
+    )
+    parser.add_argument(
+        "--opamp", action="append", choices=("ideal", "tl074"), help="repeatable; default both"
+    )
+    parser.add_argument(
+        "--series", action="append", choices=("exact", "E96"), help="repeatable; default both"
+    )
+    parser.add_argument("--workers", type=int, metavar="N", help="processes (default: every core)")
+    parser.add_argument(
+        "--all",
+        action="store_true",
+        help="also run what a default run skips for time (our solver on the 12 TL074 circuits: "
+        "a few minutes)",
+    )
+    parser.set_defaults(func=_run_reproduce)
+
+
+def _run_reproduce(args: argparse.Namespace) -> int:
+    from circuitsim.compare.reproduce import OPAMPS, SERIES, reproduce
+
+    result = reproduce(
+        args.out,
+        progress=progress,
+        opamps=tuple(args.opamp or OPAMPS),
+        series=tuple(args.series or SERIES),
+        engines=tuple(args.engine or ("builtin", "ngspice")),
+        workers=args.workers,
+        skip={} if args.all else None,
+    )
+    done = [r for r in result.rows if r.comparison is not None]
+    passed = sum(r.comparison.passed for r in done)
+    print(
+        f"wrote {result.out_dir / 'report.md'} ({len(done)} of {len(result.rows)} circuit runs "
+        f"compared, {passed} within every threshold; {result.wall_s:.0f} s)"
+    )
+    for row in result.rows:
+        if row.comparison is None:
+            print(f"{row.scenario.name} {row.variant.label}: {row.status}")
+    return 0
+
+
+def _sweep_param_item(text: str) -> tuple[str, float] | str:
+    """``--param`` of the sweep verb: NAME=VALUE (a fixed parameter) or NAME (the swept one)."""
+    if "=" in text:
+        return parameter_assignment(text)
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected a parameter name or NAME=VALUE")
+    return text.strip()
+
+
+def _add_sweep(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "sweep",
+        help="peak |y| against a parameter: many circuit variants in one vectorized run",
+        description=(
+            "Sweep one model parameter (e.g. --param speed --values 40:70:0.5): the circuit is "
+            "translated once (exact resistors, one amplitude scaling for all values) and only "
+            "the parts the parameter sets change between variants (for the speed: R33 and "
+            "R44). The builtin engine simulates every variant together in one batched run; "
+            "ngspice runs one process per variant. Writes sweep.csv and sweep.png (peak |y| "
+            "over the last --window seconds and over the whole run, critical speed marked)."
+        ),
+    )
+    add_model_options(parser)
+    add_scenario_options(parser)
+    for action in parser._actions:  # --param also names the swept parameter (no '=')
+        if action.dest == "param":
+            action.type = _sweep_param_item
+            action.metavar = "NAME[=VALUE]"
+            action.help = (
+                "NAME: the parameter to sweep (speed, freq, amplitude or any model parameter); "
+                "NAME=VALUE: set a fixed parameter in its SI unit (repeatable)"
+            )
+    parser.add_argument(
+        "--values",
+        required=True,
+        metavar="START:STOP:STEP",
+        help="values of the swept parameter (STOP included), or a comma-separated list",
+    )
+    parser.add_argument("--engine", choices=("builtin", "ngspice"), default="builtin")
+    parser.add_argument(
+        "--opamp", choices=("ideal", "tl074"), default="ideal", help="op-amp model (default ideal)"
+    )
+    parser.add_argument(
+        "--tstop", type=float, metavar="T", help="model seconds to simulate (default 5)"
+    )
+    parser.add_argument(
+        "--window", type=float, default=1.0, metavar="T", help="late window, s (default 1)"
+    )
+    parser.add_argument(
+        "--jobs", type=int, default=2, metavar="N", help="ngspice processes at a time (default 2)"
+    )
+    parser.add_argument("--out", default=".", metavar="DIR", help="output folder (default .)")
+    parser.set_defaults(func=_run_sweep, error_exit_code=2)
+
+
+def _sweep_bar(fraction: float, message: str) -> None:
+    """Progress bar on stderr (one line, redrawn)."""
+    width = 30
+    filled = int(round(width * max(0.0, min(1.0, fraction))))
+    text = f"\r[{'#' * filled}{'.' * (width - filled)}] {100 * fraction:5.1f}%  {message[:60]:60s}"
+    print(text, end="", file=sys.stderr, flush=True)
+
+
+def _run_sweep(args: argparse.Namespace) -> int:
+    from circuitsim.compare.sweep import parse_values, run_sweep, save_sweep
+    from circuitsim.mechanics import critical_speed, load_model
+    from circuitsim.synthesis.options import SynthesisOptions
+
+    swept = [p for p in args.param if isinstance(p, str)]
+    if len(swept) != 1:
+        print("circuitsim sweep: error: name exactly one --param to sweep", file=sys.stderr)
+        return 2
+    values = parse_values(args.values)
+    model = load_model(args.model)
+    aliases = {"speed", "freq", "amplitude"}
+    name = (
+        model.option_parameters({swept[0]: 0.0}).popitem()[0] if swept[0] in aliases else swept[0]
+    )
+    if name not in model.parameters:
+        print(
+            f"circuitsim sweep: error: model {model.name} has no parameter {name!r}; "
+            f"known: {', '.join(model.parameters)}",
+            file=sys.stderr,
+        )
+        return 2
+    fixed = [p for p in args.param if not isinstance(p, str)]
+    systems = []
+    for value in values:
+        variant = argparse.Namespace(**vars(args))
+        variant.param = [*fixed, (name, float(value))]
+        if swept[0] in aliases:
+            variant.param = fixed
+            setattr(variant, swept[0], float(value))
+        systems.append(scenario_system(variant))
+    options = SynthesisOptions(opamp=args.opamp, t_stop=args.tstop)
+    unit = model.parameter_info[name].unit
+    result = run_sweep(
+        systems,
+        values,
+        name,
+        unit,
+        args.engine,
+        options,
+        window=args.window,
+        workers=args.jobs,
+        progress=_sweep_bar,
+    )
+    print(file=sys.stderr)
+    speed = (
+        model.option_parameters({"speed": 0.0}).popitem()[0] if "speed" in model.options else None
+    )
+    if name == speed:
+        coefficients = args.coeffs or model.default_coefficients
+        result.critical, _ = critical_speed(
+            model, coefficients, parameter=name, parameters=dict(fixed) or None
+        )
+    paths = save_sweep(result, args.out)
+    per = result.timings["simulation"] / len(values)
+    print(
+        f"{len(values)} variants of {name} ({result.engine}; changed: "
+        f"{', '.join(result.changed) or 'none'}): synthesis {result.timings['synthesis']:.3g} s, "
+        f"simulation {result.timings['simulation']:.3g} s ({per:.3g} s per variant)"
+    )
+    if result.critical is not None:
+        print(f"critical {name} (linear) {result.critical:.4f} {unit}")
+    for path in paths:
+        print(f"wrote {path}")
+    return 0
+
+
+COMMANDS = [_add_generate, _add_compare, _add_reproduce, _add_sweep]

@@ -1,0 +1,204 @@
+"""Verbs of the ODE side: ``stability`` and ``ode``."""
+
+from __future__ import annotations
+
+import argparse
+
+from circuitsim.cli.common import add_model_options, parameter_assignment, scenario_system
+
+
+def _add_stability(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "stability",
+        help="critical speed, hunting frequency and eigenvalues of the linear part",
+        description=(
+            "Linear stability of the model without its piecewise-linear terms (the flange): "
+            "the critical speed is where the largest real part of the state matrix's "
+            "eigenvalues crosses zero (brentq), the hunting frequency is |Im|/(2 pi) there. "
+            "The wheelset's paper set gives 55.6455 m/s and 8.477 Hz."
+        ),
+    )
+    add_model_options(parser)
+    parser.add_argument(
+        "--speed",
+        type=float,
+        metavar="V",
+        help="speed (m/s) at which to list the eigenvalues (1/s); default: the model's "
+        "default (wheelset: 55 m/s)",
+    )
+    parser.add_argument(
+        "--bracket",
+        type=float,
+        nargs=2,
+        metavar=("LO", "HI"),
+        default=(1.0, 1000.0),
+        help="speed interval (m/s) searched for the loss of stability (default: 1 1000)",
+    )
+    parser.add_argument(
+        "--parameter",
+        metavar="NAME",
+        help="parameter to sweep instead of the speed (for user models; --speed and --bracket "
+        "are then in its unit); default: the model's [options] speed (wheelset: V)",
+    )
+    parser.add_argument(
+        "--json",
+        action="store_true",
+        help="print one JSON object: critical_speed (m/s), hunting_frequency (Hz), speed "
+        "(m/s), eigenvalues ([re, im] pairs, 1/s), coefficients (the set's name)",
+    )
+    parser.set_defaults(func=_run_stability)
+
+
+def _run_stability(args: argparse.Namespace) -> int:
+    import json
+
+    from circuitsim.mechanics import critical_speed, eigenvalues, load_model
+
+    model = load_model(args.model)
+    if args.parameter:
+        speed_parameter = args.parameter
+        if speed_parameter not in model.parameters:
+            # eigenvalues() raises the ModelError naming the file and the known parameters
+            eigenvalues(model, speed_parameter, [0.0])
+    else:
+        speed_parameter = model.option_parameters({"speed": 0.0}).popitem()[0]
+    speed = model.parameters[speed_parameter] if args.speed is None else args.speed
+    coefficients = args.coeffs or model.default_coefficients
+    value, frequency = critical_speed(
+        model, coefficients, parameter=speed_parameter, bracket=tuple(args.bracket)
+    )
+    lam = eigenvalues(model, speed_parameter, [speed], coefficients)[0]
+    if args.json:
+        report = {
+            "model": model.name,
+            "coefficients": coefficients,
+            "critical_speed": value,
+            "hunting_frequency": frequency,
+            "speed": speed,
+            "eigenvalues": [[float(v.real), float(v.imag)] for v in lam],
+        }
+        print(json.dumps(report))
+        return 0
+    print(f"model {model.name}, coefficient set {coefficients}")
+    unit = model.parameter_info[speed_parameter].unit
+    label = f"critical {speed_parameter}" if args.parameter else "critical speed"
+    print(f"{label:18s} {value:.4f} {unit}")
+    print(f"hunting frequency  {frequency:.4f} Hz")
+    print(f"eigenvalues at {speed_parameter} = {speed:g} {unit} (1/s):")
+    for v in lam:
+        print(f"  {v.real:+.6g} {v.imag:+.6g}j")
+    return 0
+
+
+def _add_ode(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "ode",
+        help="solve the model's ODE directly (scipy DOP853, restarted at every kink)",
+        description=(
+            "Direct solution of the model (default: the wheelset, paper coefficients, V = 55 m/s, "
+            "a = 0.040 m, f = 3 Hz, zero initial state, 0-5 s, flange on). Prints max |.| and "
+            "the final value of every state (SI units); writes a CSV and a figure on request. "
+            "For a user model, --speed/--freq/--amplitude/--y0 set the parameters its [options] "
+            "table names (--y0 sets the first state if it names none); --param sets any."
+        ),
+    )
+    add_model_options(parser)
+    parser.add_argument("--speed", type=float, metavar="V", help="forward speed, m/s (default 55)")
+    parser.add_argument(
+        "--freq", type=float, metavar="F", help="excitation frequency, Hz (default 3)"
+    )
+    parser.add_argument(
+        "--amplitude",
+        type=float,
+        metavar="A",
+        help="excitation amplitude as a lateral track displacement, m (force k_y*A; default "
+        "0.040; 0 gives the free response)",
+    )
+    parser.add_argument(
+        "--flange",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="switch the piecewise-linear terms (the wheelset: flange force F_t, switch S1) on "
+        "or off; default: as the model file says, which for the wheelset is ON (the paper's "
+        "Fig. 4/6 are about the flange)",
+    )
+    parser.add_argument(
+        "--tstop", type=float, default=5.0, metavar="T", help="end time, s (default 5)"
+    )
+    parser.add_argument(
+        "--y0",
+        type=float,
+        metavar="Y",
+        help="initial lateral displacement, m (default 0; other states start at 0)",
+    )
+    parser.add_argument(
+        "--param",
+        type=parameter_assignment,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="set any model parameter in its SI unit (repeatable), e.g. --param eta=0.01",
+    )
+    parser.add_argument(
+        "--rtol",
+        type=float,
+        default=1e-10,
+        help="relative tolerance of the integrator (default 1e-10; absolute 1e-12)",
+    )
+    parser.add_argument(
+        "--dt",
+        type=float,
+        default=5e-4,
+        help="sample step of the CSV, s (default 0.0005; dense output, exact to the tolerance)",
+    )
+    parser.add_argument(
+        "--csv",
+        metavar="FILE",
+        help="write time and every state (header time,y,psi,y_dot,psi_dot for the wheelset; "
+        "SI units: s, m, rad, m/s, rad/s)",
+    )
+    parser.add_argument(
+        "--plot",
+        metavar="FILE",
+        help="write a PNG: displacement, velocity and phase portrait (paper Fig. 4 style)",
+    )
+    parser.set_defaults(func=_run_ode)
+
+
+def _run_ode(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from circuitsim.atomic import write_text_atomic
+    from circuitsim.mechanics import solve
+
+    model, system = scenario_system(args, with_model=True)
+    result = solve(system, t_span=(0.0, args.tstop), rtol=args.rtol, atol=1e-12)
+    if args.csv:
+        samples = int(np.floor(args.tstop / args.dt + 1e-9)) + 1
+        grid = np.linspace(0.0, (samples - 1) * args.dt, samples)
+        if grid[-1] < args.tstop:
+            grid = np.append(grid, args.tstop)
+        write_text_atomic(args.csv, result.csv_text(grid))
+    if args.plot:
+        from circuitsim.compare.figures import plot_response
+
+        shown = {name: system.parameters[name] for name in model.options.values()}
+        shown.update(dict(args.param))
+        settings = ", ".join([system.coefficient_set] + [f"{k}={v:g}" for k, v in shown.items()])
+        title = f"{model.name} ({settings})"
+        plot_response(args.plot, result, title=title)
+    terms = ", ".join(term.name for term in system.nonlinear) or "none"
+    print(f"model {model.name}, coefficient set {system.coefficient_set}, nonlinear: {terms}")
+    print(f"0 to {args.tstop:g} s, {len(result.t)} steps, {len(result.kinks)} kink crossings")
+    final = result.sol(args.tstop)
+    for i, (name, unit) in enumerate(zip(result.states, result.units, strict=True)):
+        peak = result.max_abs(name)
+        print(f"  {name:10s} max |.| {peak:.6g} {unit:6s} at {args.tstop:g} s: {final[i]:+.6g}")
+    if args.csv:
+        print(f"wrote {args.csv}")
+    if args.plot:
+        print(f"wrote {args.plot}")
+    return 0
+
+
+COMMANDS = [_add_stability, _add_ode]

@@ -1,0 +1,145 @@
+"""Verbs on netlists: ``convert``, ``check`` and ``simulate``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from circuitsim.cli.common import (
+    progress,
+    read_netlist_reporting_warnings,
+)
+
+
+def _add_convert(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "convert",
+        help="rewrite a SPICE netlist for ngspice, LTspice or Multisim",
+        description=(
+            "Read a netlist (with its .include/.lib files) and write it in another dialect: "
+            "switch model parameters, power operator, .control blocks, node names (see "
+            "docs/netlists.md). Values are written so that they read back bit for bit."
+        ),
+    )
+    parser.add_argument("netlist", metavar="IN.cir", help="netlist to read")
+    parser.add_argument(
+        "--dialect",
+        choices=("ngspice", "ltspice", "multisim"),
+        default="ngspice",
+        help="dialect to write (default: ngspice)",
+    )
+    parser.add_argument(
+        "-o", "--output", metavar="OUT.cir", help="file to write (default: standard output)"
+    )
+    parser.set_defaults(func=_run_convert, error_exit_code=2)
+
+
+def _run_convert(args: argparse.Namespace) -> int:
+    from circuitsim.netlist.writer import save_netlist, write_netlist
+
+    circuit = read_netlist_reporting_warnings(args.netlist)
+    if args.output:
+        save_netlist(circuit, args.output, args.dialect)
+        print(f"wrote {args.output} ({args.dialect})", file=sys.stderr)
+    else:
+        sys.stdout.write(write_netlist(circuit, args.dialect))
+    return 0
+
+
+def _add_check(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "check",
+        help="topology checks: floating nodes, no DC path, source loops, undefined models ...",
+        description=(
+            "Read a netlist and report what would make it unsolvable or suspicious: floating "
+            "nodes, nodes with no DC path to ground, current-source cut sets, loops of voltage "
+            "sources and inductors, unconnected subcircuit ports, duplicate names, undefined "
+            "or wrong-kind models and subcircuits. Exit code 0: clean, 1: findings, "
+            "2: the netlist could not be read."
+        ),
+    )
+    parser.add_argument("netlist", metavar="FILE.cir", help="netlist to check")
+    parser.set_defaults(func=_run_check, error_exit_code=2)
+
+
+def _run_check(args: argparse.Namespace) -> int:
+    from circuitsim.netlist.topology import check_circuit
+
+    findings = check_circuit(read_netlist_reporting_warnings(args.netlist))
+    for finding in findings:
+        print(f"{args.netlist}: {finding.kind}: {finding.message}")
+    if not findings:
+        print(f"{args.netlist}: no findings")
+        return 0
+    print(f"{len(findings)} finding(s)", file=sys.stderr)
+    return 1
+
+
+def _add_simulate(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "simulate",
+        help="run a netlist's .tran (or .op) with our MNA engine or ngspice",
+        description=(
+            "Simulate FILE.cir: its first .tran, or its .op if it has no .tran, with the "
+            "built-in MNA engine (default) or ngspice. Writes every node voltage and every "
+            "voltage-source current (or only --probe signals) on the engine's own time points."
+        ),
+    )
+    parser.add_argument("netlist", metavar="FILE.cir", help="netlist to simulate")
+    parser.add_argument("--engine", choices=("builtin", "ngspice"), default="builtin")
+    parser.add_argument("--csv", metavar="FILE", help="write time,v(node),...,i(vsource),...")
+    parser.add_argument("--plot", metavar="FILE", help="save a figure (.png, .pdf, .svg)")
+    parser.add_argument(
+        "--probe", nargs="+", metavar="SIGNAL", help="only these signals, e.g. v(out) i(v1)"
+    )
+    parser.set_defaults(func=_run_simulate)
+
+
+def _run_simulate(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from circuitsim.netlist.reader import read_netlist
+
+    if args.engine == "ngspice":
+        from circuitsim.interop.ngspice import run_ngspice
+
+        waves = run_ngspice(Path(args.netlist), probes=args.probe)
+    else:
+        from circuitsim.solver import simulate
+
+        waves = simulate(read_netlist(args.netlist), progress=progress)
+        if args.probe:
+            missing = [p for p in args.probe if p not in waves]
+            if missing:
+                print(
+                    f"circuitsim simulate: error: no signal {', '.join(missing)}; "
+                    f"have {', '.join(waves.names)}",
+                    file=sys.stderr,
+                )
+                return 1
+            waves = waves.select(args.probe)
+    stats = waves.stats
+    summary = f"{args.netlist}: {args.engine}, {len(waves.time)} time point(s)"
+    if "accepted" in stats:
+        summary += (
+            f", {stats['accepted']} accepted / {stats['rejected']} rejected steps, "
+            f"{stats['newton_iterations']} Newton iterations"
+        )
+    if "wall_time_s" in stats:
+        summary += f", {stats['wall_time_s']:.3g} s"
+    print(summary)
+    if args.csv:
+        waves.to_csv(args.csv)
+        print(f"wrote {args.csv}")
+    if args.plot:
+        from circuitsim.solver.plotting import plot_waveforms
+
+        plot_waveforms(waves, args.plot, title=Path(args.netlist).name)
+        print(f"wrote {args.plot}")
+    if not args.csv and not args.plot:
+        for name in waves.names:
+            print(f"  {name} = {waves[name][-1]:.6g}  (at t = {waves.time[-1]:.6g} s)")
+    return 0
+
+
+COMMANDS = [_add_convert, _add_check, _add_simulate]
