@@ -51,14 +51,16 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
         "--amplitude",
         type=float,
         metavar="A",
-        help="excitation amplitude as a lateral track displacement, m (default 0.040)",
+        help="excitation amplitude as a lateral track displacement, m (force k_y*A; default "
+        "0.040; 0 gives the free response)",
     )
     parser.add_argument(
         "--flange",
         action=argparse.BooleanOptionalAction,
         default=None,
-        help="switch the piecewise-linear terms (wheelset: the flange force, switch S1) on or "
-        "off; default: as the model file says (wheelset: on)",
+        help="switch the piecewise-linear terms (the wheelset: flange force F_t, switch S1) on "
+        "or off; default: as the model file says, which for the wheelset is ON (the paper's "
+        "Fig. 4/6 are about the flange)",
     )
     parser.add_argument(
         "--param",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from circuitsim.cli.common import add_model_options, parameter_assignment, scenario_system
+from circuitsim.cli.common import add_model_options, add_scenario_options, scenario_system
 
 
 def _add_stability(sub: argparse._SubParsersAction) -> None:
@@ -103,25 +103,7 @@ def _add_ode(sub: argparse._SubParsersAction) -> None:
         ),
     )
     add_model_options(parser)
-    parser.add_argument("--speed", type=float, metavar="V", help="forward speed, m/s (default 55)")
-    parser.add_argument(
-        "--freq", type=float, metavar="F", help="excitation frequency, Hz (default 3)"
-    )
-    parser.add_argument(
-        "--amplitude",
-        type=float,
-        metavar="A",
-        help="excitation amplitude as a lateral track displacement, m (force k_y*A; default "
-        "0.040; 0 gives the free response)",
-    )
-    parser.add_argument(
-        "--flange",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="switch the piecewise-linear terms (the wheelset: flange force F_t, switch S1) on "
-        "or off; default: as the model file says, which for the wheelset is ON (the paper's "
-        "Fig. 4/6 are about the flange)",
-    )
+    add_scenario_options(parser)
     parser.add_argument(
         "--tstop", type=float, default=5.0, metavar="T", help="end time, s (default 5)"
     )
@@ -130,14 +112,6 @@ def _add_ode(sub: argparse._SubParsersAction) -> None:
         type=float,
         metavar="Y",
         help="initial lateral displacement, m (default 0; other states start at 0)",
-    )
-    parser.add_argument(
-        "--param",
-        type=parameter_assignment,
-        action="append",
-        default=[],
-        metavar="NAME=VALUE",
-        help="set any model parameter in its SI unit (repeatable), e.g. --param eta=0.01",
     )
     parser.add_argument(
         "--rtol",
