@@ -96,7 +96,7 @@ class PortSolver:
         self.rebuilds += 1
         shifted = ports.stamped(self.base, g_ref)
         self.lu = factor(shifted)
-        self.shifted = shifted if isinstance(shifted, np.ndarray) else shifted.tocsr()
+        self.shifted = shifted  # CSC products are as cheap as CSR ones
         self.g_ref = g_ref.copy()
         self.z = np.asarray(self.lu.solve(ports.w)).reshape(ports.w.shape)
         self.k = ports.wt @ self.z
