@@ -252,12 +252,6 @@ def _add_reproduce(sub: argparse._SubParsersAction) -> None:
         "--series", action="append", choices=("exact", "E96"), help="repeatable; default both"
     )
     parser.add_argument("--workers", type=int, metavar="N", help="processes (default: every core)")
-    parser.add_argument(
-        "--all",
-        action="store_true",
-        help="also run what a default run skips for time (our solver on the 12 TL074 circuits: "
-        "a few minutes)",
-    )
     parser.set_defaults(func=_run_reproduce)
 
 
@@ -271,7 +265,6 @@ def _run_reproduce(args: argparse.Namespace) -> int:
         series=tuple(args.series or SERIES),
         engines=tuple(args.engine or ("builtin", "ngspice")),
         workers=args.workers,
-        skip={} if args.all else None,
     )
     done = [r for r in result.rows if r.comparison is not None]
     passed = sum(r.comparison.passed for r in done)

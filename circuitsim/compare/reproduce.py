@@ -34,14 +34,6 @@ OPAMPS = ("ideal", "tl074")
 SERIES = ("exact", "E96")
 FREE_SPEEDS = (54.0, 57.0)
 
-#: (engine, op-amp) pairs left out of a default run, with the reason the report prints. Our
-#: solver runs the ideal circuits in seconds, but each TL074 macromodel circuit takes 25-65 s
-#: here (an ``--all`` run took 330 s on two cores; docs/validation.md): beyond the run's
-#: two-minute budget. ``reproduce(..., skip={})`` (``circuitsim reproduce --all``) runs them.
-DEFAULT_SKIP = {
-    ("builtin", "tl074"): "skipped: too slow for the time budget (`--all` runs it)",
-}
-
 
 @dataclass(frozen=True)
 class Scenario:
@@ -281,7 +273,8 @@ def reproduce(
     n_points : int
         Common-grid points of each comparison.
     skip : dict of (engine, op-amp) to str, optional
-        Pairs not run, each reported with its reason (default :data:`DEFAULT_SKIP`).
+        Pairs not run, each reported with its reason (default: none; a full run takes about
+        a minute on two cores, docs/validation.md).
 
     Returns
     -------
@@ -308,7 +301,7 @@ def reproduce(
     figures: dict[str, str] = {}
 
     # Jobs, longest first so that two workers finish together.
-    skip = DEFAULT_SKIP if skip is None else skip
+    skip = {} if skip is None else skip
     jobs, skipped = [], []
     writer = next((e for e in engines if available[e] is None), engines[0] if engines else None)
     order = sorted(engines, key=lambda e: e != "builtin")
