@@ -11,20 +11,23 @@ def plot_waveforms(waves: Waveforms, path: str | os.PathLike, title: str = "") -
     """Save a PNG/PDF/SVG (by ``path``'s suffix) of every signal in ``waves`` against time.
 
     Voltages (``v(...)``) share the top panel, currents (``i(...)``) the bottom one; a panel
-    with no signals is left out.
+    with no signals is left out. Signals inside subcircuit instances (names with a dot, such
+    as ``v(xu1a.mid)``) are left out when top-level ones exist: a macromodel's internals would
+    bury the circuit's own traces. Legends go beside the panels.
     """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    names = [n for n in waves.names if "." not in n] or waves.names
     groups = [
-        ("voltage (V)", [n for n in waves.names if n.startswith("v(")]),
-        ("current (A)", [n for n in waves.names if not n.startswith("v(")]),
+        ("voltage (V)", [n for n in names if n.startswith("v(")]),
+        ("current (A)", [n for n in names if not n.startswith("v(")]),
     ]
     groups = [g for g in groups if g[1]]
     fig, axes = plt.subplots(
-        len(groups) or 1, 1, sharex=True, figsize=(8, 3 * max(len(groups), 1)), squeeze=False
+        len(groups) or 1, 1, sharex=True, figsize=(10, 3.5 * max(len(groups), 1)), squeeze=False
     )
     for ax, (label, names) in zip(axes[:, 0], groups, strict=False):
         for name in names:
@@ -33,10 +36,15 @@ def plot_waveforms(waves: Waveforms, path: str | os.PathLike, title: str = "") -
             )
         ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize="small", loc="best")
+        ax.legend(
+            fontsize="x-small",
+            loc="upper left",
+            bbox_to_anchor=(1.01, 1.0),
+            ncol=1 + len(names) // 14,
+            frameon=False,
+        )
     axes[-1, 0].set_xlabel("time (s)")
     if title:
         axes[0, 0].set_title(title)
-    fig.tight_layout()
-    fig.savefig(path)
+    fig.savefig(path, bbox_inches="tight")
     plt.close(fig)
