@@ -192,20 +192,17 @@ def add_dead_zone(
     s1, o1, h1 = f"{n}_s1", f"{n}_o1", f"{n}_h1"
     s2, o2, h2 = f"{n}_s2", f"{n}_o2", f"{n}_h2"
     s3 = f"{n}_s3"
-    circuit.add(
-        Resistor(f"R{p}_1", input_node, s1, r),
-        Resistor(f"R{p}_2", minus, s1, r_bias),
-        Resistor(f"R{p}_3", s1, h1, r),
-    )
-    circuit.add(*_half_wave_diodes(p, 1, s1, o1, h1, diode, "max"))
-    add_opamp(circuit, opamps[0], "0", s1, o1, kind)
-    circuit.add(
-        Resistor(f"R{p}_4", input_node, s2, r),
-        Resistor(f"R{p}_5", plus, s2, r_bias),
-        Resistor(f"R{p}_6", s2, h2, r),
-    )
-    circuit.add(*_half_wave_diodes(p, 3, s2, o2, h2, diode, "min"))
-    add_opamp(circuit, opamps[1], "0", s2, o2, kind)
+    # Two mirrored biased half-wave stages: the first passes what exceeds +eta, the second
+    # what falls below -eta (bias from the opposite supply rail).
+    stages = ((1, minus, (s1, o1, h1), "max", opamps[0]), (4, plus, (s2, o2, h2), "min", opamps[1]))
+    for first, rail, (s, o, h), side, section in stages:
+        circuit.add(
+            Resistor(f"R{p}_{first}", input_node, s, r),
+            Resistor(f"R{p}_{first + 1}", rail, s, r_bias),
+            Resistor(f"R{p}_{first + 2}", s, h, r),
+        )
+        circuit.add(*_half_wave_diodes(p, 1 + 2 * (first > 1), s, o, h, diode, side))
+        add_opamp(circuit, section, "0", s, o, kind)
     circuit.add(
         Resistor(f"R{p}_7", h1, s3, r),
         Resistor(f"R{p}_8", h2, s3, r),
