@@ -17,6 +17,7 @@ import numpy as np
 
 from circuitsim.netlist.circuit import Circuit, Expression, SubcircuitCall
 from circuitsim.solver.dc import operating_point_solution
+from circuitsim.solver.errors import CircuitInputError
 from circuitsim.solver.options import SimulationOptions
 from circuitsim.solver.system import MnaSystem
 from circuitsim.solver.threads import single_threaded_blas
@@ -103,12 +104,30 @@ def transient(
     started = _time.perf_counter()
     system = build_system(circuit, options)
     stats: dict = {"analysis": "tran", "newton_iterations": 0}
+    runner = _transient_runner(system, stats)
     with single_threaded_blas():
-        times, solutions = run_transient(
+        times, solutions = runner(
             system, tstep, tstop, tstart, tmax, uic, progress=progress, stats=stats
         )
     stats["wall_time_s"] = _time.perf_counter() - started
     return _waveforms(system, times, solutions, stats)
+
+
+def _transient_runner(system: MnaSystem, stats: dict):
+    """The compiled kernel or the reference loop, as ``system.options.kernel`` asks."""
+    choice = system.options.kernel
+    if choice == "python":
+        stats["kernel"] = "python"
+        return run_transient
+    from circuitsim.solver.compiled import kernel_unavailable, run_compiled
+
+    reason = kernel_unavailable(system)
+    if reason is None:
+        return run_compiled
+    if choice == "compiled":
+        raise CircuitInputError(f"option kernel=compiled: {reason}")
+    stats["kernel"] = f"python ({reason})"
+    return run_transient
 
 
 def simulate(

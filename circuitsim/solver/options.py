@@ -9,6 +9,7 @@ from circuitsim.netlist.circuit import Circuit, Expression
 from circuitsim.solver.errors import CircuitInputError
 
 METHODS = ("trap", "gear")
+KERNELS = ("auto", "compiled", "python")
 
 
 @dataclass
@@ -59,6 +60,11 @@ class SimulationOptions:
         (SPICE's device bypass; then an iteration in which every junction is bypassed costs no
         solve). 0 (default, as ngspice 39 behaves: its step sequences on the golden netlists
         are those without bypass) evaluates every junction at every iteration.
+    kernel : str
+        Which transient loop runs: ``"compiled"`` (numba, solver/compiled/; an error if the
+        circuit or the machine does not allow it), ``"python"`` (the reference engine,
+        solver/transient.py) or ``"auto"`` (default: compiled when numba is installed and
+        the circuit is supported, else python; ``Waveforms.stats["kernel"]`` says which ran).
     """
 
     reltol: float = 1e-3
@@ -77,6 +83,7 @@ class SimulationOptions:
     dense_limit: int = 150
     max_steps: int = 2_000_000
     bypass: int = 0
+    kernel: str = "auto"
 
     def __post_init__(self) -> None:
         self.method = str(self.method).lower()
@@ -94,6 +101,10 @@ class SimulationOptions:
         if self.maxord not in (1, 2):
             # Gear orders above 2 are not implemented; ngspice accepts up to 6.
             self.maxord = max(1, min(int(self.maxord), 2))
+        if self.kernel not in KERNELS:
+            raise CircuitInputError(
+                f"option kernel={self.kernel!r}: expected one of {', '.join(KERNELS)}"
+            )
         if self.fixed_step is not None and not self.fixed_step > 0:
             raise CircuitInputError(f"fixed_step={self.fixed_step!r} must be > 0")
 
@@ -104,7 +115,7 @@ class SimulationOptions:
         values: dict = {}
         for key, raw in circuit.options.items():
             key = key.lower()
-            if key not in known or key in ("fixed_step", "dense_limit", "max_steps"):
+            if key not in known or key in ("fixed_step", "dense_limit", "max_steps", "kernel"):
                 continue
             values[key] = _option_value(key, raw, known[key].type)
         values.update(overrides)

@@ -140,6 +140,23 @@ class DeviceFamily:
         """The time point is accepted; True if a discontinuity happened (switch toggled)."""
         return False
 
+    # --- compiled transient kernel (solver/compiled/) ----------------------------------------
+
+    def kernel_data(self) -> dict | None:
+        """What the compiled transient kernel needs of this family, as arrays.
+
+        A family whose every stamp is constant or a linear charge needs nothing beyond what
+        the assembled system holds: ``{"kind": "linear"}`` (the default for such families).
+        Families with time-dependent sources, junctions or switches describe their elements
+        under ``"kind"`` ``"sources"``, ``"junctions"`` or ``"switches"`` (see
+        solver/compiled/plan.py for the keys). None: the kernel cannot simulate this family
+        and the reference engine runs instead.
+        """
+        cls = type(self)
+        if self.nonlinear or self.discrete or cls.source_rhs is not DeviceFamily.source_rhs:
+            return None
+        return {"kind": "linear"}
+
 
 def number(value, owner: str, what: str) -> float:
     """``value`` as a float, or a clear error naming the element and quantity."""

@@ -96,6 +96,39 @@ class SourceValues:
             out[keep_dc] = self.dc[keep_dc]
         return out
 
+    def kernel_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[np.ndarray]]:
+        """The sources as the compiled kernel reads them (solver/compiled/devices.py).
+
+        Returns
+        -------
+        kind : ndarray of int, shape (m,)
+            0 DC, 1 SIN, 2 PULSE, 3 PWL.
+        par : ndarray, shape (m, 8)
+            SIN: offset, amplitude, angular frequency (rad/s), delay (s), damping (1/s),
+            phase (rad). PULSE: initial, pulsed, delay, rise, fall, width, period (s).
+        dc : ndarray, shape (m,)
+        pwl : list of ndarray, shape (2, k) each
+            (times, values) of each source, empty for non-PWL sources.
+        """
+        m = self.size
+        kind = np.zeros(m, dtype=np.int64)
+        par = np.zeros((m, 8))
+        s = self.sin
+        for j, i in enumerate(self.sin_index):
+            kind[i] = 1
+            par[i, :6] = (s["offset"][j], s["amplitude"][j], self._omega[j], s["delay"][j],
+                          s["damping"][j], self._phase[j])
+        pu = self.pulse
+        for j, i in enumerate(self.pulse_index):
+            kind[i] = 2
+            par[i, :7] = (pu["initial"][j], pu["pulsed"][j], pu["delay"][j], self.rise[j],
+                          self.fall[j], self.width[j], self.period[j])
+        pwl = [np.zeros((2, 0)) for _ in range(m)]
+        for i, t, v in self.pwl:
+            kind[i] = 3
+            pwl[i] = np.stack([t, v])
+        return kind, par, self.dc.copy(), pwl
+
     def _pulse(self, time: float) -> np.ndarray:
         pu = self.pulse
         v1, v2 = pu["initial"], pu["pulsed"]

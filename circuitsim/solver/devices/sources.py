@@ -48,6 +48,12 @@ class VoltageSourceFamily(DeviceFamily):
     def breakpoints(self, tstop: float) -> np.ndarray:
         return self.values.breakpoints(tstop)
 
+    def kernel_data(self) -> dict:
+        none = np.full(self.branch.size, -1)
+        rows = np.stack([self.branch, none], axis=1)
+        signs = np.tile([1.0, 0.0], (self.branch.size, 1))
+        return {"kind": "sources", "values": self.values, "rows": rows, "signs": signs}
+
 
 class CurrentSourceFamily(DeviceFamily):
     """All I sources: current I(t) leaves n+ through the source and enters n-."""
@@ -58,6 +64,7 @@ class CurrentSourceFamily(DeviceFamily):
         super().__init__(elements, circuit, layout, options)
         p = layout.nodes([e.positive for e in elements])
         n = layout.nodes([e.negative for e in elements])
+        self.terminals = np.stack([p, n], axis=1)
         self.rows = VectorPattern(np.stack([p, n]))
         self.values = SourceValues(elements)
 
@@ -70,3 +77,7 @@ class CurrentSourceFamily(DeviceFamily):
 
     def breakpoints(self, tstop: float) -> np.ndarray:
         return self.values.breakpoints(tstop)
+
+    def kernel_data(self) -> dict:
+        signs = np.tile([-1.0, 1.0], (self.terminals.shape[0], 1))
+        return {"kind": "sources", "values": self.values, "rows": self.terminals, "signs": signs}

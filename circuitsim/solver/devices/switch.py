@@ -49,6 +49,7 @@ class SwitchFamily(DeviceFamily):
         self.g_on, self.g_off = 1.0 / par["ron"], 1.0 / par["roff"]
         p = layout.nodes([e.positive for e in elements])
         n = layout.nodes([e.negative for e in elements])
+        self.terminals = (p, n)
         self.cp = layout.nodes([e.control_positive for e in elements])
         self.cn = layout.nodes([e.control_negative for e in elements])
         self.pattern = two_terminal_pattern(p, n)
@@ -111,3 +112,17 @@ class SwitchFamily(DeviceFamily):
             return False
         self.accepted = self.state.copy()
         return True
+
+    def kernel_data(self) -> dict:
+        p, n = self.terminals
+        m = p.size
+        return {
+            "kind": "switches",
+            "nodes": np.stack([p, n, self.cp, self.cn], axis=1),
+            "approach": np.stack(
+                [self.on_above, self.off_below, np.full(m, APPROACH_FRACTION),
+                 np.full(m, APPROACH_FLOOR)], axis=1),
+            "g": np.stack([self.g_on, self.g_off], axis=1),
+            "accepted": self.accepted,
+            "state": self.state,
+        }

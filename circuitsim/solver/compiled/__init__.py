@@ -1,0 +1,157 @@
+"""The compiled transient kernel: the reference engine's algorithm, run by numba.
+
+:func:`run_compiled` has the signature and results of
+:func:`circuitsim.solver.transient.run_transient`. The operating point is still solved by the
+reference engine (dc.py); the time loop, Newton and device evaluations run compiled
+(transient.py, newton.py, devices.py here), on one factorization of the base matrix updated at
+low rank (lowrank.py). The reference engine stays the specification: tests run both on the same
+circuits (tests/solver/test_compiled_kernel.py). Which circuits the kernel takes: see
+:func:`plan.unsupported`; ``SimulationOptions.kernel`` chooses (``auto``, ``compiled``,
+``python``).
+
+numba compiles the kernel on first use and caches the machine code next to these files
+(``__pycache__``), so later processes load it in a fraction of a second.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from circuitsim.solver.compiled.plan import build_plan, initial_state, unsupported
+from circuitsim.solver.dc import initial_condition_solution, operating_point_solution
+from circuitsim.solver.errors import CircuitInputError, ConvergenceError, SingularMatrixError
+from circuitsim.solver.linalg import SingularPivot, factor
+from circuitsim.solver.system import MnaSystem
+
+__all__ = ["kernel_unavailable", "run_compiled"]
+
+
+def kernel_unavailable(system: MnaSystem) -> str | None:
+    """Why the compiled kernel cannot run ``system`` (numba missing, unsupported device,
+    too large), or None."""
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return "numba is not installed"
+    return unsupported(system)
+
+
+def run_compiled(
+    system: MnaSystem,
+    tstep: float,
+    tstop: float,
+    tstart: float = 0.0,
+    tmax: float | None = None,
+    uic: bool = False,
+    progress: Callable[[str], None] | None = None,
+    stats: dict | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`~circuitsim.solver.transient.run_transient`, compiled.
+
+    Returns
+    -------
+    times : ndarray, shape (m,)
+        Accepted time points >= tstart, seconds.
+    solutions : ndarray, shape (m, n)
+    """
+    from circuitsim.solver.compiled import newton as nw
+    from circuitsim.solver.compiled import transient as tr
+
+    if not (tstep > 0 and tstop > 0 and 0 <= tstart < tstop):
+        raise CircuitInputError(
+            f".tran {tstep:g} {tstop:g} {tstart:g}: need tstep > 0 and 0 <= tstart < tstop"
+        )
+    if tmax is not None and not tmax > 0:
+        raise CircuitInputError(f".tran tmax {tmax:g} must be > 0")
+    options = system.options
+    stats = stats if stats is not None else {}
+    stats.update(accepted=0, rejected=0, newton_iterations=stats.get("newton_iterations", 0))
+    fixed = options.fixed_step
+    max_step = tmax if tmax else min(tstep, (tstop - tstart) / 50)
+    min_step = 1e-11 * max_step
+    for family in system.families:
+        family.set_timing(tstep, tstop)
+    corners = [family.breakpoints(tstop) for family in system.families]
+    breaks = np.unique(np.concatenate([*corners, [tstop]]))
+    breaks = breaks[breaks > min_step]
+    if uic:
+        x, ctx0 = initial_condition_solution(system)
+    else:
+        x, ctx0 = operating_point_solution(system, dc_op=False, clamp_ic=True, stats=stats)
+
+    plan, families = build_plan(system, breaks, tstop, max_step, min_step)
+    capacity = int(min(max(2 * (tstop / (fixed or max_step)) + 100, 1000), 5_000_000))
+    st = initial_state(plan, families, x, ctx0.q.copy(), capacity)
+    st.fs[nw.H] = fixed if fixed else min(tstop / 100, tstep) / 10
+    st.fs[nw.SAVED_H] = tstop / 50
+    step = fixed or max_step
+    a0_start = (2.0 if options.method == "trap" else 1.5) / step
+    report_every = tstop / 10
+    t_until = report_every if progress is not None else np.inf
+    try:
+        nw.factor_now(plan, st, a0_start)
+        while True:
+            status = tr.run(plan, st, t_until)
+            if status == tr.FULL:
+                st = _grown(st)
+            elif status == tr.PAUSED:
+                progress(
+                    f"transient: t = {st.fs[nw.T]:.4g} s of {tstop:.4g} s, "
+                    f"{st.ints[nw.ACCEPTED]} steps"
+                )
+                t_until += report_every
+            else:
+                break
+    except np.linalg.LinAlgError:
+        raise SingularMatrixError(system.describe_singular(_singular_row(st.fac[0]))) from None
+    finally:
+        stats["accepted"] = int(st.ints[nw.ACCEPTED])
+        stats["rejected"] = int(st.ints[nw.REJECTED])
+        stats["newton_iterations"] += int(st.ints[nw.NEWTON])
+        stats["kernel"] = "compiled"
+        system.factorizations += int(st.ints[nw.FACTORIZATIONS])
+    if status != tr.FINISHED:
+        raise _failure(system, st, status, options.max_steps)
+    count = int(st.ints[nw.COUNT])
+    out_t, out_x = st.out_t[:count], st.out_x[:count]
+    keep = out_t >= tstart - min_step
+    return out_t[keep].copy(), out_x[keep].copy()
+
+
+def _singular_row(matrix: np.ndarray) -> int | None:
+    """The unknown whose pivot vanishes in the matrix the kernel failed to invert."""
+    try:
+        factor(matrix.copy())
+    except SingularPivot as exc:
+        return exc.index
+    return None
+
+
+def _grown(st):
+    """The state with twice the output capacity."""
+    size = st.out_t.size
+    out_t = np.zeros(2 * size)
+    out_t[:size] = st.out_t
+    out_x = np.zeros((2 * size, st.out_x.shape[1]))
+    out_x[:size] = st.out_x
+    return st._replace(out_t=out_t, out_x=out_x)
+
+
+def _failure(system: MnaSystem, st, status: int, max_steps: int) -> ConvergenceError:
+    from circuitsim.solver.compiled import newton as nw
+    from circuitsim.solver.compiled import transient as tr
+
+    messages = {
+        tr.NEWTON_FAILED_FIXED: "Newton failed at the fixed step",
+        tr.STEP_TOO_SMALL: "time step too small",
+        tr.STEP_TOO_SMALL_LTE: "time step too small (truncation error)",
+        tr.TOO_MANY_STEPS: f"more than {max_steps} time steps attempted",
+    }
+    t, h = float(st.fs[nw.T]), float(st.fs[nw.H])
+    node = None
+    if status != tr.TOO_MANY_STEPS and np.all(np.isfinite(st.fail_x)):
+        node = system.worst_unknown(st.fail_x, st.fail_prev)
+    time = t if status == tr.TOO_MANY_STEPS else t + h
+    return ConvergenceError(messages[status], time=time, step=h, node=node)

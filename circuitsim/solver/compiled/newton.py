@@ -1,0 +1,280 @@
+"""Compiled Newton iteration of one time point, at the junction ports (see lowrank.py).
+
+The same iterates and convergence test as the reference engine's ``_newton_at_ports``
+(solver/newton.py): switch states re-decided against the accepted state at the first
+iteration, junctions limited with pnjlim against the accepted junction voltage at the first
+iteration and the last linearization afterwards, convergence when nothing was limited or
+toggled, every unknown is within reltol/vntol/abstol of the previous iterate and every
+junction passes SPICE's current check; a solution that may be accepted (and every solution
+from the third iteration on) is checked by one refinement step against the full matrix.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from circuitsim.solver.compiled.devices import junction_charge, junction_current, pnjlim
+from circuitsim.solver.compiled.lowrank import (
+    active_columns,
+    add_u_columns,
+    csr_matvec,
+    rebuild,
+    refine,
+    update,
+)
+
+REFINE_FRACTION = 1e-3  # as port_solver.REFINE_FRACTION
+
+# indices into KernelState.fs (floats) and .ints
+T, H, SAVED_H, LAST_A0 = 0, 1, 2, 3
+ORDER, AT_BREAK, FIRST, BI, ATTEMPTS, ACCEPTED, REJECTED, NEWTON, FACTORIZATIONS = range(9)
+NHIST, COUNT, SAME_A0, VERSION = 9, 10, 11, 12
+
+
+@njit(cache=True)
+def extend(x, x_ext):
+    """x_ext[:n] = x, x_ext[n] = 0 (ground, reached by node index -1)."""
+    x_ext[: x.size] = x
+    x_ext[x.size] = 0.0
+
+
+@njit(cache=True)
+def port_values(gd, g_switch, state, r, a0):
+    """The present port values (junction g, switch g, a0 per charge), shape (r,)."""
+    md, ms = gd.size, state.size
+    values = np.empty(r)
+    values[:md] = gd
+    for k in range(ms):
+        values[md + k] = g_switch[k, 0] if state[k] else g_switch[k, 1]
+    values[md + ms :] = a0
+    return values
+
+
+@njit(cache=True)
+def factor_now(plan, st, a0):
+    """Refactor at the present values and bump the factorization version."""
+    values = port_values(st.gd, plan.g_switch, st.state, plan.VT.shape[0], a0)
+    rebuild(st.fac, plan, a0, values)
+    st.ints[FACTORIZATIONS] += 1
+    st.ints[VERSION] += 1
+
+
+@njit(cache=True)
+def load_junctions(
+    jp,
+    cp,
+    jslot,
+    has_charge,
+    port_p,
+    port_n,
+    vd_accepted,
+    vd_,
+    cd_,
+    gd_,
+    ieq,
+    x_ext,
+    a0,
+    hist,
+    q,
+    qdot,
+    first,
+) -> int:
+    """Linearize every junction at x (DiodeFamily.port_load); returns 1 if one was limited."""
+    limited = 0
+    for k in range(jp.shape[0]):
+        v = x_ext[port_p[k]] - x_ext[port_n[k]]
+        vold = vd_accepted[k] if first else vd_[k]
+        vd = v
+        if abs(v - vold) > jp[k, 9]:
+            vd, was = pnjlim(v, vold, jp[k, 1], jp[k, 8])
+            if was:
+                limited = 1
+        cd, gd = junction_current(vd, k, jp)
+        if has_charge:
+            qk, ck = junction_charge(vd, cd, gd, k, cp)
+            slot = jslot[k]
+            icap = a0 * qk + hist[slot]
+            q[slot] = qk
+            qdot[slot] = icap
+            cd += icap
+            gd += a0 * ck
+        vd_[k], cd_[k], gd_[k] = vd, cd, gd
+        ieq[k] = cd - gd * vd
+    return limited
+
+
+@njit(cache=True)
+def update_switches(sw, approach, state, accepted, x_ext, first) -> int:
+    """Re-decide switch states (SwitchFamily.update_state); returns 1 if one changed."""
+    changed = 0
+    for k in range(sw.shape[0]):
+        vc = x_ext[sw[k, 2]] - x_ext[sw[k, 3]]
+        keep = accepted[k] if first else state[k]
+        new = (keep or vc > approach[k, 0]) and vc >= approach[k, 1]
+        if new != state[k]:
+            state[k] = new
+            changed = 1
+    return changed
+
+
+@njit(cache=True)
+def ports_converged(port_p, port_n, vd, cd, gd, x_ext, reltol, abstol) -> bool:
+    """SPICE's junction current check at the new iterate (DiodeFamily.port_converged)."""
+    for k in range(vd.size):
+        v = x_ext[port_p[k]] - x_ext[port_n[k]]
+        delta = gd[k] * (v - vd[k])
+        tol = reltol * max(abs(cd[k] + delta), abs(cd[k]))
+        if abs(delta) > tol + abstol:
+            return False
+    return True
+
+
+@njit(cache=True)
+def close(x_new, x_old, reltol, abs_tol) -> bool:
+    """Every unknown within reltol * max(|new|, |old|) + vntol/abstol (MnaSystem.close)."""
+    for i in range(x_new.size):
+        if abs(x_new[i] - x_old[i]) > reltol * max(abs(x_new[i]), abs(x_old[i])) + abs_tol[i]:
+            return False
+    return True
+
+
+@njit(cache=True)
+def thin_product(A, v, out):
+    """out -= A v; BLAS for wide A, a loop for a few columns (a BLAS call costs ~0.3 us)."""
+    if A.shape[1] >= 16:
+        out -= np.dot(A, v)
+        return
+    for i in range(A.shape[0]):
+        acc = 0.0
+        for j in range(A.shape[1]):
+            acc += A[i, j] * v[j]
+        out[i] -= acc
+
+
+@njit(cache=True)
+def solve_ports(y0, c0, ieq, d, K, ZT, Zd, Kd):
+    """The solution at the present linearization: Woodbury on the present factorization.
+
+    d : the port values' change since the factorization, shape (r,).
+    """
+    y = y0.copy()
+    c = c0.copy()
+    if ieq.size:
+        thin_product(Zd, ieq, y)
+        thin_product(Kd, ieq, c)
+    return update(y, c, d, K, ZT, active_columns(d, K))
+
+
+@njit(cache=True)
+def newton(plan, st, x0, a0, hist, rhs0, q, qdot):
+    """Newton at one time point. Returns (converged, iterations, x, x_previous)."""
+    reltol, abstol = plan.real[0], plan.real[1]
+    itl4 = plan.ints[2]
+    jp, cp, jslot, has_charge = plan.jp, plan.cp, plan.jslot, plan.has_charge
+    port_p, port_n, abs_tol = plan.port_p, plan.port_n, plan.abs_tol
+    sw, approach, g_switch = plan.sw, plan.approach, plan.g_switch
+    vt = (plan.VT_ptr, plan.VT_idx, plan.VT_val)
+    ut = (plan.UT_ptr, plan.UT_idx, plan.UT_val)
+    r = plan.VT.shape[0]
+    vd_accepted, vd, cd, gd, ieq = st.vd_accepted, st.vd, st.cd, st.gd, st.ieq
+    state, accepted = st.state, st.accepted
+    ms = sw.shape[0]
+    n = x0.size
+    x = x0.copy()
+    x_prev = x0.copy()
+    x_ext = np.empty(n + 1)
+    extend(x, x_ext)
+    version = -1
+    y0 = st.y0
+    c0 = st.c0
+    for iteration in range(1, itl4 + 1):
+        first = iteration == 1
+        noncon = 0
+        if ms:
+            noncon += update_switches(sw, approach, state, accepted, x_ext, first)
+        noncon += load_junctions(
+            jp,
+            cp,
+            jslot,
+            has_charge,
+            port_p,
+            port_n,
+            vd_accepted,
+            vd,
+            cd,
+            gd,
+            ieq,
+            x_ext,
+            a0,
+            hist,
+            q,
+            qdot,
+            first,
+        )
+        fac = st.fac
+        if version != st.ints[VERSION]:  # y0 = B^-1 rhs0 for the present factorization
+            y0[:] = np.dot(fac[1], rhs0)
+            csr_matvec(vt[0], vt[1], vt[2], y0, c0)
+            version = st.ints[VERSION]
+        d = port_values(gd, g_switch, state, r, a0) - fac[4]
+        x_new, ok = solve_ports(y0, c0, ieq, d, fac[3], fac[10], fac[5], fac[6])
+        checked = False
+        if not ok or not np.all(np.isfinite(x_new)):
+            factor_now(plan, st, a0)
+            fac = st.fac
+            y0[:] = np.dot(fac[1], rhs0)
+            csr_matvec(vt[0], vt[1], vt[2], y0, c0)
+            version = st.ints[VERSION]
+            d = port_values(gd, g_switch, state, r, a0) - fac[4]
+            x_new, ok = solve_ports(y0, c0, ieq, d, fac[3], fac[10], fac[5], fac[6])
+            checked = True
+        if not ok or not np.all(np.isfinite(x_new)):
+            return False, iteration, x_new, x
+        x_new_ext = np.empty(n + 1)
+        extend(x_new, x_new_ext)
+        done = (
+            noncon == 0
+            and iteration > 1
+            and close(x_new, x, reltol, abs_tol)
+            and ports_converged(port_p, port_n, vd, cd, gd, x_new_ext, reltol, abstol)
+        )
+        if (done or iteration > 2) and not checked:
+            tol = reltol * np.abs(x_new) + abs_tol
+            rhs = add_u_columns(ut, -ieq, 0, rhs0.copy())  # rhs0 - W ieq
+            refined, good = refine(
+                fac[7],
+                fac[8],
+                fac[9],
+                fac[1],
+                fac[3],
+                fac[10],
+                vt,
+                ut,
+                x_new,
+                d,
+                rhs,
+                tol,
+                REFINE_FRACTION,
+            )
+            if not good:
+                factor_now(plan, st, a0)
+                fac = st.fac
+                y0[:] = np.dot(fac[1], rhs0)
+                csr_matvec(vt[0], vt[1], vt[2], y0, c0)
+                version = st.ints[VERSION]
+                d = port_values(gd, g_switch, state, r, a0) - fac[4]
+                refined, ok = solve_ports(y0, c0, ieq, d, fac[3], fac[10], fac[5], fac[6])
+            x_new = refined
+            extend(x_new, x_new_ext)
+            done = (
+                done
+                and close(x_new, x, reltol, abs_tol)
+                and ports_converged(port_p, port_n, vd, cd, gd, x_new_ext, reltol, abstol)
+            )
+        x_prev = x
+        x = x_new
+        x_ext = x_new_ext
+        if done:
+            return True, iteration, x, x_prev
+    return False, itl4, x, x_prev

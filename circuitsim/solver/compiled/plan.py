@@ -1,0 +1,323 @@
+"""The arrays the compiled kernel runs on, gathered from an assembled MnaSystem.
+
+Nothing here imports numba: the plan is plain numpy, built from the system's matrices and
+from each device family's :meth:`~circuitsim.solver.devices.base.DeviceFamily.kernel_data`
+(the families describe themselves; the plan never asks which class a family is).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import scipy.sparse as sp
+
+from circuitsim.solver.integration import METHODS
+from circuitsim.solver.system import MnaSystem
+
+# columns of KernelPlan.jp (junction parameters), in DiodeFamily.kernel_data's order
+JUNCTION_PARAMS = (
+    "isat",
+    "vte",
+    "inv_vte",
+    "is_over_vte",
+    "reverse_knee",
+    "cubic_scale",
+    "three_vte",
+    "gmin",
+    "vcrit",
+    "free_step",
+)
+CHARGE_PARAMS = (
+    "knee",
+    "inv_vj",
+    "neg_m",
+    "q_scale",
+    "ext_offset",
+    "ext_quadratic",
+    "ext_slope",
+    "cjo",
+    "tt",
+)
+
+
+class KernelPlan(NamedTuple):
+    """Constant data of one transient run (shapes: n unknowns, md junctions, ms switches,
+    nl linear charges, r = md + ms + nl low-rank columns, ns sources)."""
+
+    G: np.ndarray  # (n, n) constant stamps
+    M: np.ndarray  # (n, n) E Q, the linear charges' matrix (times a0)
+    U: np.ndarray  # (n, r) low-rank columns: junction ports, switch ports, E of linear charges
+    VT: np.ndarray  # (r, n) low-rank rows: the same ports, Q of linear charges
+    VT_ptr: np.ndarray  # VT in CSR form
+    VT_idx: np.ndarray
+    VT_val: np.ndarray
+    UT_ptr: np.ndarray  # U^T in CSR form (the columns of U)
+    UT_idx: np.ndarray
+    UT_val: np.ndarray
+    port_p: np.ndarray  # (md + ms,) node of each port's + side (-1 ground)
+    port_n: np.ndarray  # (md + ms,)
+    jp: np.ndarray  # (md, 10) JUNCTION_PARAMS
+    cp: np.ndarray  # (md, 9) CHARGE_PARAMS
+    jslot: np.ndarray  # (md,) charge slot of each junction
+    has_charge: bool
+    sw: np.ndarray  # (ms, 4) p, n, control +, control - nodes
+    approach: np.ndarray  # (ms, 4) on_above, off_below (V), approach fraction, floor (V)
+    g_switch: np.ndarray  # (ms, 2) on, off conductance (S)
+    rhs_const: np.ndarray  # (n,) right-hand side of the constant (DC-only) sources
+    src_kind: np.ndarray  # (ns,) 1 SIN, 2 PULSE, 3 PWL (time-dependent sources only)
+    src_par: np.ndarray  # (ns, 8)
+    src_dc: np.ndarray  # (ns,)
+    pwl_start: np.ndarray  # (ns + 1,) offsets into pwl_t / pwl_v
+    pwl_t: np.ndarray
+    pwl_v: np.ndarray
+    src_rows: np.ndarray  # (ns, 2) rhs rows (-1: none)
+    src_signs: np.ndarray  # (ns, 2)
+    lin_slots: np.ndarray  # (nl,) charge slots of the linear charges
+    abs_tol: np.ndarray  # (n,) vntol or abstol per unknown
+    breaks: np.ndarray  # sorted breakpoints, seconds, ending with tstop
+    real: np.ndarray  # reltol abstol vntol chgtol trtol err1 err2 fixed tmax min_step tstop
+    ints: np.ndarray  # method (0 trap, 1 gear), maxord, itl4, max_steps
+
+
+class KernelState(NamedTuple):
+    """Everything the loop changes, kept between calls (see compiled/newton.py indices)."""
+
+    fs: np.ndarray
+    ints: np.ndarray
+    ht: np.ndarray  # (4,) accepted times, newest first
+    hx: np.ndarray  # (4, n) solutions there
+    hq: np.ndarray  # (4, nq) charges
+    hi: np.ndarray  # (2, nq) their derivatives
+    x_prev_ext: np.ndarray  # (n + 1,) last accepted solution with ground
+    vd: np.ndarray  # (md,) junction linearization point, current, conductance, ieq
+    cd: np.ndarray
+    gd: np.ndarray
+    ieq: np.ndarray
+    vd_accepted: np.ndarray
+    state: np.ndarray  # (ms,) switch states, bool
+    accepted: np.ndarray
+    fac: tuple  # (B, Binv, Z, K, ref, Zd, Kd), see lowrank.rebuild
+    y0: np.ndarray
+    c0: np.ndarray
+    out_t: np.ndarray
+    out_x: np.ndarray
+    fail_x: np.ndarray
+    fail_prev: np.ndarray
+
+
+def unsupported(system: MnaSystem) -> str | None:
+    """Why the kernel cannot run this system, or None when it can."""
+    if system.size > MAX_UNKNOWNS:
+        return f"{system.size} unknowns (the kernel's dense algebra stops at {MAX_UNKNOWNS})"
+    for family in system.families:
+        if family.kernel_data() is None:
+            return f"no compiled model for {type(family).__name__}"
+    parts = [f.kernel_data() for f in system.families]
+    ranks = system.linear_slots.size + sum(
+        len(p["p"]) if p["kind"] == "junctions" else len(p["nodes"])
+        for p in parts
+        if p["kind"] in ("junctions", "switches")
+    )
+    if ranks == 0:
+        return "no charges, junctions or switches (nothing for the kernel to integrate)"
+    return None
+
+
+MAX_UNKNOWNS = 600
+
+
+def _csr(name: str, matrix: np.ndarray) -> dict:
+    csr = sp.csr_matrix(matrix)
+    csr.sort_indices()
+    return {
+        f"{name}_ptr": csr.indptr.astype(np.int64),
+        f"{name}_idx": csr.indices.astype(np.int64),
+        f"{name}_val": csr.data.astype(float),
+    }
+
+
+def _dense(matrix) -> np.ndarray:
+    return np.ascontiguousarray(matrix if isinstance(matrix, np.ndarray) else matrix.toarray())
+
+
+def build_plan(
+    system: MnaSystem, breaks: np.ndarray, tstop: float, max_step: float, min_step: float
+) -> tuple[KernelPlan, dict]:
+    """The plan, and the families' present states (for the kernel's initial state)."""
+    options = system.options
+    n = system.size
+    parts = [f.kernel_data() for f in system.families]
+    junctions = [p for p in parts if p["kind"] == "junctions"]
+    switches = [p for p in parts if p["kind"] == "switches"]
+    sources = [p for p in parts if p["kind"] == "sources"]
+
+    def cat(items, key, shape, dtype=float):
+        arrays = [np.asarray(p[key], dtype=dtype) for p in items]
+        return np.concatenate(arrays) if arrays else np.zeros(shape, dtype=dtype)
+
+    jp = cat(junctions, "params", (0, len(JUNCTION_PARAMS)))
+    md = jp.shape[0]
+    has_charge = any(p["charge"] is not None for p in junctions)
+    cp = np.zeros((md, len(CHARGE_PARAMS)))
+    jslot = np.zeros(md, dtype=np.int64)
+    start = 0
+    for p in junctions:
+        m = len(p["p"])
+        if p["charge"] is not None:
+            cp[start : start + m] = p["charge"]
+            jslot[start : start + m] = p["slots"]
+        start += m
+    sw = cat(switches, "nodes", (0, 4), np.int64)
+    ms = sw.shape[0]
+    port_p = np.concatenate([cat(junctions, "p", (0,), np.int64), sw[:, 0]])
+    port_n = np.concatenate([cat(junctions, "n", (0,), np.int64), sw[:, 1]])
+
+    lin = np.asarray(system.linear_slots, dtype=np.int64)
+    E = _dense(system.E)[:, lin]
+    Q = _dense(system.Q)[lin]
+    W = np.zeros((n + 1, md + ms))
+    columns = np.arange(md + ms)
+    np.add.at(W, (port_p, columns), 1.0)
+    np.add.at(W, (port_n, columns), -1.0)
+    W = W[:n]
+    U = np.ascontiguousarray(np.concatenate([W, E], axis=1))
+    VT = np.ascontiguousarray(np.concatenate([W.T, Q], axis=0))
+
+    kinds, pars, dcs, rows, signs, pwl = [], [], [], [], [], []
+    rhs_const = np.zeros(n)
+    for p in sources:
+        kind, par, dc, tables = p["values"].kernel_arrays()
+        p_rows = np.asarray(p["rows"], dtype=np.int64)
+        p_signs = np.asarray(p["signs"], dtype=float)
+        for j in np.flatnonzero(kind == 0):  # constant: folded in once
+            for row, sign in zip(p_rows[j], p_signs[j], strict=True):
+                if row >= 0:
+                    rhs_const[row] += sign * dc[j]
+        varying = np.flatnonzero(kind != 0)
+        kinds.append(kind[varying])
+        pars.append(par[varying])
+        dcs.append(dc[varying])
+        pwl.extend(tables[j] for j in varying)
+        rows.append(p_rows[varying])
+        signs.append(p_signs[varying])
+    ns = sum(k.size for k in kinds)
+    pwl_start = np.concatenate([[0], np.cumsum([t.shape[1] for t in pwl])]).astype(np.int64)
+    method = METHODS[options.method]
+    plan = KernelPlan(
+        G=_dense(system.G),
+        M=_dense(system.M),
+        U=U,
+        VT=VT,
+        **_csr("VT", VT),
+        **_csr("UT", U.T),
+        port_p=port_p,
+        port_n=port_n,
+        jp=np.ascontiguousarray(jp),
+        cp=cp,
+        jslot=jslot,
+        has_charge=has_charge,
+        sw=np.ascontiguousarray(sw),
+        approach=np.ascontiguousarray(cat(switches, "approach", (0, 4))),
+        g_switch=np.ascontiguousarray(cat(switches, "g", (0, 2))),
+        rhs_const=rhs_const,
+        src_kind=np.concatenate(kinds) if kinds else np.zeros(0, dtype=np.int64),
+        src_par=np.concatenate(pars) if pars else np.zeros((0, 8)),
+        src_dc=np.concatenate(dcs) if dcs else np.zeros(0),
+        pwl_start=pwl_start,
+        pwl_t=np.concatenate([t[0] for t in pwl]) if pwl else np.zeros(0),
+        pwl_v=np.concatenate([t[1] for t in pwl]) if pwl else np.zeros(0),
+        src_rows=np.concatenate(rows) if rows else np.zeros((0, 2), dtype=np.int64),
+        src_signs=np.concatenate(signs) if signs else np.zeros((0, 2)),
+        lin_slots=lin,
+        abs_tol=np.asarray(system.abs_tol, dtype=float),
+        breaks=np.asarray(breaks, dtype=float),
+        real=np.array(
+            [
+                options.reltol,
+                options.abstol,
+                options.vntol,
+                options.chgtol,
+                options.trtol,
+                *method.error_constants,
+                options.fixed_step or 0.0,
+                max_step,
+                min_step,
+                tstop,
+            ]
+        ),
+        ints=np.array(
+            [0 if options.method == "trap" else 1, options.maxord, options.itl4, options.max_steps],
+            dtype=np.int64,
+        ),
+    )
+    assert ns == plan.src_kind.size
+    return plan, {"junctions": junctions, "switches": switches}
+
+
+def initial_state(
+    plan: KernelPlan, families: dict, x0: np.ndarray, q0: np.ndarray, capacity: int
+) -> KernelState:
+    """The loop's state at t = 0 from the start solution and the families' states."""
+    n, nq = x0.size, q0.size
+    md, ms, r = plan.jp.shape[0], plan.sw.shape[0], plan.VT.shape[0]
+
+    def cat(items, pick):
+        arrays = [np.asarray(pick(p), dtype=float) for p in items]
+        return np.concatenate(arrays) if arrays else np.zeros(0)
+
+    junctions, switches = families["junctions"], families["switches"]
+    vd, cd, gd = (cat(junctions, lambda p, i=i: p["state"][i]) for i in range(3))
+    state = cat(switches, lambda p: p["state"]).astype(bool) if ms else np.zeros(0, bool)
+    accepted = cat(switches, lambda p: p["accepted"]).astype(bool) if ms else np.zeros(0, bool)
+    hx = np.zeros((4, n))
+    hx[0] = x0
+    hq = np.zeros((4, nq))
+    hq[0] = q0
+    x_prev_ext = np.append(x0, 0.0)
+    out_t = np.zeros(capacity)
+    out_x = np.zeros((capacity, n))
+    out_x[0] = x0
+    fac = (
+        np.zeros((n, n)),
+        np.zeros((n, n)),
+        np.zeros((n, r)),
+        np.zeros((r, r)),
+        np.zeros(r),
+        np.zeros((n, md)),
+        np.zeros((r, md)),
+        np.zeros(n + 1, dtype=np.int64),
+        np.zeros(n * n, dtype=np.int64),
+        np.zeros(n * n),
+        np.zeros((r, n)),
+    )
+    ints = np.zeros(14, dtype=np.int64)
+    ints[0] = 1  # order
+    ints[1] = 1  # at a breakpoint (t = 0)
+    ints[2] = 1  # first step
+    ints[9] = 1  # one history point
+    ints[10] = 1  # one output point (t = 0)
+    ints[13] = -1
+    return KernelState(
+        fs=np.array([0.0, 0.0, 0.0, np.nan]),
+        ints=ints,
+        ht=np.zeros(4),
+        hx=hx,
+        hq=hq,
+        hi=np.zeros((2, nq)),
+        x_prev_ext=x_prev_ext,
+        vd=vd.copy(),
+        cd=cd.copy(),
+        gd=gd.copy(),
+        ieq=cd - gd * vd,
+        vd_accepted=cat(junctions, lambda p: p["vd_accepted"]).copy(),
+        state=state.copy(),
+        accepted=accepted.copy(),
+        fac=fac,
+        y0=np.zeros(n),
+        c0=np.zeros(r),
+        out_t=out_t,
+        out_x=out_x,
+        fail_x=np.zeros(n),
+        fail_prev=np.zeros(n),
+    )

@@ -1,0 +1,295 @@
+"""Compiled transient loop: the reference engine's step control (solver/transient.py), in numba.
+
+Same breakpoints, order changes, truncation-error rule (ngspice's CKTterr), Newton-failure
+and switch-transition handling as ``run_transient``; the differences are only in how the
+linear systems are solved (lowrank.py: one factorization, low-rank updates) and that the loop
+runs until ``t_until`` and returns, so that the caller can report progress and grow the
+output arrays. Every scalar of the loop lives in ``st.fs`` / ``st.ints`` between calls.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from circuitsim.solver.compiled.devices import source_value, switch_transition, switch_truncate
+from circuitsim.solver.compiled.lowrank import add_u_columns, csr_matvec
+from circuitsim.solver.compiled.newton import (
+    ACCEPTED,
+    AT_BREAK,
+    ATTEMPTS,
+    BI,
+    COUNT,
+    FIRST,
+    LAST_A0,
+    NEWTON,
+    NHIST,
+    ORDER,
+    REJECTED,
+    SAME_A0,
+    SAVED_H,
+    H,
+    T,
+    extend,
+    factor_now,
+    newton,
+)
+
+TRANSITION_OVERSHOOT = 0.02  # as transient.TRANSITION_OVERSHOOT
+REBASE_STEPS = 8  # refactor when this many accepted steps in a row used one new a0
+
+# return codes
+PAUSED, FINISHED, FULL = 0, 1, 2
+NEWTON_FAILED_FIXED, STEP_TOO_SMALL, STEP_TOO_SMALL_LTE, TOO_MANY_STEPS = -1, -2, -3, -4
+
+
+@njit(cache=True)
+def coefficients(method, order, h, h_prev):
+    """(a0, a1, a2, b1) of trap / Gear-2 (integration.Method.coefficients)."""
+    if order == 1:
+        return 1.0 / h, -1.0 / h, 0.0, 0.0
+    if method == 0:
+        return 2.0 / h, -2.0 / h, 0.0, -1.0
+    a0 = (2 * h + h_prev) / (h * (h + h_prev))
+    a1 = -(h + h_prev) / (h * h_prev)
+    a2 = h / (h_prev * (h + h_prev))
+    return a0, a1, a2, 0.0
+
+
+@njit(cache=True)
+def truncation_step(real, order, times, q_new, qdot_new, hq, hi):
+    """Largest step the charges allow (integration.truncation_step, ngspice's CKTterr).
+
+    ``times`` = (t_new, t_n, t_n-1, t_n-2); charges: q_new then the rows of hq, newest first;
+    their derivatives qdot_new and hi[0].
+    """
+    reltol, abstol, chgtol, trtol = real[0], real[1], real[3], real[4]
+    factor = real[5] if order == 1 else real[6]
+    t0, t1, t2 = times[0], times[1], times[2]
+    h = t0 - t1
+    step = np.inf
+    for i in range(q_new.size):
+        q0, q1, q2 = q_new[i], hq[0, i], hq[1, i]
+        d1a = (q0 - q1) * (1.0 / h)
+        d1b = (q1 - q2) * (1.0 / (t1 - t2))
+        diff = (d1a - d1b) * (1.0 / (t0 - t2))
+        if order == 2:
+            t3 = times[3]
+            d1c = (q2 - hq[2, i]) * (1.0 / (t2 - t3))
+            diff = (diff - (d1b - d1c) * (1.0 / (t1 - t3))) * (1.0 / (t0 - t3))
+        volttol = max(abs(qdot_new[i]), abs(hi[0, i])) * reltol + abstol
+        chargetol = max(max(abs(q0), abs(q1)), chgtol) * (reltol / h)
+        tol = max(volttol, chargetol)
+        denominator = max(abs(diff) * factor, abstol)
+        step = min(step, tol / denominator)
+    step *= trtol
+    return math.sqrt(step) if order == 2 else step
+
+
+@njit(cache=True, inline="always")
+def source_rhs(t, rhs_const, kind, par, dc, pwl_start, pwl_t, pwl_v, rows, signs):
+    """Right-hand side of the independent sources at time t (transient values)."""
+    rhs = rhs_const.copy()
+    for k in range(kind.size):
+        value = source_value(t, k, kind, par, dc, pwl_start, pwl_t, pwl_v)
+        for j in range(2):
+            row = rows[k, j]
+            if row >= 0:
+                rhs[row] += signs[k, j] * value
+    return rhs
+
+
+@njit(cache=True)
+def run(plan, st, t_until):
+    """Integrate from st.fs[T] until t_until (or tstop); returns a status code."""
+    real, ints = plan.real, plan.ints
+    method, maxord, max_steps = ints[0], ints[1], ints[3]
+    fixed, max_step, min_step, tstop = real[7], real[8], real[9], real[10]
+    md, ms = plan.jp.shape[0], plan.sw.shape[0]
+    nports = md + ms
+    lin = plan.lin_slots
+    n, nq = plan.G.shape[0], st.hq.shape[1]
+    fs, si = st.fs, st.ints
+    breaks = plan.breaks
+    x_ext = np.empty(n + 1)
+    vt = (plan.VT_ptr, plan.VT_idx, plan.VT_val)
+    ut = (plan.UT_ptr, plan.UT_idx, plan.UT_val)
+    while tstop - fs[T] > min_step:
+        if fs[T] >= t_until:
+            return PAUSED
+        if si[COUNT] >= st.out_t.size:
+            return FULL
+        t = fs[T]
+        while si[BI] < breaks.size - 1 and breaks[si[BI]] <= t + min_step:
+            si[BI] += 1
+        next_break = breaks[si[BI]]
+        h = fs[H]
+        order = si[ORDER]
+        if fixed > 0:
+            h = fixed
+            if si[AT_BREAK]:
+                order = 1
+        elif si[AT_BREAK]:
+            order = 1
+            h = min(h, 0.1 * min(fs[SAVED_H], next_break - t))
+            if si[FIRST]:
+                h /= 10
+        si[AT_BREAK] = 0
+        if fixed == 0:
+            h = min(h, max_step)
+        landing = False
+        if t + h >= next_break - min_step:
+            fs[SAVED_H] = h
+            h = next_break - t
+            landing = True
+
+        nh = si[NHIST]
+        while True:
+            si[ATTEMPTS] += 1
+            if si[ATTEMPTS] > max_steps:
+                fs[H] = h
+                return TOO_MANY_STEPS
+            h_prev = st.ht[0] - st.ht[1] if nh > 1 else h
+            a0, a1, a2, b1 = coefficients(method, order, h, h_prev)
+            hist = a1 * st.hq[0] + b1 * st.hi[0]
+            if a2 != 0.0:
+                hist += a2 * st.hq[1]
+            ref_a0 = st.fac[4][nports] if lin.size else a0
+            if lin.size and a0 != ref_a0 and a0 == fs[LAST_A0] and si[SAME_A0] >= REBASE_STEPS:
+                factor_now(plan, st, a0)
+            rhs0 = source_rhs(
+                t + h,
+                plan.rhs_const,
+                plan.src_kind,
+                plan.src_par,
+                plan.src_dc,
+                plan.pwl_start,
+                plan.pwl_t,
+                plan.pwl_v,
+                plan.src_rows,
+                plan.src_signs,
+            )
+            if lin.size:
+                add_u_columns(ut, -hist[lin], nports, rhs0)
+            if nh > 1:
+                x_guess = st.hx[0] + (h / h_prev) * (st.hx[0] - st.hx[1])
+            else:
+                x_guess = st.hx[0].copy()
+            q = np.zeros(nq)
+            qdot = np.zeros(nq)
+            ok, iterations, x_new, x_before = newton(plan, st, x_guess, a0, hist, rhs0, q, qdot)
+            si[NEWTON] += iterations
+            if not ok:
+                si[REJECTED] += 1
+                st.fail_x[:] = x_new
+                st.fail_prev[:] = x_before
+                fs[H] = h
+                if fixed > 0:
+                    return NEWTON_FAILED_FIXED
+                h /= 8
+                order = 1
+                landing = False
+                if h < min_step:
+                    fs[H] = h
+                    return STEP_TOO_SMALL
+                continue
+            if lin.size:
+                ql = csr_matvec(vt[0], vt[1], vt[2], x_new, np.empty(nports + lin.size))[nports:]
+                for j in range(lin.size):
+                    q[lin[j]] = ql[j]
+                    qdot[lin[j]] = a0 * ql[j] + hist[lin[j]]
+            extend(x_new, x_ext)
+            if fixed == 0 and ms:
+                fraction = switch_transition(
+                    x_ext, st.x_prev_ext, plan.sw, st.state, st.accepted, plan.approach
+                )
+                if fraction < 1 - TRANSITION_OVERSHOOT and h * fraction > 10 * min_step:
+                    si[REJECTED] += 1
+                    h *= fraction + TRANSITION_OVERSHOOT
+                    landing = False
+                    continue
+            new_h = h if fixed > 0 else 2 * h
+            if fixed == 0 and not si[FIRST]:
+                times = np.empty(4)
+                times[0] = t + h
+                for j in range(3):
+                    times[j + 1] = st.ht[j]
+                npoints = nh + 1
+                if npoints >= order + 2 and nq:
+                    new_h = min(new_h, truncation_step(real, order, times, q, qdot, st.hq, st.hi))
+                if ms:
+                    new_h = min(
+                        new_h,
+                        switch_truncate(
+                            x_ext, st.x_prev_ext, h, plan.sw, st.accepted, plan.approach
+                        ),
+                    )
+                if new_h > 0.9 * h:
+                    if order == 1 and maxord > 1 and npoints >= 4:
+                        trial = 2 * h
+                        if nq:
+                            trial = min(
+                                trial, truncation_step(real, 2, times, q, qdot, st.hq, st.hi)
+                            )
+                        if ms:
+                            trial = min(
+                                trial,
+                                switch_truncate(
+                                    x_ext, st.x_prev_ext, h, plan.sw, st.accepted, plan.approach
+                                ),
+                            )
+                        new_h = trial
+                        if trial > 1.05 * h:
+                            order = 2
+                else:
+                    si[REJECTED] += 1
+                    h = new_h
+                    landing = False
+                    if h < min_step:
+                        st.fail_x[:] = x_new
+                        st.fail_prev[:] = x_before
+                        fs[H] = h
+                        return STEP_TOO_SMALL_LTE
+                    continue
+            break
+
+        # accept
+        t = next_break if landing else t + h
+        st.x_prev_ext[:] = x_ext
+        toggled = False
+        for k in range(md):
+            st.vd_accepted[k] = x_ext[plan.port_p[k]] - x_ext[plan.port_n[k]]
+        for k in range(ms):
+            if st.state[k] != st.accepted[k]:
+                toggled = True
+            st.accepted[k] = st.state[k]
+        for j in range(3, 0, -1):
+            st.ht[j] = st.ht[j - 1]
+            st.hx[j] = st.hx[j - 1]
+            st.hq[j] = st.hq[j - 1]
+        st.hi[1] = st.hi[0]
+        st.ht[0] = t
+        st.hx[0] = x_new
+        st.hq[0] = q
+        st.hi[0] = qdot
+        si[NHIST] = min(nh + 1, 4)
+        st.out_t[si[COUNT]] = t
+        st.out_x[si[COUNT]] = x_new
+        si[COUNT] += 1
+        si[ACCEPTED] += 1
+        if a0 == fs[LAST_A0]:
+            si[SAME_A0] += 1
+        else:
+            fs[LAST_A0] = a0
+            si[SAME_A0] = 1
+        if fixed > 0 and order < maxord:
+            order += 1
+        if landing or toggled:
+            si[AT_BREAK] = 1
+        si[FIRST] = 0
+        si[ORDER] = order
+        fs[T] = t
+        fs[H] = new_h
+    return FINISHED
