@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from circuitsim.netlist.reader import read_netlist
-from circuitsim.solver import simulate
+from circuitsim.solver import SimulationOptions, simulate
 from tests.solver.conftest import requires_ngspice
 
 GOLDEN = Path(__file__).parent / "golden"
@@ -69,8 +69,9 @@ def test_golden_against_ngspice(name):
 
 
 @requires_ngspice
+@pytest.mark.parametrize("kernel", ["python", "compiled"])
 @pytest.mark.parametrize("name", ["rlc.cir", "halfwave.cir"])
-def test_gear_golden_against_ngspice(name, tmp_path):
+def test_gear_golden_against_ngspice(name, kernel, tmp_path):
     """Both engines switched to Gear-2 by ``.options method=gear``."""
     from circuitsim.interop.ngspice import run_ngspice
 
@@ -83,8 +84,9 @@ def test_gear_golden_against_ngspice(name, tmp_path):
     path = tmp_path / name
     path.write_text(text)
     limit, which = CASES[name]
-    ours = simulate(read_netlist(path))
-    assert ours.stats["method"] == "gear"
+    circuit = read_netlist(path)
+    ours = simulate(circuit, SimulationOptions.from_circuit(circuit, kernel=kernel))
+    assert ours.stats["method"] == "gear" and ours.stats["kernel"] == kernel
     devs = deviations(ours, run_ngspice(path), which)
     worst = max(devs, key=devs.get)
     assert devs[worst] <= limit, f"{name} (gear): {worst} deviates {devs[worst]:.3g}"

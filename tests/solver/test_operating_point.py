@@ -90,11 +90,12 @@ def test_diode_newton_failure_is_a_clear_error():
     assert "worst node" in str(info.value)
 
 
-def test_transient_newton_failure_names_time_step_node():
+@pytest.mark.parametrize("kernel", ["python", "compiled"])
+def test_transient_newton_failure_names_time_step_node(kernel):
     c = diode_circuit(5.0, 1e3)
     c.elements[0] = VoltageSource("V1", "a", "0", waveform=Sin(0.0, 5.0, 1e3))
     with pytest.raises(ConvergenceError) as info:
-        transient(c, 1e-5, 1e-3, options=SimulationOptions(itl4=1))
+        transient(c, 1e-5, 1e-3, options=SimulationOptions(itl4=1, kernel=kernel))
     err = info.value
     assert err.time is not None and err.step is not None and err.node is not None
     assert "time step too small" in str(err)
@@ -126,7 +127,8 @@ def test_voltage_source_loop_is_singular():
         operating_point(c)
 
 
-def test_switch_chattering_at_threshold_terminates():
+@pytest.mark.parametrize("kernel", ["python", "compiled"])
+def test_switch_chattering_at_threshold_terminates(kernel):
     # The switch is controlled by 5 V - its own output, with no hysteresis: on charges the
     # output above 2.5 V, which turns it off, which lets the output fall below 2.5 V, ...
     # The run must end, by finishing or by a ConvergenceError, within the step bound.
@@ -140,7 +142,7 @@ def test_switch_chattering_at_threshold_terminates():
         ]
     )
     c.models["sw"] = Model("sw", "SW", {"vt": 2.5, "vh": 0.0, "ron": 10.0, "roff": 1e9})
-    opts = SimulationOptions(max_steps=20000)
+    opts = SimulationOptions(max_steps=20000, kernel=kernel)
     try:
         w = transient(c, 1e-6, 1e-4, uic=True, options=opts)
     except ConvergenceError as err:
@@ -150,7 +152,8 @@ def test_switch_chattering_at_threshold_terminates():
         assert np.all(np.abs(w["out"][late] - 2.5) < 0.5)  # held at the threshold
 
 
-def test_stiff_opamp_pole_with_slow_signal():
+@pytest.mark.parametrize("kernel", ["python", "compiled"])
+def test_stiff_opamp_pole_with_slow_signal(kernel):
     # Inverting amplifier, gain -2, built from a 1e6-gain VCVS followed by a 10 MHz RC pole,
     # driven by a 2 Hz sine over one second: time constants 1e7 apart.
     c = Circuit(
@@ -163,7 +166,7 @@ def test_stiff_opamp_pole_with_slow_signal():
             Capacitor("CP", "out", "0", 1.59e-11),
         ]
     )
-    w = transient(c, 1e-3, 1.0, options=SimulationOptions(max_steps=200000))
+    w = transient(c, 1e-3, 1.0, options=SimulationOptions(max_steps=200000, kernel=kernel))
     assert np.max(np.abs(w["out"] + 2 * w["in"])) < 1e-3
     assert w.stats["accepted"] < 20000
 

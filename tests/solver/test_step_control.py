@@ -1,9 +1,10 @@
 """Step control as ngspice: TMAX default, breakpoints hit exactly, tstart honoured."""
 
 import numpy as np
+import pytest
 
 from circuitsim.netlist.circuit import Capacitor, Circuit, Pulse, Pwl, Resistor, VoltageSource
-from circuitsim.solver import transient
+from circuitsim.solver import SimulationOptions, transient
 
 
 def resistive(waveform=None) -> Circuit:
@@ -29,7 +30,8 @@ def test_given_tmax_is_honoured():
     assert np.max(np.diff(w.time)) <= 3e-5 * (1 + 1e-9)
 
 
-def test_pwl_and_pulse_corners_are_time_points():
+@pytest.mark.parametrize("kernel", ["python", "compiled"])
+def test_pwl_and_pulse_corners_are_time_points(kernel):
     pwl = Pwl(((0.0, 0.0), (1.3e-3, 1.0), (2.71e-3, -1.0), (4e-3, 0.5)))
     c = resistive(pwl)
     c.add(
@@ -37,7 +39,8 @@ def test_pwl_and_pulse_corners_are_time_points():
         Resistor("R2", "b", "c", 1e3),
         Capacitor("C2", "c", "0", 1e-7),
     )
-    w = transient(c, 1e-4, 5e-3)
+    w = transient(c, 1e-4, 5e-3, options=SimulationOptions(kernel=kernel))
+    assert w.stats["kernel"] == kernel
     corners = [1.3e-3, 2.71e-3, 4e-3, 0.77e-3, 0.78e-3, 1.78e-3, 1.8e-3, 3.77e-3, 3.78e-3]
     for corner in corners:
         assert np.min(np.abs(w.time - corner)) < 1e-15, corner
