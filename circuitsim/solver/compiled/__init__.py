@@ -105,7 +105,7 @@ def run_compiled(
             else:
                 break
     except np.linalg.LinAlgError:
-        raise SingularMatrixError(system.describe_singular(_singular_row(st.fac[0]))) from None
+        raise SingularMatrixError(system.describe_singular(_singular_row(st.fac.B))) from None
     finally:
         stats["accepted"] = int(st.ints[nw.ACCEPTED])
         stats["rejected"] = int(st.ints[nw.REJECTED])

@@ -30,16 +30,14 @@ NEGLIGIBLE = 1e-15
 
 @njit(cache=True)
 def rebuild(fac, plan, a0, values):
-    """Factor B at conductances/coefficients ``values`` (shape (r,)) and step coefficient a0.
-
-    ``fac`` = (B, Binv, Z, K, ref, Zd, Kd, B_ptr, B_idx, B_val, ZT) arrays, overwritten
-    (Zd, Kd: the junction columns of Z and K, kept contiguous for BLAS; B_*: B in CSR form
-    for the residual products, which are sparse; ZT: Z transposed, rows contiguous).
+    """Factor B at port values ``values`` (shape (r,)) and step coefficient a0 (1/s) into
+    ``fac`` (a :class:`~circuitsim.solver.compiled.plan.Factors`, overwritten).
     Raises numpy.linalg.LinAlgError when B is singular.
     """
-    B, Binv, Z, K, ref, Zd, Kd, B_ptr, B_idx, B_val, ZT = fac
+    B = fac.B
     B[:, :] = plan.G + a0 * plan.M
-    for k in range(plan.port_p.size):
+    nports = plan.port_p.size
+    for k in range(nports):
         p, q, g = plan.port_p[k], plan.port_n[k], values[k]
         if p >= 0:
             B[p, p] += g
@@ -48,24 +46,47 @@ def rebuild(fac, plan, a0, values):
         if p >= 0 and q >= 0:
             B[p, q] -= g
             B[q, p] -= g
-    Binv[:, :] = np.linalg.inv(B)
-    Z[:, :] = np.dot(Binv, plan.U)
-    ZT[:, :] = Z.T
-    K[:, :] = np.dot(plan.VT, Z)
+    fac.Binv[:, :] = np.linalg.inv(B)
+    fac.Z[:, :] = np.dot(fac.Binv, plan.U)
+    fac.ZT[:, :] = fac.Z.T
+    fac.K[:, :] = np.dot(plan.VT, fac.Z)
     count = 0
     for i in range(B.shape[0]):
-        B_ptr[i] = count
+        fac.b_ptr[i] = count
         for j in range(B.shape[1]):
             if B[i, j] != 0.0:
-                B_idx[count] = j
-                B_val[count] = B[i, j]
+                fac.b_idx[count] = j
+                fac.b_val[count] = B[i, j]
                 count += 1
-    B_ptr[B.shape[0]] = count
-    md = Zd.shape[1]
-    Zd[:, :] = Z[:, :md]
-    Kd[:, :] = K[:, :md]
-    ref[:] = values
-    ref[plan.port_p.size :] = a0
+    fac.b_ptr[B.shape[0]] = count
+    md = fac.Zd.shape[1]
+    fac.Zd[:, :] = fac.Z[:, :md]
+    fac.Kd[:, :] = fac.K[:, :md]
+    fac.Zq[:, :] = fac.Z[:, nports:]
+    fac.Kq[:, :] = fac.K[:, nports:]
+    fac.yc[:] = np.dot(fac.Binv, plan.rhs_const)
+    fac.cc[:] = np.dot(plan.VT, fac.yc)
+    if plan.src_unit.shape[1]:
+        fac.Yb[:, :] = np.dot(fac.Binv, plan.src_unit)
+        fac.Cb[:, :] = np.dot(plan.VT, fac.Yb)
+    fac.ref[:] = values
+    fac.ref[nports:] = a0
+
+
+@njit(cache=True)
+def source_solution(yc, cc, Yb, Cb, Zq, Kq, values, hist_lin, y0, c0):
+    """y0 = B^-1 rhs0 and c0 = V^T y0 for rhs0 = constant sources + time-dependent sources
+    at ``values`` - E hist_lin, from the responses kept with the factorization."""
+    y0[:] = yc
+    c0[:] = cc
+    for k in range(values.size):
+        v = values[k]
+        if v != 0.0:
+            y0 += v * Yb[:, k]
+            c0 += v * Cb[:, k]
+    if hist_lin.size:
+        y0 -= np.dot(Zq, hist_lin)
+        c0 -= np.dot(Kq, hist_lin)
 
 
 @njit(cache=True)

@@ -18,9 +18,9 @@ from circuitsim.solver.compiled.devices import junction_charge, junction_current
 from circuitsim.solver.compiled.lowrank import (
     active_columns,
     add_u_columns,
-    csr_matvec,
     rebuild,
     refine,
+    source_solution,
     update,
 )
 
@@ -167,8 +167,12 @@ def solve_ports(y0, c0, ieq, d, K, ZT, Zd, Kd):
 
 
 @njit(cache=True)
-def newton(plan, st, x0, a0, hist, rhs0, q, qdot):
-    """Newton at one time point. Returns (converged, iterations, x, x_previous)."""
+def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
+    """Newton at one time point. Returns (converged, iterations, x, x_previous).
+
+    rhs0 : the x-independent right-hand side (sources, charge history), shape (n,);
+    src_values : the time-dependent sources' values at this time, shape (ns,).
+    """
     reltol, abstol = plan.real[0], plan.real[1]
     itl4 = plan.ints[2]
     jp, cp, jslot, has_charge = plan.jp, plan.cp, plan.jslot, plan.has_charge
@@ -185,9 +189,9 @@ def newton(plan, st, x0, a0, hist, rhs0, q, qdot):
     x_prev = x0.copy()
     x_ext = np.empty(n + 1)
     extend(x, x_ext)
-    version = -1
-    y0 = st.y0
-    c0 = st.c0
+    y0, c0 = st.y0, st.c0
+    hist_lin = hist[plan.lin_slots]
+    version = -1  # of the factorization y0 and c0 belong to
     for iteration in range(1, itl4 + 1):
         first = iteration == 1
         noncon = 0
@@ -212,23 +216,21 @@ def newton(plan, st, x0, a0, hist, rhs0, q, qdot):
             qdot,
             first,
         )
-        fac = st.fac
-        if version != st.ints[VERSION]:  # y0 = B^-1 rhs0 for the present factorization
-            y0[:] = np.dot(fac[1], rhs0)
-            csr_matvec(vt[0], vt[1], vt[2], y0, c0)
-            version = st.ints[VERSION]
-        d = port_values(gd, g_switch, state, r, a0) - fac[4]
-        x_new, ok = solve_ports(y0, c0, ieq, d, fac[3], fac[10], fac[5], fac[6])
         checked = False
-        if not ok or not np.all(np.isfinite(x_new)):
-            factor_now(plan, st, a0)
+        for attempt in range(2):  # the second after a refactorization at this iterate
             fac = st.fac
-            y0[:] = np.dot(fac[1], rhs0)
-            csr_matvec(vt[0], vt[1], vt[2], y0, c0)
-            version = st.ints[VERSION]
-            d = port_values(gd, g_switch, state, r, a0) - fac[4]
-            x_new, ok = solve_ports(y0, c0, ieq, d, fac[3], fac[10], fac[5], fac[6])
-            checked = True
+            if version != st.ints[VERSION]:
+                source_solution(
+                    fac.yc, fac.cc, fac.Yb, fac.Cb, fac.Zq, fac.Kq, src_values, hist_lin, y0, c0
+                )
+                version = st.ints[VERSION]
+            d = port_values(gd, g_switch, state, r, a0) - fac.ref
+            x_new, ok = solve_ports(y0, c0, ieq, d, fac.K, fac.ZT, fac.Zd, fac.Kd)
+            if ok and np.all(np.isfinite(x_new)):
+                break
+            if attempt == 0:
+                factor_now(plan, st, a0)
+                checked = True
         if not ok or not np.all(np.isfinite(x_new)):
             return False, iteration, x_new, x
         x_new_ext = np.empty(n + 1)
@@ -243,12 +245,12 @@ def newton(plan, st, x0, a0, hist, rhs0, q, qdot):
             tol = reltol * np.abs(x_new) + abs_tol
             rhs = add_u_columns(ut, -ieq, 0, rhs0.copy())  # rhs0 - W ieq
             refined, good = refine(
-                fac[7],
-                fac[8],
-                fac[9],
-                fac[1],
-                fac[3],
-                fac[10],
+                fac.b_ptr,
+                fac.b_idx,
+                fac.b_val,
+                fac.Binv,
+                fac.K,
+                fac.ZT,
                 vt,
                 ut,
                 x_new,
@@ -257,14 +259,15 @@ def newton(plan, st, x0, a0, hist, rhs0, q, qdot):
                 tol,
                 REFINE_FRACTION,
             )
-            if not good:
+            if not good:  # refactor here: then the update is exact (d = 0)
                 factor_now(plan, st, a0)
                 fac = st.fac
-                y0[:] = np.dot(fac[1], rhs0)
-                csr_matvec(vt[0], vt[1], vt[2], y0, c0)
+                source_solution(
+                    fac.yc, fac.cc, fac.Yb, fac.Cb, fac.Zq, fac.Kq, src_values, hist_lin, y0, c0
+                )
                 version = st.ints[VERSION]
-                d = port_values(gd, g_switch, state, r, a0) - fac[4]
-                refined, ok = solve_ports(y0, c0, ieq, d, fac[3], fac[10], fac[5], fac[6])
+                d = port_values(gd, g_switch, state, r, a0) - fac.ref
+                refined, ok = solve_ports(y0, c0, ieq, d, fac.K, fac.ZT, fac.Zd, fac.Kd)
             x_new = refined
             extend(x_new, x_new_ext)
             done = (

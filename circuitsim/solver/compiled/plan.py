@@ -71,6 +71,7 @@ class KernelPlan(NamedTuple):
     pwl_start: np.ndarray  # (ns + 1,) offsets into pwl_t / pwl_v
     pwl_t: np.ndarray
     pwl_v: np.ndarray
+    src_unit: np.ndarray  # (n, ns) each time-dependent source's right-hand side at value 1
     src_rows: np.ndarray  # (ns, 2) rhs rows (-1: none)
     src_signs: np.ndarray  # (ns, 2)
     lin_slots: np.ndarray  # (nl,) charge slots of the linear charges
@@ -78,6 +79,53 @@ class KernelPlan(NamedTuple):
     breaks: np.ndarray  # sorted breakpoints, seconds, ending with tstop
     real: np.ndarray  # reltol abstol vntol chgtol trtol err1 err2 fixed tmax min_step tstop
     ints: np.ndarray  # method (0 trap, 1 gear), maxord, itl4, max_steps
+
+
+class Factors(NamedTuple):
+    """One factorization and what is derived from it (shapes: n unknowns, r low-rank
+    columns, md junctions, nl linear charges, ns time-dependent sources)."""
+
+    B: np.ndarray  # (n, n) the factored matrix
+    Binv: np.ndarray  # (n, n) its inverse
+    Z: np.ndarray  # (n, r) B^-1 U
+    ZT: np.ndarray  # (r, n) Z transposed (rows contiguous)
+    K: np.ndarray  # (r, r) V^T Z
+    ref: np.ndarray  # (r,) port values at the factorization (a0 for the charges)
+    Zd: np.ndarray  # (n, md) junction columns of Z, contiguous for BLAS
+    Kd: np.ndarray  # (r, md) junction columns of K
+    Zq: np.ndarray  # (n, nl) charge columns of Z: response to the charge history
+    Kq: np.ndarray  # (r, nl)
+    yc: np.ndarray  # (n,) B^-1 of the constant sources' right-hand side
+    cc: np.ndarray  # (r,) V^T yc
+    Yb: np.ndarray  # (n, ns) B^-1 of each time-dependent source's unit right-hand side
+    Cb: np.ndarray  # (r, ns) V^T Yb
+    b_ptr: np.ndarray  # B in CSR form (the residual products are sparse)
+    b_idx: np.ndarray
+    b_val: np.ndarray
+
+
+def empty_factors(n: int, r: int, md: int, nl: int, ns: int) -> Factors:
+    """Zero arrays of the right shapes, for :func:`rebuild` to fill."""
+    z = np.zeros
+    return Factors(
+        z((n, n)),
+        z((n, n)),
+        z((n, r)),
+        z((r, n)),
+        z((r, r)),
+        z(r),
+        z((n, md)),
+        z((r, md)),
+        z((n, nl)),
+        z((r, nl)),
+        z(n),
+        z(r),
+        z((n, ns)),
+        z((r, ns)),
+        z(n + 1, dtype=np.int64),
+        z(n * n, dtype=np.int64),
+        z(n * n),
+    )
 
 
 class KernelState(NamedTuple):
@@ -97,7 +145,7 @@ class KernelState(NamedTuple):
     vd_accepted: np.ndarray
     state: np.ndarray  # (ms,) switch states, bool
     accepted: np.ndarray
-    fac: tuple  # (B, Binv, Z, K, ref, Zd, Kd), see lowrank.rebuild
+    fac: Factors
     y0: np.ndarray
     c0: np.ndarray
     out_t: np.ndarray
@@ -135,6 +183,18 @@ def _csr(name: str, matrix: np.ndarray) -> dict:
         f"{name}_idx": csr.indices.astype(np.int64),
         f"{name}_val": csr.data.astype(float),
     }
+
+
+def _unit_columns(n: int, rows: list[np.ndarray], signs: list[np.ndarray]) -> np.ndarray:
+    """(n, ns): column k is source k's right-hand side per unit value."""
+    all_rows = np.concatenate(rows) if rows else np.zeros((0, 2), dtype=np.int64)
+    all_signs = np.concatenate(signs) if signs else np.zeros((0, 2))
+    unit = np.zeros((n + 1, all_rows.shape[0]))
+    for k, (pair, sign) in enumerate(zip(all_rows, all_signs, strict=True)):
+        for row, value in zip(pair, sign, strict=True):
+            if row >= 0:
+                unit[row, k] += value
+    return np.ascontiguousarray(unit[:n])
 
 
 def _dense(matrix) -> np.ndarray:
@@ -227,6 +287,7 @@ def build_plan(
         pwl_start=pwl_start,
         pwl_t=np.concatenate([t[0] for t in pwl]) if pwl else np.zeros(0),
         pwl_v=np.concatenate([t[1] for t in pwl]) if pwl else np.zeros(0),
+        src_unit=_unit_columns(n, rows, signs),
         src_rows=np.concatenate(rows) if rows else np.zeros((0, 2), dtype=np.int64),
         src_signs=np.concatenate(signs) if signs else np.zeros((0, 2)),
         lin_slots=lin,
@@ -278,19 +339,7 @@ def initial_state(
     out_t = np.zeros(capacity)
     out_x = np.zeros((capacity, n))
     out_x[0] = x0
-    fac = (
-        np.zeros((n, n)),
-        np.zeros((n, n)),
-        np.zeros((n, r)),
-        np.zeros((r, r)),
-        np.zeros(r),
-        np.zeros((n, md)),
-        np.zeros((r, md)),
-        np.zeros(n + 1, dtype=np.int64),
-        np.zeros(n * n, dtype=np.int64),
-        np.zeros(n * n),
-        np.zeros((r, n)),
-    )
+    fac = empty_factors(n, r, md, plan.lin_slots.size, plan.src_kind.size)
     ints = np.zeros(14, dtype=np.int64)
     ints[0] = 1  # order
     ints[1] = 1  # at a breakpoint (t = 0)

@@ -90,15 +90,18 @@ def truncation_step(real, order, times, q_new, qdot_new, hq, hi):
 
 @njit(cache=True, inline="always")
 def source_rhs(t, rhs_const, kind, par, dc, pwl_start, pwl_t, pwl_v, rows, signs):
-    """Right-hand side of the independent sources at time t (transient values)."""
+    """Right-hand side of the independent sources at time t (transient values), and the
+    time-dependent sources' values."""
     rhs = rhs_const.copy()
+    values = np.empty(kind.size)
     for k in range(kind.size):
         value = source_value(t, k, kind, par, dc, pwl_start, pwl_t, pwl_v)
+        values[k] = value
         for j in range(2):
             row = rows[k, j]
             if row >= 0:
                 rhs[row] += signs[k, j] * value
-    return rhs
+    return rhs, values
 
 
 @njit(cache=True)
@@ -156,10 +159,10 @@ def run(plan, st, t_until):
             hist = a1 * st.hq[0] + b1 * st.hi[0]
             if a2 != 0.0:
                 hist += a2 * st.hq[1]
-            ref_a0 = st.fac[4][nports] if lin.size else a0
+            ref_a0 = st.fac.ref[nports] if lin.size else a0
             if lin.size and a0 != ref_a0 and a0 == fs[LAST_A0] and si[SAME_A0] >= REBASE_STEPS:
                 factor_now(plan, st, a0)
-            rhs0 = source_rhs(
+            rhs0, src_values = source_rhs(
                 t + h,
                 plan.rhs_const,
                 plan.src_kind,
@@ -179,7 +182,9 @@ def run(plan, st, t_until):
                 x_guess = st.hx[0].copy()
             q = np.zeros(nq)
             qdot = np.zeros(nq)
-            ok, iterations, x_new, x_before = newton(plan, st, x_guess, a0, hist, rhs0, q, qdot)
+            ok, iterations, x_new, x_before = newton(
+                plan, st, x_guess, a0, hist, rhs0, src_values, q, qdot
+            )
             si[NEWTON] += iterations
             if not ok:
                 si[REJECTED] += 1
