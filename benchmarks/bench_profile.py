@@ -1,72 +1,278 @@
-"""cProfile of one builtin single run of the wheelset circuit (ideal op-amps)."""
+"""Where the time of one builtin wheelset run goes (ideal and TL074 op-amps).
+
+Compiled code cannot be seen by cProfile, so the compiled kernel is taken apart by hand: the
+fixed costs (parsing, assembly, operating point, plan, first factorization) are timed around
+their calls, and the kernel's pieces are timed one by one on the run's own matrices (each
+piece called 20 000 times in a compiled loop). Multiplied by how often a run calls them, they
+should add up to the kernel's measured time. The reference (python) loop is profiled with
+cProfile as before.
+"""
 
 from __future__ import annotations
 
 import cProfile
 import io
 import pstats
+import time
 from pathlib import Path
 
 import numpy as np
-from bench_common import best_of
+from bench_common import table
 from bench_wheelset import SCENARIO, T_STOP
+from numba import njit
 
 from circuitsim.mechanics import load_model
-from circuitsim.solver import simulate
-from circuitsim.solver.batch import batch_transient
+from circuitsim.netlist.reader import read_netlist
+from circuitsim.netlist.writer import save_netlist
+from circuitsim.solver import SimulationOptions, simulate
+from circuitsim.solver.compiled import newton as nw
+from circuitsim.solver.compiled import plan as kp
+from circuitsim.solver.compiled import run_compiled
+from circuitsim.solver.compiled import transient as tr
+from circuitsim.solver.compiled.lowrank import (
+    active_columns,
+    add_u_columns,
+    refine,
+    source_solution,
+)
+from circuitsim.solver.dc import operating_point_solution
+from circuitsim.solver.engine import build_system
+from circuitsim.solver.threads import single_threaded_blas
 from circuitsim.synthesis.options import SynthesisOptions
 from circuitsim.synthesis.translator import synthesize
 
-TOP = 25
+TOP = 15
+CALLS = 20_000
+
+
+@njit
+def _time_sources(plan, t, k):
+    total = 0.0
+    for i in range(k):
+        rhs, values = tr.source_rhs(
+            t + i * 1e-6,
+            plan.rhs_const,
+            plan.src_kind,
+            plan.src_par,
+            plan.src_dc,
+            plan.pwl_start,
+            plan.pwl_t,
+            plan.pwl_v,
+            plan.src_rows,
+            plan.src_signs,
+        )
+        total += rhs[0]
+    return total
+
+
+@njit
+def _time_source_solution(plan, st, k):
+    fac = st.fac
+    values = np.ones(plan.src_kind.size)
+    hist = np.ones(plan.lin_slots.size) * 1e-9
+    for _ in range(k):
+        source_solution(fac.yc, fac.cc, fac.Yb, fac.Cb, fac.Zq, fac.Kq, values, hist, st.y0, st.c0)
+    return st.y0[0]
+
+
+@njit
+def _time_junctions(plan, st, x, a0, k):
+    x_ext = np.empty(x.size + 1)
+    nw.extend(x, x_ext)
+    hist = np.zeros(st.hq.shape[1])
+    q, qdot = hist.copy(), hist.copy()
+    for _ in range(k):
+        nw.load_junctions(
+            plan.jp,
+            plan.cp,
+            plan.jslot,
+            plan.has_charge,
+            plan.port_p,
+            plan.port_n,
+            st.vd_accepted,
+            st.vd,
+            st.cd,
+            st.gd,
+            st.ieq,
+            x_ext,
+            a0,
+            hist,
+            q,
+            qdot,
+            False,
+        )
+
+
+@njit
+def _time_solve(plan, st, a0, k):
+    fac = st.fac
+    d = nw.port_values(st.gd, plan.g_switch, st.state, plan.VT.shape[0], a0) - fac.ref
+    total = 0.0
+    for _ in range(k):
+        x, ok = nw.solve_ports(st.y0, st.c0, st.ieq, d, fac.K, fac.ZT, fac.Zd, fac.Kd)
+        total += x[0]
+    return total, active_columns(d, fac.K).size
+
+
+@njit
+def _time_refine(plan, st, a0, rhs0, k):
+    fac = st.fac
+    d = nw.port_values(st.gd, plan.g_switch, st.state, plan.VT.shape[0], a0) - fac.ref
+    x, ok = nw.solve_ports(st.y0, st.c0, st.ieq, d, fac.K, fac.ZT, fac.Zd, fac.Kd)
+    vt = (plan.VT_ptr, plan.VT_idx, plan.VT_val)
+    ut = (plan.UT_ptr, plan.UT_idx, plan.UT_val)
+    tol = 1e-3 * np.abs(x) + plan.abs_tol
+    good = 0
+    for _ in range(k):
+        rhs = add_u_columns(ut, -st.ieq, 0, rhs0.copy())
+        _, ok = refine(
+            fac.b_ptr, fac.b_idx, fac.b_val, fac.Binv, fac.K, fac.ZT, vt, ut, x, d, rhs, tol, 1e-3
+        )
+        good += ok
+    return good
+
+
+def _per_call(function, *args) -> float:
+    function(*args, 1)
+    started = time.perf_counter()
+    function(*args, CALLS)
+    return (time.perf_counter() - started) / CALLS
+
+
+def kernel_breakdown(path: Path) -> dict:
+    """Fixed costs and per-call costs of the kernel's pieces for the netlist at ``path``."""
+    times = {}
+    started = time.perf_counter()
+    circuit = read_netlist(path)
+    times["parse"] = time.perf_counter() - started
+    started = time.perf_counter()
+    system = build_system(circuit, None)
+    times["assemble"] = time.perf_counter() - started
+    tran = circuit.transient
+    with single_threaded_blas():
+        started = time.perf_counter()
+        x, ctx = operating_point_solution(system, dc_op=False, clamp_ic=True, stats={})
+        times["operating point"] = time.perf_counter() - started
+        max_step = tran.tmax
+        started = time.perf_counter()
+        plan, families = kp.build_plan(
+            system, np.array([tran.tstop]), tran.tstop, max_step, 1e-11 * max_step
+        )
+        st = kp.initial_state(plan, families, x, ctx.q.copy(), 1000)
+        times["plan"] = time.perf_counter() - started
+        a0 = 2.0 / max_step
+        started = time.perf_counter()
+        nw.factor_now(plan, st, a0)
+        times["factorization"] = time.perf_counter() - started
+        rhs0, values = tr.source_rhs(
+            0.0,
+            plan.rhs_const,
+            plan.src_kind,
+            plan.src_par,
+            plan.src_dc,
+            plan.pwl_start,
+            plan.pwl_t,
+            plan.pwl_v,
+            plan.src_rows,
+            plan.src_signs,
+        )
+        pieces = {
+            "sources (per attempt)": _per_call(_time_sources, plan, 0.0),
+            "y0 = B^-1 rhs0 from kept responses (per attempt)": _per_call(
+                _time_source_solution, plan, st
+            ),
+            "junction evaluation (per Newton iteration)": _per_call(
+                _time_junctions, plan, st, x, a0
+            ),
+            "Woodbury solve (per Newton iteration)": _per_call(_time_solve, plan, st, a0),
+            "refinement check (per accepted iterate)": _per_call(_time_refine, plan, st, a0, rhs0),
+        }
+        system = build_system(circuit, None)
+        stats: dict = {}
+        started = time.perf_counter()
+        run_compiled(system, tran.tstep, tran.tstop, tran.tstart, tran.tmax, tran.uic, stats=stats)
+        total = time.perf_counter() - started
+    return {
+        "unknowns": int(x.size),
+        "junctions": int(plan.jp.shape[0]),
+        "low_rank_columns": int(plan.VT.shape[0]),
+        "fixed_s": times,
+        "piece_s": pieces,
+        "run_compiled_s": total,
+        "stats": {k: v for k, v in stats.items() if isinstance(v, int | float | str)},
+        "factorizations": int(system.factorizations),
+    }
 
 
 def run(folder: Path, quick: bool, log) -> dict:
+    folder.mkdir(parents=True, exist_ok=True)
     model = load_model()
     system = model.system(parameters=SCENARIO, nonlinear={"flange": True})
     t_stop = 1.0 if quick else T_STOP
-    circuit = synthesize(system, SynthesisOptions(series="exact", t_stop=t_stop)).circuit
+    out: dict = {"t_stop": t_stop, "kernel": {}}
+    for opamp in ("ideal", "tl074"):
+        circuit = synthesize(
+            system, SynthesisOptions(series="exact", t_stop=t_stop, opamp=opamp)
+        ).circuit
+        path = folder / f"wheelset_{opamp}.cir"
+        save_netlist(circuit, path, "ngspice")
+        simulate(read_netlist(path))  # load the compiled code before timing
+        out["kernel"][opamp] = kernel_breakdown(path)
+        log(f"  {opamp}: kernel {out['kernel'][opamp]['run_compiled_s']:.3g} s")
+    circuit = read_netlist(folder / "wheelset_ideal.cir")
+    options = SimulationOptions.from_circuit(circuit, kernel="python")
     profile = cProfile.Profile()
     profile.enable()
-    waves = simulate(circuit)
+    waves = simulate(circuit, options)
     profile.disable()
     text = io.StringIO()
     stats = pstats.Stats(profile, stream=text)
     stats.sort_stats("tottime").print_stats(TOP)
     listing = text.getvalue()
-    body = listing[listing.index("   ncalls") :] if "   ncalls" in listing else listing
-    # the low-rank lever measured on one run: our batch code with a single variant reuses one
-    # inverse across Newton iterations and steps where the engine factors every iteration
-    single, t_single = best_of(simulate, circuit)
-    batch, t_batch = best_of(batch_transient, [circuit], probes=["v(y)"])
-    y = np.interp(single.time, batch.time, batch.signals["v(y)"][0])
-    return {
-        "t_stop": t_stop,
-        "stats": waves.stats,
-        "total_s": stats.total_tt,
-        "top": body,
-        "single_s": t_single,
-        "batch_of_one_s": t_batch,
-        "batch_of_one_stats": batch.stats,
-        "batch_of_one_max_dev_over_range": float(
-            np.max(np.abs(y - single["v(y)"])) / np.ptp(single["v(y)"])
-        ),
-    }
+    out["reference_total_s"] = stats.total_tt
+    out["reference_stats"] = {k: v for k, v in waves.stats.items() if isinstance(v, int | float)}
+    out["reference_top"] = listing[listing.index("   ncalls") :] if "   ncalls" in listing else ""
+    return out
 
 
 def report(data: dict) -> str:
-    s = data["stats"]
-    head = (
-        f"cProfile of one builtin run, wheelset (ideal op-amps), 0-{data['t_stop']:g} s: "
-        f"{data['total_s']:.3g} s under the profiler, {s.get('accepted')} steps, "
-        f"{s.get('newton_iterations')} Newton iterations, {s.get('factorizations')} LU "
-        f"factorizations, {s.get('unknowns')} unknowns (top {TOP} by own time)"
+    parts = []
+    for opamp, k in data["kernel"].items():
+        s = k["stats"]
+        steps = s["accepted"] + s["rejected"]
+        iterations = s["newton_iterations"]
+        piece = k["piece_s"]
+        # how often each piece runs: per attempt, per iteration, and (at least) once per
+        # accepted step for the refinement check
+        counts = [steps, steps, iterations, iterations, s["accepted"]]
+        rows = [
+            [name, f"{seconds * 1e6:.3g}", count, f"{seconds * count:.3g}"]
+            for (name, seconds), count in zip(piece.items(), counts, strict=True)
+        ]
+        estimate = sum(
+            seconds * count for seconds, count in zip(piece.values(), counts, strict=True)
+        )
+        fixed = k["fixed_s"]
+        parts.append(
+            f"Compiled kernel, wheelset ({opamp} op-amps), 0-{data['t_stop']:g} s: "
+            f"{k['unknowns']} unknowns, {k['junctions']} junctions, {k['low_rank_columns']} "
+            f"low-rank columns; {s['accepted']} steps, {s['rejected']} rejected, {iterations} "
+            f"Newton iterations, {k['factorizations']} factorizations"
+        )
+        parts.append(
+            "fixed costs (s): "
+            + ", ".join(f"{name} {seconds:.3g}" for name, seconds in fixed.items())
+        )
+        parts.append(table(["piece", "us per call", "calls in the run", "s in the run"], rows))
+        parts.append(
+            f"sum of the pieces {estimate:.3g} s; run_compiled measured {k['run_compiled_s']:.3g}"
+            " s (operating point and plan included; the rest is the loop's own bookkeeping:"
+            " truncation error, history, output)"
+        )
+    r = data["reference_stats"]
+    parts.append(
+        f"Reference (python) loop, ideal op-amps, under cProfile: {data['reference_total_s']:.3g}"
+        f" s, {r.get('accepted')} steps, {r.get('newton_iterations')} Newton iterations "
+        f"(top {TOP} by own time)\n" + data["reference_top"].rstrip()
     )
-    b = data["batch_of_one_stats"]
-    lever = (
-        f"Same run without the profiler: engine {data['single_s']:.3g} s; the batch code with "
-        f"one variant (inverse reused across Newton iterations and steps, low-rank update on "
-        f"the diode and charge ports) {data['batch_of_one_s']:.3g} s "
-        f"({b.get('factorizations')} block inversions/LU instead of {s.get('factorizations')}), "
-        f"v(y) within {data['batch_of_one_max_dev_over_range']:.2g} of its range"
-    )
-    return head + "\n" + data["top"].rstrip() + "\n\n" + lever
+    return "\n\n".join(parts)
