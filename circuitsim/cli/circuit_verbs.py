@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from circuitsim.cli.common import (
@@ -290,14 +291,15 @@ def _sweep_param_item(text: str) -> tuple[str, float] | str:
 def _add_sweep(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "sweep",
-        help="peak |y| against a parameter: many circuit variants in one vectorized run",
+        help="peak |y| against a parameter: many circuit variants, one run each",
         description=(
             "Sweep one model parameter (e.g. --param speed --values 40:70:0.5): the circuit is "
             "translated once (exact resistors, one amplitude scaling for all values) and only "
             "the parts the parameter sets change between variants (for the speed: R33 and "
-            "R44). The builtin engine simulates every variant together in one batched run; "
-            "ngspice runs one process per variant. Writes sweep.csv and sweep.png (peak |y| "
-            "over the last --window seconds and over the whole run, critical speed marked)."
+            "R44). Each variant is its own run (builtin: the same as simulating that variant's "
+            "circuit alone; ngspice: one process per variant), --jobs at a time. Writes "
+            "sweep.csv and sweep.png (peak |y| over the last --window seconds and over the "
+            "whole run, critical speed marked)."
         ),
     )
     add_model_options(parser)
@@ -327,7 +329,12 @@ def _add_sweep(sub: argparse._SubParsersAction) -> None:
         "--window", type=float, default=1.0, metavar="T", help="late window, s (default 1)"
     )
     parser.add_argument(
-        "--jobs", type=int, default=2, metavar="N", help="ngspice processes at a time (default 2)"
+        "--jobs",
+        type=int,
+        default=os.cpu_count() or 1,
+        metavar="N",
+        help="variants simulated at a time, in worker processes (default: the CPU count, "
+        f"{os.cpu_count() or 1} here)",
     )
     parser.add_argument("--out", default=".", metavar="DIR", help="output folder (default .)")
     parser.set_defaults(func=_run_sweep, error_exit_code=2)
@@ -349,6 +356,9 @@ def _run_sweep(args: argparse.Namespace) -> int:
     swept = [p for p in args.param if isinstance(p, str)]
     if len(swept) != 1:
         print("circuitsim sweep: error: name exactly one --param to sweep", file=sys.stderr)
+        return 2
+    if args.jobs < 1:
+        print("circuitsim sweep: error: --jobs must be at least 1", file=sys.stderr)
         return 2
     values = parse_values(args.values)
     model = load_model(args.model)

@@ -1,7 +1,7 @@
-"""Parameter sweeps of the equivalent circuit: many variants, one vectorized run, peak |state|.
+"""Parameter sweeps of the equivalent circuit: many variants, each its own run, peak |state|.
 
     Systems (one per value) --synthesize once, rescale the changed parts--> Circuits
-        --batch_transient (builtin, one run) or ngspice (one process per variant)-->
+        --simulate (builtin) or ngspice, one run per variant, a pool of workers-->
         peak |y| over a late window and over the whole run --> CSV + bifurcation-style plot
 
 The variants share one translation: the amplitude scaling is fixed from the direct solution's
@@ -41,7 +41,6 @@ Progress = Callable[[float, str], None]
 """Progress callback: fraction done (0..1) and a short message."""
 
 _A_ENTRY = re.compile(r"A\[(\w+), (\w+)\]")
-_TRANSIENT_T = re.compile(r"t = ([-+0-9.eE]+) s of ([-+0-9.eE]+) s")
 
 
 def parse_values(text: str) -> np.ndarray:
@@ -193,7 +192,7 @@ class SweepResult:
     peak_late, peak_all : ndarray, shape (k,)
         max |state| over the last ``window`` model seconds and over the whole run.
     engine : str
-        ``"builtin"`` (one batched run) or ``"ngspice"`` (one process per variant).
+        ``"builtin"`` or ``"ngspice"`` (either: one run per variant).
     window : float
         Model seconds of the late window.
     critical : float or None
@@ -251,7 +250,7 @@ def run_sweep(
     options: SynthesisOptions | None = None,
     state: str | None = None,
     window: float = 1.0,
-    workers: int = 2,
+    workers: int | None = None,
     progress: Progress | None = None,
     keep: Sequence[int] = (),
 ) -> SweepResult:
@@ -266,13 +265,17 @@ def run_sweep(
     parameter, unit : str
         Its name and unit (for the CSV and plot).
     engine : {"builtin", "ngspice"}
-        builtin: all variants in one :func:`~circuitsim.solver.batch.batch_transient` run;
-        ngspice: one ngspice process per variant, ``workers`` at a time.
+        builtin: each variant is its own :func:`~circuitsim.solver.simulate` run (the
+        compiled kernel when it takes the circuit; the same result as simulating that
+        variant's circuit alone) in a pool of ``workers`` processes; ngspice: one ngspice
+        process per variant, ``workers`` at a time.
     options : SynthesisOptions, optional
     state : str, optional
         State to measure (default: the first, the wheelset's y).
     window : float
         Late window, model seconds.
+    workers : int, optional
+        Simulations at a time (default: ``os.cpu_count()``).
     progress : callable(fraction, message), optional
     keep : sequence of int
         Indices of variants whose mapped state trace to keep in ``SweepResult.traces``.
@@ -287,6 +290,7 @@ def run_sweep(
     if state not in systems[0].states:
         raise ComparisonError(f"state {state!r} is not one of {', '.join(systems[0].states)}")
     state_unit = systems[0].units[list(systems[0].states).index(state)] if systems[0].units else ""
+    workers = max(1, int(workers or os.cpu_count() or 1))
     timings: dict[str, float] = {}
     started = time.perf_counter()
     variants = sweep_circuits(systems, options)
@@ -296,7 +300,7 @@ def run_sweep(
     started = time.perf_counter()
     if engine == "builtin":
         node = variants.scale_map.states[state].node
-        waves, stats = _run_builtin(variants.circuits, node, progress)
+        waves, stats = _run_builtin(variants.circuits, node, workers, progress)
     elif engine == "ngspice":
         waves, stats = _run_ngspice(variants, state, workers, progress)
     else:
@@ -321,16 +325,64 @@ def run_sweep(
     )
 
 
-def _run_builtin(circuits: list[Circuit], node: str, progress: Progress | None):
-    from circuitsim.solver.batch import batch_transient
+def _simulate_variant(circuit: Circuit, probes: list[str]):
+    """One variant's own single run (worker side): :func:`~circuitsim.solver.simulate` with
+    the circuit's options, BLAS on one thread, only ``probes`` sent back."""
+    from circuitsim.solver import simulate
+    from circuitsim.solver.threads import single_threaded_blas
+    from circuitsim.solver.waveforms import Waveforms
 
-    def relay(message: str) -> None:
-        found = _TRANSIENT_T.search(message)
-        if progress and found:
-            progress(min(1.0, float(found.group(1)) / float(found.group(2))), message)
+    with single_threaded_blas():
+        waves = simulate(circuit)
+    signals = {name: waves.signals[name] for name in probes}
+    return Waveforms(waves.time, signals, waves.engine, waves.stats)
 
-    result = batch_transient(circuits, progress=relay, probes=[f"v({node})"])
-    return [result.variant(k) for k in range(result.n_variants)], dict(result.stats)
+
+def _run_builtin(circuits: list[Circuit], node: str, jobs: int, progress: Progress | None):
+    """Every variant as its own single run: the first in this process, the rest in ``jobs``
+    worker processes.
+
+    Running the first variant here loads the compiled kernel once (from numba's disk cache, or
+    compiling and caching it on a first use); workers started by ``fork`` inherit it loaded,
+    others load it from the cache.
+    """
+    from concurrent.futures import ProcessPoolExecutor
+
+    probes = [f"v({node})"]
+    total = len(circuits)
+    waves: list = [None] * total
+
+    def advance(done: int) -> None:
+        if progress:
+            progress(done / total, f"builtin: {done} of {total} variants")
+
+    waves[0] = _simulate_variant(circuits[0], probes)
+    advance(1)
+    if jobs == 1:
+        for k in range(1, total):
+            waves[k] = _simulate_variant(circuits[k], probes)
+            advance(k + 1)
+    elif total > 1:
+        with ProcessPoolExecutor(max_workers=min(jobs, total - 1)) as pool:
+            futures = {
+                pool.submit(_simulate_variant, circuits[k], probes): k for k in range(1, total)
+            }
+            for done, future in enumerate(as_completed(futures), start=2):
+                try:
+                    waves[futures[future]] = future.result()
+                except Exception as error:
+                    for pending in futures:
+                        pending.cancel()
+                    error.add_note(f"in sweep variant {futures[future]} (0-based)")
+                    raise
+                advance(done)
+    stats: dict = {"processes": jobs, "variants": total}
+    for key in ("accepted", "rejected", "newton_iterations"):
+        stats[key] = int(sum(w.stats.get(key, 0) for w in waves))
+    stats["time_points"] = int(sum(len(w.time) for w in waves))
+    stats["variant_wall_s"] = float(sum(w.stats.get("wall_time_s", 0.0) for w in waves))
+    stats["kernels"] = sorted({str(w.stats.get("kernel", "?")) for w in waves})
+    return waves, stats
 
 
 def _run_ngspice(variants: SweepCircuits, state: str, workers: int, progress: Progress | None):
@@ -347,7 +399,7 @@ def _run_ngspice(variants: SweepCircuits, state: str, workers: int, progress: Pr
             path = Path(folder) / f"variant_{k:04d}.cir"
             save_netlist(circuit, path, "ngspice")
             paths.append(path)
-        with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
+        with ThreadPoolExecutor(max_workers=workers) as pool:
             futures = {pool.submit(run_ngspice, p, [f"v({node})"]): k for k, p in enumerate(paths)}
             for done, future in enumerate(as_completed(futures), start=1):
                 waves[futures[future]] = future.result()

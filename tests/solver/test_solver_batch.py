@@ -1,6 +1,5 @@
 """Batched variants (circuitsim.solver.batch) against single runs and closed-form answers."""
 
-import csv
 import math
 
 import numpy as np
@@ -138,49 +137,3 @@ def test_different_topologies_are_refused():
     other.elements[0] = Resistor("R1", "a", "b", 1e3)
     with pytest.raises(CircuitInputError, match="variant 1"):
         union_circuit([rc_discharge(1e3), other])
-
-
-def test_sweep_cli_writes_csv_and_plot(tmp_path):
-    from circuitsim.cli import main
-    from circuitsim.mechanics import load_model, solve
-
-    out = tmp_path / "sweep"
-    code = main(
-        ["sweep", "--param", "speed", "--values", "50,60", "--tstop", "0.1", "--out", str(out)]
-    )
-    assert code == 0
-    assert (out / "sweep.png").stat().st_size > 1000
-    with open(out / "sweep.csv") as handle:
-        rows = list(csv.reader(handle))
-    assert rows[0][0].startswith("V")
-    assert [float(r[0]) for r in rows[1:]] == [50.0, 60.0]
-    model = load_model()
-    for row in rows[1:]:
-        system = model.system(parameters={"V": float(row[0])}, nonlinear={"flange": True})
-        exact = solve(system, t_span=(0.0, 0.1)).max_abs("y")
-        assert float(row[2]) == pytest.approx(exact, rel=0.02)
-
-
-def test_sweep_values_grid_includes_stop():
-    from circuitsim.compare.sweep import parse_values
-
-    values = parse_values("40:70:0.5")
-    assert values.size == 61 and values[0] == 40.0 and values[-1] == pytest.approx(70.0)
-    assert list(parse_values("1, 2.5,4")) == [1.0, 2.5, 4.0]
-
-
-@pytest.mark.parametrize(
-    "argv",
-    [
-        ["--param", "speed", "--values", "5:1:1"],
-        ["--param", "speed", "--param", "freq", "--values", "1:2:1"],
-        ["--param", "no_such_parameter", "--values", "1:2:1"],
-    ],
-    ids=["empty-range", "two-swept", "unknown"],
-)
-def test_sweep_cli_refuses_bad_input(argv, tmp_path, capsys):
-    from circuitsim.cli import main
-
-    assert main(["sweep", *argv, "--out", str(tmp_path)]) == 2
-    assert "error" in capsys.readouterr().err
-    assert not (tmp_path / "sweep.csv").exists()

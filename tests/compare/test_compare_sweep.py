@@ -1,0 +1,122 @@
+"""The parameter sweep: each builtin variant equals its own single run; ngspice and the model
+solution as independent references; the CLI verb."""
+
+import csv
+import shutil
+
+import numpy as np
+import pytest
+
+from circuitsim.compare.mapping import map_waveforms
+from circuitsim.compare.sweep import parse_values, run_sweep, sweep_circuits
+from circuitsim.mechanics import load_model, solve
+from circuitsim.netlist.reader import parse_netlist
+from circuitsim.netlist.writer import write_netlist
+from circuitsim.solver import simulate
+from circuitsim.synthesis.options import SynthesisOptions
+
+requires_ngspice = pytest.mark.skipif(
+    shutil.which("ngspice") is None,
+    reason="ngspice is not installed (apt-get install -y ngspice; CI installs it)",
+)
+
+VALUES = np.array([50.0, 55.5, 61.0])  # m/s: below, near and above the critical speed
+T_STOP = 0.5  # model seconds
+WINDOW = 0.2  # model seconds
+
+
+def wheelset_systems(values):
+    model = load_model()
+    return [
+        model.system(parameters={"V": float(v), "f": 3.0, "a": 0.040}, nonlinear={"flange": True})
+        for v in values
+    ]
+
+
+@pytest.fixture(scope="module")
+def builtin_sweep():
+    systems = wheelset_systems(VALUES)
+    options = SynthesisOptions(opamp="ideal", t_stop=T_STOP)
+    keep = range(len(VALUES))
+    result = run_sweep(
+        systems, VALUES, "V", "m/s", "builtin", options, window=WINDOW, workers=2, keep=keep
+    )
+    return systems, options, result
+
+
+def test_builtin_sweep_variants_equal_their_single_runs(builtin_sweep):
+    """Each variant runs alone (in a worker process): its trace is bit-identical to simulating
+    its Circuit here, and its peaks equal those of simulating its written netlist."""
+    systems, options, result = builtin_sweep
+    variants = sweep_circuits(systems, options)
+    assert variants.changed == ["R33", "R44"]
+    assert result.stats["kernels"] == ["compiled"]
+    for k, circuit in enumerate(variants.circuits):
+        single = map_waveforms(simulate(circuit), variants.scale_map, ["y"])["y"]
+        np.testing.assert_array_equal(result.traces[k][0], single[0])
+        np.testing.assert_array_equal(result.traces[k][1], single[1])
+
+        waves = simulate(parse_netlist(write_netlist(circuit), source=f"variant {k}"))
+        t, y = map_waveforms(waves, variants.scale_map, ["y"])["y"]
+        late = t >= t[-1] - WINDOW
+        assert result.peak_all[k] == pytest.approx(np.max(np.abs(y)), rel=1e-12, abs=0)
+        assert result.peak_late[k] == pytest.approx(np.max(np.abs(y[late])), rel=1e-12, abs=0)
+
+
+def test_builtin_sweep_peaks_match_the_model_solution(builtin_sweep):
+    """Independent reference: the mechanical model's ODE solution (no circuit)."""
+    systems, _, result = builtin_sweep
+    for k, system in enumerate(systems):
+        exact = solve(system, t_span=(0.0, T_STOP)).max_abs("y")
+        assert result.peak_all[k] == pytest.approx(exact, rel=0.02)
+
+
+@requires_ngspice
+def test_ngspice_sweep_agrees_with_builtin(builtin_sweep):
+    systems, options, ours = builtin_sweep
+    theirs = run_sweep(systems, VALUES, "V", "m/s", "ngspice", options, window=WINDOW, workers=2)
+    assert theirs.stats["processes"] == len(VALUES)
+    np.testing.assert_allclose(ours.peak_all, theirs.peak_all, rtol=1e-3)
+    np.testing.assert_allclose(ours.peak_late, theirs.peak_late, rtol=1e-3)
+
+
+def test_sweep_cli_writes_csv_and_plot(tmp_path):
+    from circuitsim.cli import main
+
+    out = tmp_path / "sweep"
+    argv = ["sweep", "--param", "speed", "--values", "50,60", "--tstop", "0.1", "--out", str(out)]
+    assert main([*argv, "--jobs", "2"]) == 0
+    assert (out / "sweep.png").stat().st_size > 1000
+    with open(out / "sweep.csv") as handle:
+        rows = list(csv.reader(handle))
+    assert rows[0][0].startswith("V")
+    assert [float(r[0]) for r in rows[1:]] == [50.0, 60.0]
+    model = load_model()
+    for row in rows[1:]:
+        system = model.system(parameters={"V": float(row[0])}, nonlinear={"flange": True})
+        exact = solve(system, t_span=(0.0, 0.1)).max_abs("y")
+        assert float(row[2]) == pytest.approx(exact, rel=0.02)
+
+
+def test_sweep_values_grid_includes_stop():
+    values = parse_values("40:70:0.5")
+    assert values.size == 61 and values[0] == 40.0 and values[-1] == pytest.approx(70.0)
+    assert list(parse_values("1, 2.5,4")) == [1.0, 2.5, 4.0]
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["--param", "speed", "--values", "5:1:1"],
+        ["--param", "speed", "--param", "freq", "--values", "1:2:1"],
+        ["--param", "no_such_parameter", "--values", "1:2:1"],
+        ["--param", "speed", "--values", "50,60", "--jobs", "0"],
+    ],
+    ids=["empty-range", "two-swept", "unknown", "no-jobs"],
+)
+def test_sweep_cli_refuses_bad_input(argv, tmp_path, capsys):
+    from circuitsim.cli import main
+
+    assert main(["sweep", *argv, "--out", str(tmp_path)]) == 2
+    assert "error" in capsys.readouterr().err
+    assert not (tmp_path / "sweep.csv").exists()
