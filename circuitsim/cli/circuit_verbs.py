@@ -333,8 +333,8 @@ def _add_sweep(sub: argparse._SubParsersAction) -> None:
         type=int,
         default=os.cpu_count() or 1,
         metavar="N",
-        help="variants simulated at a time, in worker processes (default: the CPU count, "
-        f"{os.cpu_count() or 1} here)",
+        help="variants simulated at a time (worker processes; 1: all in this process; "
+        f"default: the CPU count, {os.cpu_count() or 1} here)",
     )
     parser.add_argument("--out", default=".", metavar="DIR", help="output folder (default .)")
     parser.set_defaults(func=_run_sweep, error_exit_code=2)
