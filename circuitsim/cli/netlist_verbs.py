@@ -87,6 +87,13 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("netlist", metavar="FILE.cir", help="netlist to simulate")
     parser.add_argument("--engine", choices=("builtin", "ngspice"), default="builtin")
+    parser.add_argument(
+        "--kernel",
+        choices=("auto", "compiled", "python"),
+        default="auto",
+        help="builtin engine's transient loop: compiled (numba), python (the reference), or "
+        "auto (compiled where the circuit allows; default)",
+    )
     parser.add_argument("--csv", metavar="FILE", help="write time,v(node),...,i(vsource),...")
     parser.add_argument("--plot", metavar="FILE", help="save a figure (.png, .pdf, .svg)")
     parser.add_argument(
@@ -105,9 +112,11 @@ def _run_simulate(args: argparse.Namespace) -> int:
 
         waves = run_ngspice(Path(args.netlist), probes=args.probe)
     else:
-        from circuitsim.solver import simulate
+        from circuitsim.solver import SimulationOptions, simulate
 
-        waves = simulate(read_netlist(args.netlist), progress=progress)
+        circuit = read_netlist(args.netlist)
+        options = SimulationOptions.from_circuit(circuit, kernel=args.kernel)
+        waves = simulate(circuit, options, progress=progress)
         if args.probe:
             missing = [p for p in args.probe if p not in waves]
             if missing:
@@ -119,7 +128,10 @@ def _run_simulate(args: argparse.Namespace) -> int:
                 return 1
             waves = waves.select(args.probe)
     stats = waves.stats
-    summary = f"{args.netlist}: {args.engine}, {len(waves.time)} time point(s)"
+    engine = args.engine
+    if "kernel" in stats:
+        engine += f" ({stats['kernel']} kernel)"
+    summary = f"{args.netlist}: {engine}, {len(waves.time)} time point(s)"
     if "accepted" in stats:
         summary += (
             f", {stats['accepted']} accepted / {stats['rejected']} rejected steps, "

@@ -422,3 +422,32 @@ def test_wheelset_kernels_agree(tmp_path):
     # 2.6e-8 of its range (it sits at a switch threshold, where roundoff moves it most)
     assert_kernels_agree(python, compiled, bound=1e-6)
     assert kernel_deviation(python, compiled)["v(y)"] <= SAME_SIGNAL
+
+
+def _fake_kernel(folder: Path, text: str) -> None:
+    from circuitsim.solver.compiled import KERNEL_MODULES
+
+    folder.mkdir(exist_ok=True)
+    for name in KERNEL_MODULES:
+        (folder / f"{name}.py").write_text(f"# {name} {text}\n")
+
+
+def test_stale_compiled_code_is_cleared_when_any_kernel_file_changes(tmp_path):
+    # numba checks only the defining file of a cached function; a change in newton.py must
+    # also drop transient.py's cached machine code, which has the old newton compiled in.
+    from circuitsim.solver.compiled import clear_stale_cache
+
+    _fake_kernel(tmp_path, "v1")
+    cache = tmp_path / "__pycache__"
+    assert clear_stale_cache(tmp_path) is False  # first sight: a stamp, nothing to delete
+    machine_code = [cache / "transient.run-120.py311.nbi", cache / "transient.run-120.py311.1.nbc"]
+    other = cache / "plan.cpython-311.pyc"
+    for path in [*machine_code, other]:
+        path.write_bytes(b"x")
+    assert clear_stale_cache(tmp_path) is False  # sources unchanged: the cache is kept
+    assert all(path.exists() for path in machine_code)
+    (tmp_path / "newton.py").write_text("# newton v2\n")
+    assert clear_stale_cache(tmp_path) is True
+    assert not any(path.exists() for path in machine_code)
+    assert other.exists()  # only the kernel's numba files go
+    assert clear_stale_cache(tmp_path) is False

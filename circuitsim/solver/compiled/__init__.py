@@ -15,10 +15,13 @@ numba compiles the kernel on first use and caches the machine code next to these
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
+from circuitsim.atomic import write_text_atomic
 from circuitsim.solver.compiled.plan import build_plan, initial_state, unsupported
 from circuitsim.solver.dc import initial_condition_solution, operating_point_solution
 from circuitsim.solver.errors import CircuitInputError, ConvergenceError, SingularMatrixError
@@ -36,6 +39,42 @@ def kernel_unavailable(system: MnaSystem) -> str | None:
     except ImportError:
         return "numba is not installed"
     return unsupported(system)
+
+
+KERNEL_MODULES = ("devices", "lowrank", "newton", "transient")
+
+
+def clear_stale_cache(folder: Path | None = None) -> bool:
+    """Delete numba's cached machine code of the kernel when any kernel file changed.
+
+    numba's cache checks only the file a function is defined in, so a cached ``run``
+    (transient.py) would keep the old code of a changed ``newton`` (newton.py) compiled into
+    it. A stamp of all kernel sources, kept beside the cache, catches that. Returns True when
+    cache files were deleted. Read-only package folders are left alone (numba then caches in
+    its user folder, which a reinstall invalidates by the new files' modification times).
+    """
+    folder = folder or Path(__file__).resolve().parent
+    digest = hashlib.sha256()
+    for name in KERNEL_MODULES:
+        digest.update((folder / f"{name}.py").read_bytes())
+    cache = folder / "__pycache__"
+    stamp = cache / "kernel-sources.sha256"
+    try:
+        if stamp.read_text() == digest.hexdigest():
+            return False
+    except OSError:
+        pass
+    removed = False
+    try:
+        cache.mkdir(exist_ok=True)
+        for name in KERNEL_MODULES:
+            for path in [*cache.glob(f"{name}.*.nbi"), *cache.glob(f"{name}.*.nbc")]:
+                path.unlink(missing_ok=True)
+                removed = True
+        write_text_atomic(stamp, digest.hexdigest())
+    except OSError:
+        return False
+    return removed
 
 
 def run_compiled(
@@ -56,6 +95,7 @@ def run_compiled(
         Accepted time points >= tstart, seconds.
     solutions : ndarray, shape (m, n)
     """
+    clear_stale_cache()
     from circuitsim.solver.compiled import newton as nw
     from circuitsim.solver.compiled import transient as tr
 

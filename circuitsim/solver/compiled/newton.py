@@ -184,6 +184,8 @@ def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
     vd_accepted, vd, cd, gd, ieq = st.vd_accepted, st.vd, st.cd, st.gd, st.ieq
     state, accepted = st.state, st.accepted
     ms = sw.shape[0]
+    # no junctions or switches: the first solve is exact (one iteration, as MnaSystem's)
+    linear = jp.shape[0] == 0 and ms == 0
     n = x0.size
     x = x0.copy()
     x_prev = x0.copy()
@@ -237,8 +239,8 @@ def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
         extend(x_new, x_new_ext)
         done = (
             noncon == 0
-            and iteration > 1
-            and close(x_new, x, reltol, abs_tol)
+            and (iteration > 1 or linear)
+            and (linear or close(x_new, x, reltol, abs_tol))
             and ports_converged(port_p, port_n, vd, cd, gd, x_new_ext, reltol, abstol)
         )
         if (done or iteration > 2) and not checked:
@@ -272,7 +274,7 @@ def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
             extend(x_new, x_new_ext)
             done = (
                 done
-                and close(x_new, x, reltol, abs_tol)
+                and (linear or close(x_new, x, reltol, abs_tol))
                 and ports_converged(port_p, port_n, vd, cd, gd, x_new_ext, reltol, abstol)
             )
         x_prev = x
