@@ -108,8 +108,13 @@ def _time_solve(plan, st, a0, k):
     fac = st.fac
     d = nw.port_values(st.gd, plan.g_switch, st.state, plan.VT.shape[0], a0) - fac.ref
     total = 0.0
-    for _ in range(k):
-        x, ok = nw.solve_ports(st.y0, st.c0, st.ieq, d, fac.K, fac.ZT, fac.Zd, fac.Kd)
+    for i in range(k):
+        # a junction current change every call (the response is updated incrementally)
+        st.ieq[0] += 1e-9 if i % 2 else -1e-9
+        nw.junction_response(
+            st.ieq, fac.ZdT, fac.KdT, fac.zrel, st.yd, st.cd_response, st.ieq_applied, i == 0
+        )
+        x, ok = nw.solve_ports(st.y0, st.c0, st.yd, st.cd_response, d, fac.K, fac.ZT)
         total += x[0]
     return total, active_columns(d, fac.K).size
 
@@ -118,7 +123,10 @@ def _time_solve(plan, st, a0, k):
 def _time_refine(plan, st, a0, rhs0, k):
     fac = st.fac
     d = nw.port_values(st.gd, plan.g_switch, st.state, plan.VT.shape[0], a0) - fac.ref
-    x, ok = nw.solve_ports(st.y0, st.c0, st.ieq, d, fac.K, fac.ZT, fac.Zd, fac.Kd)
+    nw.junction_response(
+        st.ieq, fac.ZdT, fac.KdT, fac.zrel, st.yd, st.cd_response, st.ieq_applied, True
+    )
+    x, ok = nw.solve_ports(st.y0, st.c0, st.yd, st.cd_response, d, fac.K, fac.ZT)
     vt = (plan.VT_ptr, plan.VT_idx, plan.VT_val)
     ut = (plan.UT_ptr, plan.UT_idx, plan.UT_val)
     tol = 1e-3 * np.abs(x) + plan.abs_tol
@@ -184,7 +192,9 @@ def kernel_breakdown(path: Path) -> dict:
             "junction evaluation (per Newton iteration)": _per_call(
                 _time_junctions, plan, st, x, a0
             ),
-            "Woodbury solve (per Newton iteration)": _per_call(_time_solve, plan, st, a0),
+            "junction response + Woodbury solve (per Newton iteration)": _per_call(
+                _time_solve, plan, st, a0
+            ),
             "refinement check (per accepted iterate)": _per_call(_time_refine, plan, st, a0, rhs0),
         }
         system = build_system(circuit, None)

@@ -59,9 +59,11 @@ def rebuild(fac, plan, a0, values):
                 fac.b_val[count] = B[i, j]
                 count += 1
     fac.b_ptr[B.shape[0]] = count
-    md = fac.Zd.shape[1]
-    fac.Zd[:, :] = fac.Z[:, :md]
-    fac.Kd[:, :] = fac.K[:, :md]
+    md = fac.ZdT.shape[0]
+    fac.ZdT[:, :] = fac.ZT[:md]
+    fac.KdT[:, :] = fac.K[:, :md].T
+    for j in range(md):
+        fac.zrel[j] = np.max(np.abs(fac.ZdT[j]) / plan.abs_tol)
     fac.Zq[:, :] = fac.Z[:, nports:]
     fac.Kq[:, :] = fac.K[:, nports:]
     fac.yc[:] = np.dot(fac.Binv, plan.rhs_const)

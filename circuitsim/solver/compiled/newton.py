@@ -25,11 +25,14 @@ from circuitsim.solver.compiled.lowrank import (
 )
 
 REFINE_FRACTION = 1e-3  # as port_solver.REFINE_FRACTION
+# a junction current change that moves no unknown by more than this fraction of its absolute
+# tolerance (vntol, abstol) is not applied until it grows (junction_response)
+JUNCTION_NEGLIGIBLE = 1e-9
 
 # indices into KernelState.fs (floats) and .ints
 T, H, SAVED_H, LAST_A0 = 0, 1, 2, 3
 ORDER, AT_BREAK, FIRST, BI, ATTEMPTS, ACCEPTED, REJECTED, NEWTON, FACTORIZATIONS = range(9)
-NHIST, COUNT, SAME_A0, VERSION = 9, 10, 11, 12
+NHIST, COUNT, SAME_A0, VERSION, JUNCTION_VERSION = 9, 10, 11, 12, 13
 
 
 @njit(cache=True)
@@ -140,30 +143,38 @@ def close(x_new, x_old, reltol, abs_tol) -> bool:
 
 
 @njit(cache=True)
-def thin_product(A, v, out):
-    """out -= A v; BLAS for wide A, a loop for a few columns (a BLAS call costs ~0.3 us)."""
-    if A.shape[1] >= 16:
-        out -= np.dot(A, v)
-        return
-    for i in range(A.shape[0]):
-        acc = 0.0
-        for j in range(A.shape[1]):
-            acc += A[i, j] * v[j]
-        out[i] -= acc
+def junction_response(ieq, ZdT, KdT, zrel, yd, cd_response, applied, full):
+    """Keep yd = B^-1 W ieq and V^T yd up to date with the junction currents ieq.
+
+    After a factorization (``full``) they are recomputed; otherwise only the junctions whose
+    current changed enough to move some unknown by more than JUNCTION_NEGLIGIBLE of its
+    absolute tolerance are applied (most clamp diodes of an op-amp macromodel sit far in
+    reverse, their companion current constant from one iteration to the next).
+    """
+    if full:
+        yd[:] = 0.0
+        cd_response[:] = 0.0
+        for j in range(ieq.size):
+            applied[j] = 0.0
+    for j in range(ieq.size):
+        delta = ieq[j] - applied[j]
+        if delta != 0.0 and (full or abs(delta) * zrel[j] > JUNCTION_NEGLIGIBLE):
+            z, k = ZdT[j], KdT[j]
+            for i in range(yd.size):
+                yd[i] += delta * z[i]
+            for i in range(cd_response.size):
+                cd_response[i] += delta * k[i]
+            applied[j] = ieq[j]
 
 
 @njit(cache=True)
-def solve_ports(y0, c0, ieq, d, K, ZT, Zd, Kd):
+def solve_ports(y0, c0, yd, cd_response, d, K, ZT):
     """The solution at the present linearization: Woodbury on the present factorization.
 
-    d : the port values' change since the factorization, shape (r,).
+    y0 - yd = B^-1 (rhs0 - W ieq); d : the port values' change since the factorization,
+    shape (r,).
     """
-    y = y0.copy()
-    c = c0.copy()
-    if ieq.size:
-        thin_product(Zd, ieq, y)
-        thin_product(Kd, ieq, c)
-    return update(y, c, d, K, ZT, active_columns(d, K))
+    return update(y0 - yd, c0 - cd_response, d, K, ZT, active_columns(d, K))
 
 
 @njit(cache=True)
@@ -192,6 +203,7 @@ def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
     x_ext = np.empty(n + 1)
     extend(x, x_ext)
     y0, c0 = st.y0, st.c0
+    yd, cd_response, applied = st.yd, st.cd_response, st.ieq_applied
     hist_lin = hist[plan.lin_slots]
     version = -1  # of the factorization y0 and c0 belong to
     for iteration in range(1, itl4 + 1):
@@ -227,7 +239,18 @@ def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
                 )
                 version = st.ints[VERSION]
             d = port_values(gd, g_switch, state, r, a0) - fac.ref
-            x_new, ok = solve_ports(y0, c0, ieq, d, fac.K, fac.ZT, fac.Zd, fac.Kd)
+            junction_response(
+                ieq,
+                fac.ZdT,
+                fac.KdT,
+                fac.zrel,
+                yd,
+                cd_response,
+                applied,
+                st.ints[JUNCTION_VERSION] != st.ints[VERSION],
+            )
+            st.ints[JUNCTION_VERSION] = st.ints[VERSION]
+            x_new, ok = solve_ports(y0, c0, yd, cd_response, d, fac.K, fac.ZT)
             if ok and np.all(np.isfinite(x_new)):
                 break
             if attempt == 0:
@@ -269,7 +292,9 @@ def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
                 )
                 version = st.ints[VERSION]
                 d = port_values(gd, g_switch, state, r, a0) - fac.ref
-                refined, ok = solve_ports(y0, c0, ieq, d, fac.K, fac.ZT, fac.Zd, fac.Kd)
+                junction_response(ieq, fac.ZdT, fac.KdT, fac.zrel, yd, cd_response, applied, True)
+                st.ints[JUNCTION_VERSION] = st.ints[VERSION]
+                refined, ok = solve_ports(y0, c0, yd, cd_response, d, fac.K, fac.ZT)
             x_new = refined
             extend(x_new, x_new_ext)
             done = (

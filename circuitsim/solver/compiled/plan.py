@@ -91,8 +91,9 @@ class Factors(NamedTuple):
     ZT: np.ndarray  # (r, n) Z transposed (rows contiguous)
     K: np.ndarray  # (r, r) V^T Z
     ref: np.ndarray  # (r,) port values at the factorization (a0 for the charges)
-    Zd: np.ndarray  # (n, md) junction columns of Z, contiguous for BLAS
-    Kd: np.ndarray  # (r, md) junction columns of K
+    ZdT: np.ndarray  # (md, n) junction columns of Z, as rows
+    KdT: np.ndarray  # (md, r) junction columns of K, as rows
+    zrel: np.ndarray  # (md,) max over unknowns i of |Z[i, j]| / (vntol or abstol of i)
     Zq: np.ndarray  # (n, nl) charge columns of Z: response to the charge history
     Kq: np.ndarray  # (r, nl)
     yc: np.ndarray  # (n,) B^-1 of the constant sources' right-hand side
@@ -114,8 +115,9 @@ def empty_factors(n: int, r: int, md: int, nl: int, ns: int) -> Factors:
         z((r, n)),
         z((r, r)),
         z(r),
-        z((n, md)),
-        z((r, md)),
+        z((md, n)),
+        z((md, r)),
+        z(md),
         z((n, nl)),
         z((r, nl)),
         z(n),
@@ -148,6 +150,9 @@ class KernelState(NamedTuple):
     fac: Factors
     y0: np.ndarray
     c0: np.ndarray
+    yd: np.ndarray  # (n,) B^-1 W ieq_applied: the junction currents' response
+    cd_response: np.ndarray  # (r,) V^T yd
+    ieq_applied: np.ndarray  # (md,) the junction currents yd was last updated with
     out_t: np.ndarray
     out_x: np.ndarray
     fail_x: np.ndarray
@@ -340,7 +345,7 @@ def initial_state(
     out_x = np.zeros((capacity, n))
     out_x[0] = x0
     fac = empty_factors(n, r, md, plan.lin_slots.size, plan.src_kind.size)
-    ints = np.zeros(14, dtype=np.int64)
+    ints = np.zeros(15, dtype=np.int64)
     ints[0] = 1  # order
     ints[1] = 1  # at a breakpoint (t = 0)
     ints[2] = 1  # first step
@@ -365,6 +370,9 @@ def initial_state(
         fac=fac,
         y0=np.zeros(n),
         c0=np.zeros(r),
+        yd=np.zeros(n),
+        cd_response=np.zeros(r),
+        ieq_applied=np.zeros(md),
         out_t=out_t,
         out_x=out_x,
         fail_x=np.zeros(n),
