@@ -1,11 +1,12 @@
-"""Benchmark harness: our MNA solver against ngspice, at equal accuracy, and batched sweeps.
+"""Benchmark harness: our MNA solver against ngspice, at equal accuracy, and speed sweeps.
 
     python benchmarks/run.py [--quick] [--out DIR] [--parts wheelset golden sweep profile]
 
 Parts: ``wheelset`` (work-precision of the generated wheelset circuit, ideal and TL074 op-amps,
 against the direct ODE solution), ``golden`` (tests/solver/golden netlists: time ratio and max
-deviation against ngspice), ``sweep`` (61-variant speed sweep, batched builtin run against one
-ngspice process per variant), ``profile`` (cProfile of one builtin wheelset run). Prints text
+deviation against ngspice), ``sweep`` (61-variant speed sweep, builtin runs in a process pool
+against one ngspice process per variant), ``profile`` (where the time of one builtin wheelset
+run goes: the compiled kernel piece by piece, cProfile of the reference loop). Prints text
 tables and writes <part>.json / <part>.md and machine.json into --out (default
 benchmarks/results). Not part of the test suite.
 """

@@ -8,6 +8,7 @@ which the compiled kernel's low-rank updates order differently from the referenc
 """
 
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -422,6 +423,32 @@ def test_wheelset_kernels_agree(tmp_path):
     # 2.6e-8 of its range (it sits at a switch threshold, where roundoff moves it most)
     assert_kernels_agree(python, compiled, bound=1e-6)
     assert kernel_deviation(python, compiled)["v(y)"] <= SAME_SIGNAL
+
+
+def test_wheelset_at_tight_tolerance_survives_the_first_steps(tmp_path):
+    # Regression: at reltol 1e-6 with uic, the first step is cut (switch transition) to
+    # ~4e-14 s, where a0 is 1e5 times the factorization's; the Woodbury update then lost the
+    # digits Newton needed on the op-amp branch currents and the run failed with "time step
+    # too small" at t = 6e-16 s. A Newton failure that far from the factored a0 is now retried
+    # on a new factorization (transient.RETRY_RATIO). The first step depends on tstop only
+    # through min(tstop / 100, tstep), so 0.05 s starts exactly as the 5 s run did.
+    from circuitsim.mechanics import load_model
+    from circuitsim.synthesis.options import SynthesisOptions
+    from circuitsim.synthesis.translator import synthesize
+
+    model = load_model()
+    system = model.system(parameters={"V": 55.0, "f": 3.0, "a": 0.040}, nonlinear={"flange": True})
+    circuit = synthesize(system, SynthesisOptions(series="exact", t_stop=5.0)).circuit
+    tran = circuit.transient  # tstep = TMAX = 340 us, as for 5 s; stop after 0.05 s
+    circuit.analyses = [replace(tran, tstop=0.05) if a is tran else a for a in circuit.analyses]
+    runs = {
+        k: simulate(circuit, SimulationOptions.from_circuit(circuit, kernel=k, reltol=1e-6))
+        for k in KERNELS
+    }
+    python, compiled = runs["python"], runs["compiled"]
+    assert compiled.stats["kernel"] == "compiled"
+    assert compiled.time[-1] == pytest.approx(0.05, abs=1e-12)
+    assert kernel_deviation(python, compiled)["v(y)"] <= 1e-6
 
 
 def _fake_kernel(folder: Path, text: str) -> None:

@@ -39,6 +39,13 @@ from circuitsim.solver.compiled.newton import (
 
 TRANSITION_OVERSHOOT = 0.02  # as transient.TRANSITION_OVERSHOOT
 REBASE_STEPS = 8  # refactor when this many accepted steps in a row used one new a0
+# A Newton failure at an a0 this far from the factorization's is retried once on a
+# factorization at this a0 before the step is cut: with the charge columns' update
+# d = a0 - a0_ref dominating B (steps far shorter than the factored one, right after a
+# breakpoint or a switch transition), the Woodbury solve can lose the digits that Newton's
+# branch-current tolerance (abstol 1e-12 A) needs, where an exact solve converges
+# (measured: the wheelset at reltol 1e-6 with uic failed at t = 6e-16 s without it).
+RETRY_RATIO = 16.0
 
 # return codes
 PAUSED, FINISHED, FULL = 0, 1, 2
@@ -160,7 +167,8 @@ def run(plan, st, t_until):
             if a2 != 0.0:
                 hist += a2 * st.hq[1]
             ref_a0 = st.fac.ref[nports] if lin.size else a0
-            if lin.size and a0 != ref_a0 and a0 == fs[LAST_A0] and si[SAME_A0] >= REBASE_STEPS:
+            settled = a0 != ref_a0 and a0 == fs[LAST_A0] and si[SAME_A0] >= REBASE_STEPS
+            if lin.size and settled:
                 factor_now(plan, st, a0)
             rhs0, src_values = source_rhs(
                 t + h,
@@ -186,6 +194,17 @@ def run(plan, st, t_until):
                 plan, st, x_guess, a0, hist, rhs0, src_values, q, qdot
             )
             si[NEWTON] += iterations
+            if (
+                not ok
+                and lin.size
+                and not (a0 / RETRY_RATIO < st.fac.ref[nports] < RETRY_RATIO * a0)
+            ):
+                # the update's round-off, not the step, may be what failed (RETRY_RATIO)
+                factor_now(plan, st, a0)
+                ok, iterations, x_new, x_before = newton(
+                    plan, st, x_guess, a0, hist, rhs0, src_values, q, qdot
+                )
+                si[NEWTON] += iterations
             if not ok:
                 si[REJECTED] += 1
                 st.fail_x[:] = x_new
