@@ -29,6 +29,7 @@ from circuitsim.solver.compiled import newton as nw
 from circuitsim.solver.compiled import plan as kp
 from circuitsim.solver.compiled import run_compiled
 from circuitsim.solver.compiled import transient as tr
+from circuitsim.solver.compiled.devices import junction_charge, junction_current
 from circuitsim.solver.compiled.lowrank import (
     active_columns,
     add_u_columns,
@@ -77,30 +78,20 @@ def _time_source_solution(plan, st, k):
 
 @njit
 def _time_junctions(plan, st, x, a0, k):
+    """Junction evaluation as newton() does it, one junction at a time."""
     x_ext = np.empty(x.size + 1)
     nw.extend(x, x_ext)
-    hist = np.zeros(st.hq.shape[1])
-    q, qdot = hist.copy(), hist.copy()
+    total = 0.0
     for _ in range(k):
-        nw.load_junctions(
-            plan.jp,
-            plan.cp,
-            plan.jslot,
-            plan.has_charge,
-            plan.port_p,
-            plan.port_n,
-            st.vd_accepted,
-            st.vd,
-            st.cd,
-            st.gd,
-            st.ieq,
-            x_ext,
-            a0,
-            hist,
-            q,
-            qdot,
-            False,
-        )
+        for j in range(plan.jp.shape[0]):
+            v = x_ext[plan.port_p[j]] - x_ext[plan.port_n[j]]
+            cd, gd = junction_current(v, j, plan.jp)
+            if plan.has_charge:
+                q, c = junction_charge(v, cd, gd, j, plan.cp)
+                cd += a0 * q
+                gd += a0 * c
+            total += cd - gd * v
+    return total
 
 
 @njit

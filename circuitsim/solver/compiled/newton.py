@@ -64,50 +64,6 @@ def factor_now(plan, st, a0):
 
 
 @njit(cache=True)
-def load_junctions(
-    jp,
-    cp,
-    jslot,
-    has_charge,
-    port_p,
-    port_n,
-    vd_accepted,
-    vd_,
-    cd_,
-    gd_,
-    ieq,
-    x_ext,
-    a0,
-    hist,
-    q,
-    qdot,
-    first,
-) -> int:
-    """Linearize every junction at x (DiodeFamily.port_load); returns 1 if one was limited."""
-    limited = 0
-    for k in range(jp.shape[0]):
-        v = x_ext[port_p[k]] - x_ext[port_n[k]]
-        vold = vd_accepted[k] if first else vd_[k]
-        vd = v
-        if abs(v - vold) > jp[k, 9]:
-            vd, was = pnjlim(v, vold, jp[k, 1], jp[k, 8])
-            if was:
-                limited = 1
-        cd, gd = junction_current(vd, k, jp)
-        if has_charge:
-            qk, ck = junction_charge(vd, cd, gd, k, cp)
-            slot = jslot[k]
-            icap = a0 * qk + hist[slot]
-            q[slot] = qk
-            qdot[slot] = icap
-            cd += icap
-            gd += a0 * ck
-        vd_[k], cd_[k], gd_[k] = vd, cd, gd
-        ieq[k] = cd - gd * vd
-    return limited
-
-
-@njit(cache=True)
 def update_switches(sw, approach, state, accepted, x_ext, first) -> int:
     """Re-decide switch states (SwitchFamily.update_state); returns 1 if one changed."""
     changed = 0
@@ -195,6 +151,7 @@ def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
     vd_accepted, vd, cd, gd, ieq = st.vd_accepted, st.vd, st.cd, st.gd, st.ieq
     state, accepted = st.state, st.accepted
     ms = sw.shape[0]
+    md = jp.shape[0]
     # no junctions or switches: the first solve is exact (one iteration, as MnaSystem's)
     linear = jp.shape[0] == 0 and ms == 0
     n = x0.size
@@ -206,55 +163,57 @@ def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
     yd, cd_response, applied = st.yd, st.cd_response, st.ieq_applied
     hist_lin = hist[plan.lin_slots]
     version = -1  # of the factorization y0 and c0 belong to
+    fac = st.fac  # rebuilt in place by factor_now
+    ref, K, ZT, ZdT, KdT, zrel = fac.ref, fac.K, fac.ZT, fac.ZdT, fac.KdT, fac.zrel
+    d = np.empty(r)
     for iteration in range(1, itl4 + 1):
         first = iteration == 1
         noncon = 0
         if ms:
             noncon += update_switches(sw, approach, state, accepted, x_ext, first)
-        noncon += load_junctions(
-            jp,
-            cp,
-            jslot,
-            has_charge,
-            port_p,
-            port_n,
-            vd_accepted,
-            vd,
-            cd,
-            gd,
-            ieq,
-            x_ext,
-            a0,
-            hist,
-            q,
-            qdot,
-            first,
-        )
+        # the junctions, linearized at x (DiodeFamily.port_load; written out here rather than
+        # called: a call costs a reference-count update per array argument, ~20 ns each)
+        for k in range(md):
+            v = x_ext[port_p[k]] - x_ext[port_n[k]]
+            vold = vd_accepted[k] if first else vd[k]
+            vk = v
+            if abs(v - vold) > jp[k, 9]:
+                vk, was = pnjlim(v, vold, jp[k, 1], jp[k, 8])
+                if was:
+                    noncon += 1
+            ck, gk = junction_current(vk, k, jp)
+            if has_charge:
+                qk, capk = junction_charge(vk, ck, gk, k, cp)
+                slot = jslot[k]
+                icap = a0 * qk + hist[slot]
+                q[slot] = qk
+                qdot[slot] = icap
+                ck += icap
+                gk += a0 * capk
+            vd[k], cd[k], gd[k] = vk, ck, gk
+            ieq[k] = ck - gk * vk
         checked = False
         for attempt in range(2):  # the second after a refactorization at this iterate
-            fac = st.fac
             if version != st.ints[VERSION]:
                 source_solution(
                     fac.yc, fac.cc, fac.Yb, fac.Cb, fac.Zq, fac.Kq, src_values, hist_lin, y0, c0
                 )
                 version = st.ints[VERSION]
-            d = port_values(gd, g_switch, state, r, a0) - fac.ref
-            junction_response(
-                ieq,
-                fac.ZdT,
-                fac.KdT,
-                fac.zrel,
-                yd,
-                cd_response,
-                applied,
-                st.ints[JUNCTION_VERSION] != st.ints[VERSION],
-            )
+            # d: the port values' change since the factorization (port_values - ref)
+            for k in range(md):
+                d[k] = gd[k] - ref[k]
+            for k in range(ms):
+                d[md + k] = (g_switch[k, 0] if state[k] else g_switch[k, 1]) - ref[md + k]
+            for k in range(md + ms, r):
+                d[k] = a0 - ref[k]
+            full = st.ints[JUNCTION_VERSION] != st.ints[VERSION]
+            junction_response(ieq, ZdT, KdT, zrel, yd, cd_response, applied, full)
             st.ints[JUNCTION_VERSION] = st.ints[VERSION]
-            x_new, ok = solve_ports(y0, c0, yd, cd_response, d, fac.K, fac.ZT)
+            x_new, ok = solve_ports(y0, c0, yd, cd_response, d, K, ZT)
             if ok and np.all(np.isfinite(x_new)):
                 break
             if attempt == 0:
-                factor_now(plan, st, a0)
+                factor_now(plan, st, a0)  # fills st.fac's arrays in place
                 checked = True
         if not ok or not np.all(np.isfinite(x_new)):
             return False, iteration, x_new, x
@@ -274,8 +233,8 @@ def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
                 fac.b_idx,
                 fac.b_val,
                 fac.Binv,
-                fac.K,
-                fac.ZT,
+                K,
+                ZT,
                 vt,
                 ut,
                 x_new,
@@ -286,15 +245,14 @@ def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
             )
             if not good:  # refactor here: then the update is exact (d = 0)
                 factor_now(plan, st, a0)
-                fac = st.fac
                 source_solution(
                     fac.yc, fac.cc, fac.Yb, fac.Cb, fac.Zq, fac.Kq, src_values, hist_lin, y0, c0
                 )
                 version = st.ints[VERSION]
-                d = port_values(gd, g_switch, state, r, a0) - fac.ref
-                junction_response(ieq, fac.ZdT, fac.KdT, fac.zrel, yd, cd_response, applied, True)
+                d[:] = 0.0  # at the new factorization's own values
+                junction_response(ieq, ZdT, KdT, zrel, yd, cd_response, applied, True)
                 st.ints[JUNCTION_VERSION] = st.ints[VERSION]
-                refined, ok = solve_ports(y0, c0, yd, cd_response, d, fac.K, fac.ZT)
+                refined, ok = solve_ports(y0, c0, yd, cd_response, d, K, ZT)
             x_new = refined
             extend(x_new, x_new_ext)
             done = (
