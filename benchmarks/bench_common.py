@@ -57,7 +57,8 @@ def simulate_subprocess(netlist: Path, probe: str | None = None) -> tuple[float,
 
 
 def machine() -> dict:
-    """nproc, CPU model, Python, numpy, scipy and ngspice versions."""
+    """nproc, CPU model, Python, numpy, scipy, numba and ngspice versions."""
+    import numba
     import scipy
 
     cpu = "?"
@@ -93,6 +94,7 @@ def machine() -> dict:
         "python": platform.python_version(),
         "numpy": np.__version__,
         "scipy": scipy.__version__,
+        "numba": numba.__version__,
         "ngspice": ngspice,
         "load_average": load,
     }
