@@ -140,6 +140,7 @@ def run_transient(
                 continue
             system.linear_charges(x_new, ctx)
             x_ext = with_ground(x_new)
+            transition = False
             if not fixed and system.discrete:
                 # A switch toggled inside the step: cut the step to just past the crossing,
                 # so the transition lands near where the control crosses its threshold.
@@ -149,6 +150,11 @@ def run_transient(
                     h *= fraction + TRANSITION_OVERSHOOT
                     landing = False
                     continue
+                # A step that ends just past a transition is a breakpoint: its truncation
+                # error estimate spans the jump in dq/dt and would reject every step that
+                # crosses (a cascade to "time step too small" when the switched branch moves
+                # a charge far above the one before, e.g. ROFF = 1e12 then RON onto an RC).
+                transition = fraction < 1.0
             new_h = h if fixed else 2 * h
             if not fixed and not first:
                 step_times = [t + h, *times]
@@ -160,7 +166,7 @@ def run_transient(
                     )
                 for family in system.discrete:
                     new_h = min(new_h, family.truncate(x_ext, x_prev_ext, h))
-                if new_h > 0.9 * h:
+                if new_h > 0.9 * h or transition:
                     if order == 1 and options.maxord > 1 and len(step_times) >= 4:
                         trial = min(
                             2 * h, truncation_step(method, 2, step_times, step_q, step_i, options)

@@ -225,6 +225,7 @@ def run(plan, st, t_until):
                     q[lin[j]] = ql[j]
                     qdot[lin[j]] = a0 * ql[j] + hist[lin[j]]
             extend(x_new, x_ext)
+            transition = False
             if fixed == 0 and ms:
                 fraction = switch_transition(
                     x_ext, st.x_prev_ext, plan.sw, st.state, st.accepted, plan.approach
@@ -234,6 +235,7 @@ def run(plan, st, t_until):
                     h *= fraction + TRANSITION_OVERSHOOT
                     landing = False
                     continue
+                transition = fraction < 1.0  # a breakpoint: no truncation-error rejection
             new_h = h if fixed > 0 else 2 * h
             if fixed == 0 and not si[FIRST]:
                 times = np.empty(4)
@@ -250,7 +252,7 @@ def run(plan, st, t_until):
                             x_ext, st.x_prev_ext, h, plan.sw, st.accepted, plan.approach
                         ),
                     )
-                if new_h > 0.9 * h:
+                if new_h > 0.9 * h or transition:
                     if order == 1 and maxord > 1 and npoints >= 4:
                         trial = 2 * h
                         if nq:
