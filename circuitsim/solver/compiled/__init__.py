@@ -42,6 +42,8 @@ def kernel_unavailable(system: MnaSystem) -> str | None:
 
 
 KERNEL_MODULES = ("devices", "lowrank", "newton", "transient")
+# reference-engine files whose constants the kernel compiles in (numba freezes globals)
+CONSTANT_SOURCES = ("port_solver.py", "transient.py")
 
 
 def clear_stale_cache(folder: Path | None = None) -> bool:
@@ -49,7 +51,8 @@ def clear_stale_cache(folder: Path | None = None) -> bool:
 
     numba's cache checks only the file a function is defined in, so a cached ``run``
     (transient.py) would keep the old code of a changed ``newton`` (newton.py) compiled into
-    it. A stamp of all kernel sources, kept beside the cache, catches that. Returns True when
+    it, and the constants it takes from the reference engine's files. A stamp of all those
+    sources, kept beside the cache, catches that. Returns True when
     cache files were deleted. Read-only package folders are left alone (numba then caches in
     its user folder, which a reinstall invalidates by the new files' modification times).
     """
@@ -57,6 +60,10 @@ def clear_stale_cache(folder: Path | None = None) -> bool:
     digest = hashlib.sha256()
     for name in KERNEL_MODULES:
         digest.update((folder / f"{name}.py").read_bytes())
+    for name in CONSTANT_SOURCES:
+        source = folder.parent / name
+        if source.exists():
+            digest.update(source.read_bytes())
     cache = folder / "__pycache__"
     stamp = cache / "kernel-sources.sha256"
     try:

@@ -23,8 +23,8 @@ from circuitsim.solver.compiled.lowrank import (
     source_solution,
     update,
 )
+from circuitsim.solver.port_solver import REFINE_FRACTION
 
-REFINE_FRACTION = 1e-3  # as port_solver.REFINE_FRACTION
 # a junction current change that moves no unknown by more than this fraction of its absolute
 # tolerance (vntol, abstol) is not applied until it grows (junction_response)
 JUNCTION_NEGLIGIBLE = 1e-9

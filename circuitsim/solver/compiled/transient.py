@@ -36,8 +36,8 @@ from circuitsim.solver.compiled.newton import (
     factor_now,
     newton,
 )
+from circuitsim.solver.transient import TRANSITION_OVERSHOOT
 
-TRANSITION_OVERSHOOT = 0.02  # as transient.TRANSITION_OVERSHOOT
 REBASE_STEPS = 8  # refactor when this many accepted steps in a row used one new a0
 # A Newton failure at an a0 this far from the factorization's is retried once on a
 # factorization at this a0 before the step is cut: with the charge columns' update
