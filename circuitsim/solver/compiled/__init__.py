@@ -135,8 +135,10 @@ def run_compiled(
     st.fs[nw.SAVED_H] = tstop / 50
     step = fixed or max_step
     a0_start = (2.0 if options.method == "trap" else 1.5) / step
+    # the compiled loop returns every tenth of the run (Ctrl-C is seen between chunks, and
+    # progress is reported there)
     report_every = tstop / 10
-    t_until = report_every if progress is not None else np.inf
+    t_until = report_every
     try:
         nw.factor_now(plan, st, a0_start)
         while True:
@@ -144,10 +146,11 @@ def run_compiled(
             if status == tr.FULL:
                 st = _grown(st)
             elif status == tr.PAUSED:
-                progress(
-                    f"transient: t = {st.fs[nw.T]:.4g} s of {tstop:.4g} s, "
-                    f"{st.ints[nw.ACCEPTED]} steps"
-                )
+                if progress is not None:
+                    progress(
+                        f"transient: t = {st.fs[nw.T]:.4g} s of {tstop:.4g} s, "
+                        f"{st.ints[nw.ACCEPTED]} steps"
+                    )
                 t_until += report_every
             else:
                 break
