@@ -85,9 +85,25 @@ def _time_junctions(plan, st, x, a0, k):
     for _ in range(k):
         for j in range(plan.jp.shape[0]):
             v = x_ext[plan.port_p[j]] - x_ext[plan.port_n[j]]
-            cd, gd = junction_current(v, j, plan.jp)
+            jp, cp = plan.jp, plan.cp
+            cd, gd = junction_current(
+                v, jp[j, 0], jp[j, 2], jp[j, 3], jp[j, 4], jp[j, 5], jp[j, 6], jp[j, 7]
+            )
             if plan.has_charge:
-                q, c = junction_charge(v, cd, gd, j, plan.cp)
+                q, c = junction_charge(
+                    v,
+                    cd,
+                    gd,
+                    cp[j, 0],
+                    cp[j, 1],
+                    cp[j, 2],
+                    cp[j, 3],
+                    cp[j, 4],
+                    cp[j, 5],
+                    cp[j, 6],
+                    cp[j, 7],
+                    cp[j, 8],
+                )
                 cd += a0 * q
                 gd += a0 * c
             total += cd - gd * v

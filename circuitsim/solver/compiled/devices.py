@@ -34,28 +34,23 @@ def pnjlim(vnew: float, vold: float, vt: float, vcrit: float) -> tuple[float, bo
 
 
 @njit(cache=True)
-def junction_current(vd: float, k: int, jp: np.ndarray) -> tuple[float, float]:
-    """Static current (A) and conductance (S) of junction k with gmin (DiodeFamily._current).
-
-    ``jp`` rows: see plan.JUNCTION_PARAMS.
-    """
-    isat, inv_vte, is_over_vte, knee = jp[k, 0], jp[k, 2], jp[k, 3], jp[k, 4]
-    gmin = jp[k, 7]
+def junction_current(vd, isat, inv_vte, is_over_vte, knee, cubic_scale, three_vte, gmin):
+    """Static current (A) and conductance (S) of one junction with gmin
+    (DiodeFamily._current). Scalars only: an array argument costs a reference-count update
+    per call, and this runs for every junction at every Newton iteration."""
     if vd < knee:
-        arg = (jp[k, 5] / vd) ** 3
-        return isat * (-arg - 1.0) + gmin * vd, is_over_vte * (jp[k, 6] * arg / vd) + gmin
+        arg = (cubic_scale / vd) ** 3
+        return isat * (-arg - 1.0) + gmin * vd, is_over_vte * (three_vte * arg / vd) + gmin
     ex = math.exp(min(vd * inv_vte, 700.0))
     return isat * (ex - 1.0) + gmin * vd, is_over_vte * ex + gmin
 
 
 @njit(cache=True)
-def junction_charge(vd: float, cd: float, gd: float, k: int, cp: np.ndarray):
-    """Depletion plus diffusion charge (C) and capacitance (F) (DiodeFamily._charge).
-
-    ``cp`` rows: see plan.CHARGE_PARAMS.
-    """
-    knee, inv_vj, neg_m, q_scale = cp[k, 0], cp[k, 1], cp[k, 2], cp[k, 3]
-    ext_offset, ext_quadratic, ext_slope, cjo, tt = cp[k, 4], cp[k, 5], cp[k, 6], cp[k, 7], cp[k, 8]
+def junction_charge(
+    vd, cd, gd, knee, inv_vj, neg_m, q_scale, ext_offset, ext_quadratic, ext_slope, cjo, tt
+):
+    """Depletion plus diffusion charge (C) and capacitance (F) of one junction
+    (DiodeFamily._charge); scalars only, as junction_current."""
     arg = 1.0 - min(vd, knee) * inv_vj
     sarg = arg**neg_m
     excess = max(vd - knee, 0.0)

@@ -43,6 +43,15 @@ def extend(x, x_ext):
 
 
 @njit(cache=True)
+def all_finite(x) -> bool:
+    """Whether every entry of x is finite (no temporary arrays)."""
+    for v in x:
+        if not np.isfinite(v):
+            return False
+    return True
+
+
+@njit(cache=True)
 def port_values(gd, g_switch, state, r, a0):
     """The present port values (junction g, switch g, a0 per charge), shape (r,)."""
     md, ms = gd.size, state.size
@@ -169,8 +178,13 @@ def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
     for iteration in range(1, itl4 + 1):
         first = iteration == 1
         noncon = 0
-        if ms:
-            noncon += update_switches(sw, approach, state, accepted, x_ext, first)
+        for k in range(ms):  # switch states (SwitchFamily.update_state), written out
+            vc = x_ext[sw[k, 2]] - x_ext[sw[k, 3]]
+            keep = accepted[k] if first else state[k]
+            new = (keep or vc > approach[k, 0]) and vc >= approach[k, 1]
+            if new != state[k]:
+                state[k] = new
+                noncon += 1
         # the junctions, linearized at x (DiodeFamily.port_load; written out here rather than
         # called: a call costs a reference-count update per array argument, ~20 ns each)
         for k in range(md):
@@ -181,9 +195,24 @@ def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
                 vk, was = pnjlim(v, vold, jp[k, 1], jp[k, 8])
                 if was:
                     noncon += 1
-            ck, gk = junction_current(vk, k, jp)
+            ck, gk = junction_current(
+                vk, jp[k, 0], jp[k, 2], jp[k, 3], jp[k, 4], jp[k, 5], jp[k, 6], jp[k, 7]
+            )
             if has_charge:
-                qk, capk = junction_charge(vk, ck, gk, k, cp)
+                qk, capk = junction_charge(
+                    vk,
+                    ck,
+                    gk,
+                    cp[k, 0],
+                    cp[k, 1],
+                    cp[k, 2],
+                    cp[k, 3],
+                    cp[k, 4],
+                    cp[k, 5],
+                    cp[k, 6],
+                    cp[k, 7],
+                    cp[k, 8],
+                )
                 slot = jslot[k]
                 icap = a0 * qk + hist[slot]
                 q[slot] = qk
@@ -206,25 +235,41 @@ def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
                 d[md + k] = (g_switch[k, 0] if state[k] else g_switch[k, 1]) - ref[md + k]
             for k in range(md + ms, r):
                 d[k] = a0 - ref[k]
-            full = st.ints[JUNCTION_VERSION] != st.ints[VERSION]
-            junction_response(ieq, ZdT, KdT, zrel, yd, cd_response, applied, full)
-            st.ints[JUNCTION_VERSION] = st.ints[VERSION]
-            x_new, ok = solve_ports(y0, c0, yd, cd_response, d, K, ZT)
-            if ok and np.all(np.isfinite(x_new)):
+            if st.ints[JUNCTION_VERSION] != st.ints[VERSION]:
+                junction_response(ieq, ZdT, KdT, zrel, yd, cd_response, applied, True)
+                st.ints[JUNCTION_VERSION] = st.ints[VERSION]
+            else:  # junction_response's incremental case, written out
+                for j in range(md):
+                    delta = ieq[j] - applied[j]
+                    if delta != 0.0 and abs(delta) * zrel[j] > JUNCTION_NEGLIGIBLE:
+                        z, kd = ZdT[j], KdT[j]
+                        for i in range(n):
+                            yd[i] += delta * z[i]
+                        for i in range(r):
+                            cd_response[i] += delta * kd[i]
+                        applied[j] = ieq[j]
+            x_new, ok = update(y0 - yd, c0 - cd_response, d, K, ZT, active_columns(d, K))
+            if ok and all_finite(x_new):
                 break
             if attempt == 0:
                 factor_now(plan, st, a0)  # fills st.fac's arrays in place
                 checked = True
-        if not ok or not np.all(np.isfinite(x_new)):
+        if not ok or not all_finite(x_new):
             return False, iteration, x_new, x
         x_new_ext = np.empty(n + 1)
         extend(x_new, x_new_ext)
-        done = (
-            noncon == 0
-            and (iteration > 1 or linear)
-            and (linear or close(x_new, x, reltol, abs_tol))
-            and ports_converged(port_p, port_n, vd, cd, gd, x_new_ext, reltol, abstol)
-        )
+        done = noncon == 0 and (iteration > 1 or linear)
+        # MnaSystem.close and DiodeFamily.port_converged, written out (twice: here and after
+        # the refinement below)
+        for i in range(n if done and not linear else 0):
+            if abs(x_new[i] - x[i]) > reltol * max(abs(x_new[i]), abs(x[i])) + abs_tol[i]:
+                done = False
+                break
+        for k in range(md if done else 0):
+            delta = gd[k] * (x_new_ext[port_p[k]] - x_new_ext[port_n[k]] - vd[k])
+            if abs(delta) > reltol * max(abs(cd[k] + delta), abs(cd[k])) + abstol:
+                done = False
+                break
         if (done or iteration > 2) and not checked:
             tol = reltol * np.abs(x_new) + abs_tol
             rhs = add_u_columns(ut, -ieq, 0, rhs0.copy())  # rhs0 - W ieq
@@ -255,11 +300,15 @@ def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
                 refined, ok = solve_ports(y0, c0, yd, cd_response, d, K, ZT)
             x_new = refined
             extend(x_new, x_new_ext)
-            done = (
-                done
-                and (linear or close(x_new, x, reltol, abs_tol))
-                and ports_converged(port_p, port_n, vd, cd, gd, x_new_ext, reltol, abstol)
-            )
+            for i in range(n if done and not linear else 0):
+                if abs(x_new[i] - x[i]) > reltol * max(abs(x_new[i]), abs(x[i])) + abs_tol[i]:
+                    done = False
+                    break
+            for k in range(md if done else 0):
+                delta = gd[k] * (x_new_ext[port_p[k]] - x_new_ext[port_n[k]] - vd[k])
+                if abs(delta) > reltol * max(abs(cd[k] + delta), abs(cd[k])) + abstol:
+                    done = False
+                    break
         x_prev = x
         x = x_new
         x_ext = x_new_ext
