@@ -126,10 +126,20 @@ def run(plan, st, t_until):
     x_ext = np.empty(n + 1)
     vt = (plan.VT_ptr, plan.VT_idx, plan.VT_val)
     ut = (plan.UT_ptr, plan.UT_idx, plan.UT_val)
+    # every array the loop touches, taken out of the tuples once: each access to a tuple's
+    # array member inside the loop would cost a reference-count update (an atomic operation)
+    ht, hx, hq, hi = st.ht, st.hx, st.hq, st.hi
+    x_prev_ext, state, accepted, vd_accepted = st.x_prev_ext, st.state, st.accepted, st.vd_accepted
+    out_t, out_x, fail_x, fail_prev = st.out_t, st.out_x, st.fail_x, st.fail_prev
+    ref = st.fac.ref
+    port_p, port_n, sw, approach = plan.port_p, plan.port_n, plan.sw, plan.approach
+    rhs_const, src_kind, src_par, src_dc = plan.rhs_const, plan.src_kind, plan.src_par, plan.src_dc
+    pwl_start, pwl_t, pwl_v = plan.pwl_start, plan.pwl_t, plan.pwl_v
+    src_rows, src_signs = plan.src_rows, plan.src_signs
     while tstop - fs[T] > min_step:
         if fs[T] >= t_until:
             return PAUSED
-        if si[COUNT] >= st.out_t.size:
+        if si[COUNT] >= out_t.size:
             return FULL
         t = fs[T]
         while si[BI] < breaks.size - 1 and breaks[si[BI]] <= t + min_step:
@@ -161,44 +171,40 @@ def run(plan, st, t_until):
             if si[ATTEMPTS] > max_steps:
                 fs[H] = h
                 return TOO_MANY_STEPS
-            h_prev = st.ht[0] - st.ht[1] if nh > 1 else h
+            h_prev = ht[0] - ht[1] if nh > 1 else h
             a0, a1, a2, b1 = coefficients(method, order, h, h_prev)
-            hist = a1 * st.hq[0] + b1 * st.hi[0]
-            if a2 != 0.0:
-                hist += a2 * st.hq[1]
-            ref_a0 = st.fac.ref[nports] if lin.size else a0
+            hist = np.empty(nq)
+            for j in range(nq):
+                hist[j] = a1 * hq[0, j] + b1 * hi[0, j] + a2 * hq[1, j]
+            ref_a0 = ref[nports] if lin.size else a0
             settled = a0 != ref_a0 and a0 == fs[LAST_A0] and si[SAME_A0] >= REBASE_STEPS
             if lin.size and settled:
                 factor_now(plan, st, a0)
             rhs0, src_values = source_rhs(
                 t + h,
-                plan.rhs_const,
-                plan.src_kind,
-                plan.src_par,
-                plan.src_dc,
-                plan.pwl_start,
-                plan.pwl_t,
-                plan.pwl_v,
-                plan.src_rows,
-                plan.src_signs,
+                rhs_const,
+                src_kind,
+                src_par,
+                src_dc,
+                pwl_start,
+                pwl_t,
+                pwl_v,
+                src_rows,
+                src_signs,
             )
             if lin.size:
                 add_u_columns(ut, -hist[lin], nports, rhs0)
-            if nh > 1:
-                x_guess = st.hx[0] + (h / h_prev) * (st.hx[0] - st.hx[1])
-            else:
-                x_guess = st.hx[0].copy()
+            x_guess = np.empty(n)
+            ratio = h / h_prev if nh > 1 else 0.0
+            for i in range(n):
+                x_guess[i] = hx[0, i] + ratio * (hx[0, i] - hx[1, i])
             q = np.zeros(nq)
             qdot = np.zeros(nq)
             ok, iterations, x_new, x_before = newton(
                 plan, st, x_guess, a0, hist, rhs0, src_values, q, qdot
             )
             si[NEWTON] += iterations
-            if (
-                not ok
-                and lin.size
-                and not (a0 / RETRY_RATIO < st.fac.ref[nports] < RETRY_RATIO * a0)
-            ):
+            if not ok and lin.size and not (a0 / RETRY_RATIO < ref[nports] < RETRY_RATIO * a0):
                 # the update's round-off, not the step, may be what failed (RETRY_RATIO)
                 factor_now(plan, st, a0)
                 ok, iterations, x_new, x_before = newton(
@@ -207,8 +213,8 @@ def run(plan, st, t_until):
                 si[NEWTON] += iterations
             if not ok:
                 si[REJECTED] += 1
-                st.fail_x[:] = x_new
-                st.fail_prev[:] = x_before
+                fail_x[:] = x_new
+                fail_prev[:] = x_before
                 fs[H] = h
                 if fixed > 0:
                     return NEWTON_FAILED_FIXED
@@ -227,9 +233,7 @@ def run(plan, st, t_until):
             extend(x_new, x_ext)
             transition = False
             if fixed == 0 and ms:
-                fraction = switch_transition(
-                    x_ext, st.x_prev_ext, plan.sw, st.state, st.accepted, plan.approach
-                )
+                fraction = switch_transition(x_ext, x_prev_ext, sw, state, accepted, approach)
                 if fraction < 1 - TRANSITION_OVERSHOOT and h * fraction > 10 * min_step:
                     si[REJECTED] += 1
                     h *= fraction + TRANSITION_OVERSHOOT
@@ -241,30 +245,24 @@ def run(plan, st, t_until):
                 times = np.empty(4)
                 times[0] = t + h
                 for j in range(3):
-                    times[j + 1] = st.ht[j]
+                    times[j + 1] = ht[j]
                 npoints = nh + 1
                 if npoints >= order + 2 and nq:
-                    new_h = min(new_h, truncation_step(real, order, times, q, qdot, st.hq, st.hi))
+                    new_h = min(new_h, truncation_step(real, order, times, q, qdot, hq, hi))
                 if ms:
                     new_h = min(
                         new_h,
-                        switch_truncate(
-                            x_ext, st.x_prev_ext, h, plan.sw, st.accepted, plan.approach
-                        ),
+                        switch_truncate(x_ext, x_prev_ext, h, sw, accepted, approach),
                     )
                 if new_h > 0.9 * h or transition:
                     if order == 1 and maxord > 1 and npoints >= 4:
                         trial = 2 * h
                         if nq:
-                            trial = min(
-                                trial, truncation_step(real, 2, times, q, qdot, st.hq, st.hi)
-                            )
+                            trial = min(trial, truncation_step(real, 2, times, q, qdot, hq, hi))
                         if ms:
                             trial = min(
                                 trial,
-                                switch_truncate(
-                                    x_ext, st.x_prev_ext, h, plan.sw, st.accepted, plan.approach
-                                ),
+                                switch_truncate(x_ext, x_prev_ext, h, sw, accepted, approach),
                             )
                         new_h = trial
                         if trial > 1.05 * h:
@@ -274,8 +272,8 @@ def run(plan, st, t_until):
                     h = new_h
                     landing = False
                     if h < min_step:
-                        st.fail_x[:] = x_new
-                        st.fail_prev[:] = x_before
+                        fail_x[:] = x_new
+                        fail_prev[:] = x_before
                         fs[H] = h
                         return STEP_TOO_SMALL_LTE
                     continue
@@ -283,26 +281,33 @@ def run(plan, st, t_until):
 
         # accept
         t = next_break if landing else t + h
-        st.x_prev_ext[:] = x_ext
+        for i in range(n + 1):
+            x_prev_ext[i] = x_ext[i]
         toggled = False
         for k in range(md):
-            st.vd_accepted[k] = x_ext[plan.port_p[k]] - x_ext[plan.port_n[k]]
+            vd_accepted[k] = x_ext[port_p[k]] - x_ext[port_n[k]]
         for k in range(ms):
-            if st.state[k] != st.accepted[k]:
+            if state[k] != accepted[k]:
                 toggled = True
-            st.accepted[k] = st.state[k]
+            accepted[k] = state[k]
+        # history, newest first (element loops: a row view would cost a reference count)
         for j in range(3, 0, -1):
-            st.ht[j] = st.ht[j - 1]
-            st.hx[j] = st.hx[j - 1]
-            st.hq[j] = st.hq[j - 1]
-        st.hi[1] = st.hi[0]
-        st.ht[0] = t
-        st.hx[0] = x_new
-        st.hq[0] = q
-        st.hi[0] = qdot
+            ht[j] = ht[j - 1]
+            for i in range(n):
+                hx[j, i] = hx[j - 1, i]
+            for i in range(nq):
+                hq[j, i] = hq[j - 1, i]
+        ht[0] = t
+        row = si[COUNT]
+        out_t[row] = t
+        for i in range(n):
+            hx[0, i] = x_new[i]
+            out_x[row, i] = x_new[i]
+        for i in range(nq):
+            hi[1, i] = hi[0, i]
+            hi[0, i] = qdot[i]
+            hq[0, i] = q[i]
         si[NHIST] = min(nh + 1, 4)
-        st.out_t[si[COUNT]] = t
-        st.out_x[si[COUNT]] = x_new
         si[COUNT] += 1
         si[ACCEPTED] += 1
         if a0 == fs[LAST_A0]:
