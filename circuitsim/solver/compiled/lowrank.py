@@ -84,8 +84,10 @@ def source_solution(yc, cc, Yb, Cb, Zq, Kq, values, hist_lin, y0, c0):
     for k in range(values.size):
         v = values[k]
         if v != 0.0:
-            y0 += v * Yb[:, k]
-            c0 += v * Cb[:, k]
+            for i in range(y0.size):
+                y0[i] += v * Yb[i, k]
+            for i in range(c0.size):
+                c0[i] += v * Cb[i, k]
     if hist_lin.size:
         y0 -= np.dot(Zq, hist_lin)
         c0 -= np.dot(Kq, hist_lin)
@@ -126,10 +128,10 @@ def update(y, c, d, K, ZT, active):
         return y.copy(), False
     x = y.copy()
     for a in range(m):
-        z = ZT[active[a]]
+        col = active[a]
         sa = s[a]
         for row in range(y.size):
-            x[row] -= z[row] * sa
+            x[row] -= ZT[col, row] * sa
     return x, True
 
 

@@ -35,7 +35,7 @@ ORDER, AT_BREAK, FIRST, BI, ATTEMPTS, ACCEPTED, REJECTED, NEWTON, FACTORIZATIONS
 NHIST, COUNT, SAME_A0, VERSION, JUNCTION_VERSION = 9, 10, 11, 12, 13
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def extend(x, x_ext):
     """x_ext[:n] = x, x_ext[n] = 0 (ground, reached by node index -1)."""
     x_ext[: x.size] = x
@@ -142,7 +142,7 @@ def solve_ports(y0, c0, yd, cd_response, d, K, ZT):
     return update(y0 - yd, c0 - cd_response, d, K, ZT, active_columns(d, K))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
     """Newton at one time point. Returns (converged, iterations, x, x_previous).
 
@@ -242,11 +242,10 @@ def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
                 for j in range(md):
                     delta = ieq[j] - applied[j]
                     if delta != 0.0 and abs(delta) * zrel[j] > JUNCTION_NEGLIGIBLE:
-                        z, kd = ZdT[j], KdT[j]
                         for i in range(n):
-                            yd[i] += delta * z[i]
+                            yd[i] += delta * ZdT[j, i]
                         for i in range(r):
-                            cd_response[i] += delta * kd[i]
+                            cd_response[i] += delta * KdT[j, i]
                         applied[j] = ieq[j]
             x_new, ok = update(y0 - yd, c0 - cd_response, d, K, ZT, active_columns(d, K))
             if ok and all_finite(x_new):
