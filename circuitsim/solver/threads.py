@@ -11,6 +11,7 @@ nothing.
 from __future__ import annotations
 
 import ctypes
+import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -18,8 +19,20 @@ _PREFIXES = ("scipy_openblas_", "openblas_")
 _SUFFIXES = ("64_", "")
 
 
+# The last scan: (number of imported modules then, controls found). A library is loaded by
+# an import, so the scan (reading /proc/self/maps and the libraries' symbols, ~1 ms with
+# numba loaded) is repeated only when modules were imported since.
+_LAST_SCAN: list = [-1, []]
+
+
 def _openblas_controls() -> list[tuple[object, object]]:
     """(get, set) function pairs of every loaded OpenBLAS."""
+    if _LAST_SCAN[0] != len(sys.modules):
+        _LAST_SCAN[:] = [len(sys.modules), _scan()]
+    return _LAST_SCAN[1]
+
+
+def _scan() -> list[tuple[object, object]]:
     try:
         with open("/proc/self/maps") as maps:
             paths = {line.split()[-1] for line in maps if "openblas" in line.lower()}

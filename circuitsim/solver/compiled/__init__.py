@@ -42,6 +42,7 @@ def kernel_unavailable(system: MnaSystem) -> str | None:
 
 
 KERNEL_MODULES = ("devices", "lowrank", "newton", "transient")
+_CACHE_CHECKED: list = []
 # reference-engine files whose constants the kernel compiles in (numba freezes globals)
 CONSTANT_SOURCES = ("port_solver.py", "transient.py")
 
@@ -102,7 +103,9 @@ def run_compiled(
         Accepted time points >= tstart, seconds.
     solutions : ndarray, shape (m, n)
     """
-    clear_stale_cache()
+    if not _CACHE_CHECKED:  # once per process: the sources do not change under it
+        clear_stale_cache()
+        _CACHE_CHECKED.append(True)
     from circuitsim.solver.compiled import newton as nw
     from circuitsim.solver.compiled import transient as tr
 
