@@ -29,6 +29,53 @@ TRANSITION_OVERSHOOT = 0.02  # fraction of a step a switch transition may land p
 HISTORY = 4  # accepted points kept: order 2 truncation needs t_n+1 and three before
 
 
+def start_transient(
+    system: MnaSystem,
+    tstep: float,
+    tstop: float,
+    tstart: float,
+    tmax: float | None,
+    uic: bool,
+    stats: dict,
+) -> tuple[float, float, np.ndarray, np.ndarray, StepContext]:
+    """What every transient loop does before its first step (this one and the compiled one).
+
+    Checks the ``.tran`` times, resets the step counters in ``stats``, sets the sources'
+    analysis-dependent defaults, and solves the start: the operating point, or the ``uic``
+    initial conditions.
+
+    Returns
+    -------
+    max_step, min_step : float
+        TMAX (given, or ngspice's min(tstep, (tstop - tstart) / 50)) and 1e-11 of it, s.
+    breaks : ndarray
+        Sorted breakpoints after 0, ending with tstop, s.
+    x : ndarray, shape (n,)
+        The start solution.
+    ctx0 : StepContext
+        With its charges in ``ctx0.q``.
+    """
+    if not (tstep > 0 and tstop > 0 and 0 <= tstart < tstop):
+        raise CircuitInputError(
+            f".tran {tstep:g} {tstop:g} {tstart:g}: need tstep > 0 and 0 <= tstart < tstop"
+        )
+    if tmax is not None and not tmax > 0:
+        raise CircuitInputError(f".tran tmax {tmax:g} must be > 0")
+    stats.update(accepted=0, rejected=0, newton_iterations=stats.get("newton_iterations", 0))
+    max_step = tmax if tmax else min(tstep, (tstop - tstart) / 50)
+    min_step = 1e-11 * max_step
+    for family in system.families:
+        family.set_timing(tstep, tstop)
+    corners = [family.breakpoints(tstop) for family in system.families]
+    breaks = np.unique(np.concatenate([*corners, [tstop]]))
+    breaks = breaks[breaks > min_step]
+    if uic:
+        x, ctx0 = initial_condition_solution(system)
+    else:
+        x, ctx0 = operating_point_solution(system, dc_op=False, clamp_ic=True, stats=stats)
+    return max_step, min_step, breaks, x, ctx0
+
+
 def run_transient(
     system: MnaSystem,
     tstep: float,
@@ -48,29 +95,13 @@ def run_transient(
     solutions : ndarray, shape (m, n)
         The unknowns at those points.
     """
-    if not (tstep > 0 and tstop > 0 and 0 <= tstart < tstop):
-        raise CircuitInputError(
-            f".tran {tstep:g} {tstop:g} {tstart:g}: need tstep > 0 and 0 <= tstart < tstop"
-        )
-    if tmax is not None and not tmax > 0:
-        raise CircuitInputError(f".tran tmax {tmax:g} must be > 0")
-    options = system.options
     stats = stats if stats is not None else {}
-    stats.update(accepted=0, rejected=0, newton_iterations=stats.get("newton_iterations", 0))
+    max_step, min_step, breaks, x, ctx0 = start_transient(
+        system, tstep, tstop, tstart, tmax, uic, stats
+    )
+    options = system.options
     method = METHODS[options.method]
     fixed = options.fixed_step
-    max_step = tmax if tmax else min(tstep, (tstop - tstart) / 50)
-    min_step = 1e-11 * max_step
-    for family in system.families:
-        family.set_timing(tstep, tstop)
-    corners = [family.breakpoints(tstop) for family in system.families]
-    breaks = np.unique(np.concatenate([*corners, [tstop]]))
-    breaks = breaks[breaks > min_step]
-
-    if uic:
-        x, ctx0 = initial_condition_solution(system)
-    else:
-        x, ctx0 = operating_point_solution(system, dc_op=False, clamp_ic=True, stats=stats)
     x_prev_ext = with_ground(x)
     # families whose accept hook does something (the default does nothing)
     accepting = [f for f in system.families if type(f).accept is not DeviceFamily.accept]

@@ -23,10 +23,10 @@ import numpy as np
 
 from circuitsim.atomic import write_text_atomic
 from circuitsim.solver.compiled.plan import build_plan, initial_state, unsupported
-from circuitsim.solver.dc import initial_condition_solution, operating_point_solution
-from circuitsim.solver.errors import CircuitInputError, ConvergenceError, SingularMatrixError
+from circuitsim.solver.errors import ConvergenceError, SingularMatrixError
 from circuitsim.solver.linalg import SingularPivot, factor
 from circuitsim.solver.system import MnaSystem
+from circuitsim.solver.transient import start_transient
 
 __all__ = ["kernel_unavailable", "run_compiled"]
 
@@ -109,27 +109,12 @@ def run_compiled(
     from circuitsim.solver.compiled import newton as nw
     from circuitsim.solver.compiled import transient as tr
 
-    if not (tstep > 0 and tstop > 0 and 0 <= tstart < tstop):
-        raise CircuitInputError(
-            f".tran {tstep:g} {tstop:g} {tstart:g}: need tstep > 0 and 0 <= tstart < tstop"
-        )
-    if tmax is not None and not tmax > 0:
-        raise CircuitInputError(f".tran tmax {tmax:g} must be > 0")
-    options = system.options
     stats = stats if stats is not None else {}
-    stats.update(accepted=0, rejected=0, newton_iterations=stats.get("newton_iterations", 0))
+    max_step, min_step, breaks, x, ctx0 = start_transient(
+        system, tstep, tstop, tstart, tmax, uic, stats
+    )
+    options = system.options
     fixed = options.fixed_step
-    max_step = tmax if tmax else min(tstep, (tstop - tstart) / 50)
-    min_step = 1e-11 * max_step
-    for family in system.families:
-        family.set_timing(tstep, tstop)
-    corners = [family.breakpoints(tstop) for family in system.families]
-    breaks = np.unique(np.concatenate([*corners, [tstop]]))
-    breaks = breaks[breaks > min_step]
-    if uic:
-        x, ctx0 = initial_condition_solution(system)
-    else:
-        x, ctx0 = operating_point_solution(system, dc_op=False, clamp_ic=True, stats=stats)
 
     plan, families = build_plan(system, breaks, tstop, max_step, min_step)
     capacity = int(min(max(2 * (tstop / (fixed or max_step)) + 100, 1000), 5_000_000))

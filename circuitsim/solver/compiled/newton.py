@@ -73,41 +73,6 @@ def factor_now(plan, st, a0):
 
 
 @njit(cache=True)
-def update_switches(sw, approach, state, accepted, x_ext, first) -> int:
-    """Re-decide switch states (SwitchFamily.update_state); returns 1 if one changed."""
-    changed = 0
-    for k in range(sw.shape[0]):
-        vc = x_ext[sw[k, 2]] - x_ext[sw[k, 3]]
-        keep = accepted[k] if first else state[k]
-        new = (keep or vc > approach[k, 0]) and vc >= approach[k, 1]
-        if new != state[k]:
-            state[k] = new
-            changed = 1
-    return changed
-
-
-@njit(cache=True)
-def ports_converged(port_p, port_n, vd, cd, gd, x_ext, reltol, abstol) -> bool:
-    """SPICE's junction current check at the new iterate (DiodeFamily.port_converged)."""
-    for k in range(vd.size):
-        v = x_ext[port_p[k]] - x_ext[port_n[k]]
-        delta = gd[k] * (v - vd[k])
-        tol = reltol * max(abs(cd[k] + delta), abs(cd[k]))
-        if abs(delta) > tol + abstol:
-            return False
-    return True
-
-
-@njit(cache=True)
-def close(x_new, x_old, reltol, abs_tol) -> bool:
-    """Every unknown within reltol * max(|new|, |old|) + vntol/abstol (MnaSystem.close)."""
-    for i in range(x_new.size):
-        if abs(x_new[i] - x_old[i]) > reltol * max(abs(x_new[i]), abs(x_old[i])) + abs_tol[i]:
-            return False
-    return True
-
-
-@njit(cache=True)
 def junction_response(ieq, ZdT, KdT, zrel, yd, cd_response, applied, full):
     """Keep yd = B^-1 W ieq and V^T yd up to date with the junction currents ieq.
 

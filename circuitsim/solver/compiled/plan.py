@@ -163,10 +163,12 @@ def unsupported(system: MnaSystem) -> str | None:
     """Why the kernel cannot run this system, or None when it can."""
     if system.size > MAX_UNKNOWNS:
         return f"{system.size} unknowns (the kernel's dense algebra stops at {MAX_UNKNOWNS})"
+    parts = []
     for family in system.families:
-        if family.kernel_data() is None:
+        part = family.kernel_data()
+        if part is None:
             return f"no compiled model for {type(family).__name__}"
-    parts = [f.kernel_data() for f in system.families]
+        parts.append(part)
     ranks = system.linear_slots.size + sum(
         len(p["p"]) if p["kind"] == "junctions" else len(p["nodes"])
         for p in parts
