@@ -265,10 +265,9 @@ def run_sweep(
     parameter, unit : str
         Its name and unit (for the CSV and plot).
     engine : {"builtin", "ngspice"}
-        builtin: each variant is its own :func:`~circuitsim.solver.simulate` run (the
-        compiled kernel when it takes the circuit; the same result as simulating that
-        variant's circuit alone) in a pool of ``workers`` processes; ngspice: one ngspice
-        process per variant, ``workers`` at a time.
+        builtin: each variant is its own run of the ports kernel (the same numbers as
+        simulating that variant's circuit alone with ``kernel="ports"``), ``workers``
+        threads at a time; ngspice: one ngspice process per variant, ``workers`` at a time.
     options : SynthesisOptions, optional
     state : str, optional
         State to measure (default: the first, the wheelset's y).
@@ -325,58 +324,18 @@ def run_sweep(
     )
 
 
-def _simulate_variant(circuit: Circuit, probes: list[str]):
-    """One variant's own single run (worker side): :func:`~circuitsim.solver.simulate` with
-    the circuit's options, BLAS on one thread, only ``probes`` sent back."""
-    from circuitsim.solver import simulate
-    from circuitsim.solver.threads import single_threaded_blas
-    from circuitsim.solver.waveforms import Waveforms
-
-    with single_threaded_blas():
-        waves = simulate(circuit)
-    signals = {name: waves.signals[name] for name in probes}
-    return Waveforms(waves.time, signals, waves.engine, waves.stats)
-
-
 def _run_builtin(circuits: list[Circuit], node: str, jobs: int, progress: Progress | None):
-    """Every variant as its own single run: the first in this process, the rest in ``jobs``
-    worker processes.
+    """Every variant as its own ports-kernel run (:func:`~circuitsim.solver.variants.
+    simulate_variants`: the numbers of its single run with ``kernel="ports"``), ``jobs``
+    threads at a time."""
+    from circuitsim.solver.variants import simulate_variants
 
-    Running the first variant here loads the compiled kernel once (from numba's disk cache, or
-    compiling and caching it on a first use); workers started by ``fork`` inherit it loaded,
-    others load it from the cache.
-    """
-    from concurrent.futures import ProcessPoolExecutor
-
-    probes = [f"v({node})"]
-    total = len(circuits)
-    waves: list = [None] * total
-
-    def advance(done: int) -> None:
+    def advance(done: int, total: int) -> None:
         if progress:
             progress(done / total, f"builtin: {done} of {total} variants")
 
-    waves[0] = _simulate_variant(circuits[0], probes)
-    advance(1)
-    if jobs == 1:
-        for k in range(1, total):
-            waves[k] = _simulate_variant(circuits[k], probes)
-            advance(k + 1)
-    elif total > 1:
-        with ProcessPoolExecutor(max_workers=min(jobs, total - 1)) as pool:
-            futures = {
-                pool.submit(_simulate_variant, circuits[k], probes): k for k in range(1, total)
-            }
-            for done, future in enumerate(as_completed(futures), start=2):
-                try:
-                    waves[futures[future]] = future.result()
-                except Exception as error:
-                    for pending in futures:
-                        pending.cancel()
-                    error.add_note(f"in sweep variant {futures[future]} (0-based)")
-                    raise
-                advance(done)
-    stats: dict = {"processes": jobs, "variants": total}
+    waves = simulate_variants(circuits, [f"v({node})"], workers=jobs, progress=advance)
+    stats: dict = {"threads": jobs, "variants": len(waves)}
     for key in ("accepted", "rejected", "newton_iterations"):
         stats[key] = int(sum(w.stats.get(key, 0) for w in waves))
     stats["time_points"] = int(sum(len(w.time) for w in waves))

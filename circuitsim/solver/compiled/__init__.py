@@ -28,7 +28,7 @@ from circuitsim.solver.linalg import SingularPivot, factor
 from circuitsim.solver.system import MnaSystem
 from circuitsim.solver.transient import start_transient
 
-__all__ = ["kernel_unavailable", "run_compiled"]
+__all__ = ["check_cache", "kernel_unavailable", "run_compiled", "run_ports"]
 
 
 def kernel_unavailable(system: MnaSystem) -> str | None:
@@ -41,7 +41,7 @@ def kernel_unavailable(system: MnaSystem) -> str | None:
     return unsupported(system)
 
 
-KERNEL_MODULES = ("devices", "lowrank", "newton", "transient")
+KERNEL_MODULES = ("devices", "lowrank", "newton", "transient", "ports", "port_loop")
 _CACHE_CHECKED: list = []
 # reference-engine files whose constants the kernel compiles in (numba freezes globals)
 CONSTANT_SOURCES = ("port_solver.py", "transient.py")
@@ -103,11 +103,48 @@ def run_compiled(
         Accepted time points >= tstart, seconds.
     solutions : ndarray, shape (m, n)
     """
-    if not _CACHE_CHECKED:  # once per process: the sources do not change under it
+    return _run("compiled", system, tstep, tstop, tstart, tmax, uic, progress, stats, None)
+
+
+def run_ports(
+    system: MnaSystem,
+    tstep: float,
+    tstop: float,
+    tstart: float = 0.0,
+    tmax: float | None = None,
+    uic: bool = False,
+    progress: Callable[[str], None] | None = None,
+    stats: dict | None = None,
+    rows: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`run_compiled` with Newton confined to the junction voltages (the ports kernel,
+    port_loop.py), recording only the unknowns ``rows`` (default: all).
+
+    Returns
+    -------
+    times : ndarray, shape (m,)
+        Accepted time points >= tstart, seconds.
+    solutions : ndarray, shape (m, len(rows))
+    """
+    return _run("ports", system, tstep, tstop, tstart, tmax, uic, progress, stats, rows)
+
+
+def check_cache() -> None:
+    """:func:`clear_stale_cache`, once per process (the sources do not change under it)."""
+    if not _CACHE_CHECKED:
         clear_stale_cache()
         _CACHE_CHECKED.append(True)
+
+
+def _run(kind, system, tstep, tstop, tstart, tmax, uic, progress, stats, rows):
+    check_cache()
     from circuitsim.solver.compiled import newton as nw
-    from circuitsim.solver.compiled import transient as tr
+
+    if kind == "ports":
+        from circuitsim.solver.compiled import port_loop as tr
+        from circuitsim.solver.compiled.port_state import initial_port_state
+    else:
+        from circuitsim.solver.compiled import transient as tr
 
     stats = stats if stats is not None else {}
     max_step, min_step, breaks, x, ctx0 = start_transient(
@@ -118,7 +155,11 @@ def run_compiled(
 
     plan, families = build_plan(system, breaks, tstop, max_step, min_step)
     capacity = int(min(max(2 * (tstop / (fixed or max_step)) + 100, 1000), 5_000_000))
-    st = initial_state(plan, families, x, ctx0.q.copy(), capacity)
+    if kind == "ports":
+        rows = np.arange(system.size) if rows is None else np.asarray(rows, dtype=np.int64)
+        st = initial_port_state(plan, families, x, ctx0.q.copy(), capacity, rows)
+    else:
+        st = initial_state(plan, families, x, ctx0.q.copy(), capacity)
     st.fs[nw.H] = fixed if fixed else min(tstop / 100, tstep) / 10
     st.fs[nw.SAVED_H] = tstop / 50
     step = fixed or max_step
@@ -148,7 +189,7 @@ def run_compiled(
         stats["accepted"] = int(st.ints[nw.ACCEPTED])
         stats["rejected"] = int(st.ints[nw.REJECTED])
         stats["newton_iterations"] += int(st.ints[nw.NEWTON])
-        stats["kernel"] = "compiled"
+        stats["kernel"] = kind
         system.factorizations += int(st.ints[nw.FACTORIZATIONS])
     if status != tr.FINISHED:
         raise _failure(system, st, status, options.max_steps)
@@ -156,6 +197,23 @@ def run_compiled(
     out_t, out_x = st.out_t[:count], st.out_x[:count]
     keep = out_t >= tstart - min_step
     return out_t[keep].copy(), out_x[keep].copy()
+
+
+def _worst_junction(system: MnaSystem, fail_v: np.ndarray) -> str:
+    """The junction whose voltage moved most (relative to its tolerance) in the last Newton
+    iteration, as ``"a-k"`` node names (``fail_v``: that iterate and the one before, (2, md))."""
+    options = system.options
+    new, old = fail_v
+    tol = options.reltol * np.maximum(np.abs(new), np.abs(old)) + options.vntol
+    k = int(np.argmax(np.abs(new - old) / tol))
+    p = np.concatenate([f.port_nodes[0] for f in system.nonlinear if f.port_nodes is not None])
+    n = np.concatenate([f.port_nodes[1] for f in system.nonlinear if f.port_nodes is not None])
+    names = system.layout.unknowns
+
+    def name(i: int) -> str:
+        return "0" if i < 0 else names[i][2:-1] if names[i].startswith("v(") else names[i]
+
+    return f"{name(int(p[k]))}-{name(int(n[k]))}"
 
 
 def _singular_row(matrix: np.ndarray) -> int | None:
@@ -189,7 +247,12 @@ def _failure(system: MnaSystem, st, status: int, max_steps: int) -> ConvergenceE
     }
     t, h = float(st.fs[nw.T]), float(st.fs[nw.H])
     node = None
-    if status != tr.TOO_MANY_STEPS and np.all(np.isfinite(st.fail_x)):
+    fail_x = getattr(st, "fail_x", None)  # the ports kernel keeps junction voltages only
+    if status == tr.TOO_MANY_STEPS:
+        pass
+    elif fail_x is not None and np.all(np.isfinite(fail_x)):
         node = system.worst_unknown(st.fail_x, st.fail_prev)
+    elif fail_x is None and st.fail_v.size and np.all(np.isfinite(st.fail_v)):
+        node = _worst_junction(system, st.fail_v)
     time = t if status == tr.TOO_MANY_STEPS else t + h
     return ConvergenceError(messages[status], time=time, step=h, node=node)

@@ -59,7 +59,7 @@ def junction_charge(
     return q + tt * cd, c + tt * gd
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def source_value(
     t: float,
     k: int,
@@ -96,7 +96,7 @@ def source_value(
     return np.interp(t, pwl_t[a:b], pwl_v[a:b])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def switch_truncate(x_ext, x_prev_ext, h_prev, sw, accepted, approach) -> float:
     """Largest next step (s) the switches allow (SwitchFamily.truncate).
 
@@ -115,7 +115,7 @@ def switch_truncate(x_ext, x_prev_ext, h_prev, sw, accepted, approach) -> float:
     return allowed
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def switch_transition(x_ext, x_prev_ext, sw, state, accepted, approach) -> float:
     """Where in the last step (0..1) the first toggled switch crossed its threshold
     (SwitchFamily.transition_fraction)."""

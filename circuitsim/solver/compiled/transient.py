@@ -65,7 +65,7 @@ def coefficients(method, order, h, h_prev):
     return a0, a1, a2, 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def truncation_step(real, order, times, q_new, qdot_new, hq, hi):
     """Largest step the charges allow (integration.truncation_step, ngspice's CKTterr).
 

@@ -223,12 +223,34 @@ class DiodeFamily(DeviceFamily):
         if self.options.bypass:
             return None  # the kernel evaluates every junction at every iteration
         params = np.stack(
-            [self.isat, self.vte, self.inv_vte, self.is_over_vte, self.reverse_knee,
-             self.cubic_scale, self.three_vte, np.full(self.isat.size, self.gmin), self.vcrit,
-             self.free_step], axis=1)
+            [
+                self.isat,
+                self.vte,
+                self.inv_vte,
+                self.is_over_vte,
+                self.reverse_knee,
+                self.cubic_scale,
+                self.three_vte,
+                np.full(self.isat.size, self.gmin),
+                self.vcrit,
+                self.free_step,
+            ],
+            axis=1,
+        )
         charge = np.stack(
-            [self.knee, self.inv_vj, self.neg_m, self.q_scale, self.ext_offset,
-             self.ext_quadratic, self.ext_slope, self.cjo, self.tt], axis=1)
+            [
+                self.knee,
+                self.inv_vj,
+                self.neg_m,
+                self.q_scale,
+                self.ext_offset,
+                self.ext_quadratic,
+                self.ext_slope,
+                self.cjo,
+                self.tt,
+            ],
+            axis=1,
+        )
         return {
             "kind": "junctions",
             "p": self.junction,

@@ -116,13 +116,26 @@ class SourceValues:
         s = self.sin
         for j, i in enumerate(self.sin_index):
             kind[i] = 1
-            par[i, :6] = (s["offset"][j], s["amplitude"][j], self._omega[j], s["delay"][j],
-                          s["damping"][j], self._phase[j])
+            par[i, :6] = (
+                s["offset"][j],
+                s["amplitude"][j],
+                self._omega[j],
+                s["delay"][j],
+                s["damping"][j],
+                self._phase[j],
+            )
         pu = self.pulse
         for j, i in enumerate(self.pulse_index):
             kind[i] = 2
-            par[i, :7] = (pu["initial"][j], pu["pulsed"][j], pu["delay"][j], self.rise[j],
-                          self.fall[j], self.width[j], self.period[j])
+            par[i, :7] = (
+                pu["initial"][j],
+                pu["pulsed"][j],
+                pu["delay"][j],
+                self.rise[j],
+                self.fall[j],
+                self.width[j],
+                self.period[j],
+            )
         pwl = [np.zeros((2, 0)) for _ in range(m)]
         for i, t, v in self.pwl:
             kind[i] = 3

@@ -120,8 +120,14 @@ class SwitchFamily(DeviceFamily):
             "kind": "switches",
             "nodes": np.stack([p, n, self.cp, self.cn], axis=1),
             "approach": np.stack(
-                [self.on_above, self.off_below, np.full(m, APPROACH_FRACTION),
-                 np.full(m, APPROACH_FLOOR)], axis=1),
+                [
+                    self.on_above,
+                    self.off_below,
+                    np.full(m, APPROACH_FRACTION),
+                    np.full(m, APPROACH_FLOOR),
+                ],
+                axis=1,
+            ),
             "g": np.stack([self.g_on, self.g_off], axis=1),
             "accepted": self.accepted,
             "state": self.state,

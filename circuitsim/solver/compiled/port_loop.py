@@ -1,0 +1,379 @@
+"""The ports kernel's time loop: transient.py's step control around a Newton on the junction
+voltages alone (ports.py).
+
+Breakpoints, order changes, the truncation-error rule, Newton-failure and switch-transition
+handling, re-factoring after a new step size has settled: all as compiled/transient.py. What
+differs is Newton's unknowns and its convergence test. The iterate is the junction voltages
+(and the switches' control voltages); an iteration converges when nothing was limited or
+toggled, every junction voltage moved by less than reltol * |v| + vntol and every junction
+passes SPICE's current check. The other unknowns are affine in the junction currents, so they
+have converged with them; the reference engine also tests each of them, which can ask for one
+more iteration. Nothing of size n is formed inside Newton; the recorded unknowns are formed
+once per accepted point.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from circuitsim.solver.compiled.devices import (
+    junction_charge,
+    junction_current,
+    pnjlim,
+    source_value,
+    switch_transition,
+    switch_truncate,
+)
+from circuitsim.solver.compiled.newton import (
+    ACCEPTED,
+    AT_BREAK,
+    ATTEMPTS,
+    BI,
+    COUNT,
+    FIRST,
+    LAST_A0,
+    NEWTON,
+    NHIST,
+    ORDER,
+    REJECTED,
+    SAME_A0,
+    SAVED_H,
+    VERSION,
+    H,
+    T,
+    factor_now,
+)
+from circuitsim.solver.compiled.port_state import CFG_A0, CFG_STALE, CFG_VERSION
+from circuitsim.solver.compiled.ports import (
+    configure,
+    junction_solve,
+    remaining_ports,
+    time_point,
+    unknown,
+)
+from circuitsim.solver.compiled.transient import (
+    FINISHED,
+    FULL,
+    NEWTON_FAILED_FIXED,
+    PAUSED,
+    REBASE_STEPS,
+    RETRY_RATIO,
+    STEP_TOO_SMALL,
+    STEP_TOO_SMALL_LTE,
+    TOO_MANY_STEPS,
+    coefficients,
+    truncation_step,
+)
+from circuitsim.solver.transient import TRANSITION_OVERSHOOT
+
+
+@njit(cache=True, nogil=True)
+def run(plan, st, t_until):
+    """Integrate from st.fs[T] until t_until (or tstop); returns compiled/transient.py's
+    status codes."""
+    real, ints = plan.real, plan.ints
+    method, maxord, max_steps = ints[0], ints[1], ints[3]
+    fixed, max_step, min_step, tstop = real[7], real[8], real[9], real[10]
+    md, ms = plan.jp.shape[0], plan.sw.shape[0]
+    nports = md + ms
+    lin = plan.lin_slots
+    nl = lin.size
+    nq = st.hq.shape[1]
+    fs, si = st.fs, st.ints
+    breaks = plan.breaks
+    ht, hq, hi, hv, hc = st.ht, st.hq, st.hi, st.hv, st.hc
+    x_ext, x_prev_ext, state, accepted = st.x_ext, st.x_prev_ext, st.state, st.accepted
+    vd_accepted, pJ, vc, pR = st.vd_accepted, st.pJ, st.vc, st.pR
+    sw, approach = plan.sw, plan.approach
+    rows, out_t, out_x, fail_v = st.rows, st.out_t, st.out_x, st.fail_v
+    # every array taken out of the tuples once (the factorization is rebuilt in place)
+    fac = st.fac
+    ref, K, cc, Cb, Kq = fac.ref, fac.K, fac.cc, fac.Cb, fac.Kq
+    yc, Yb, Zq, Z = fac.yc, fac.Yb, fac.Zq, fac.Z
+    vd, cd, gd, ieq, pJ_new, dJ = st.vd, st.cd, st.gd, st.ieq, st.pJ_new, st.dJ
+    dR, F, FK, Hj, EJ = st.dR, st.F, st.FK, st.H, st.EJ
+    c0, e0, Fc0, A, b, jv, w = st.c0, st.e0, st.Fc0, st.A, st.b, st.j, st.w
+    reltol, abstol, vntol = real[0], real[1], real[2]
+    itl4 = ints[2]
+    jp, cp, jslot, has_charge = plan.jp, plan.cp, plan.jslot, plan.has_charge
+    g_switch = plan.g_switch
+    linear = md == 0 and ms == 0
+    src_kind, src_par, src_dc = plan.src_kind, plan.src_par, plan.src_dc
+    pwl_start, pwl_t, pwl_v = plan.pwl_start, plan.pwl_t, plan.pwl_v
+    ns = src_kind.size
+    src_values = np.empty(ns)
+    hist = np.empty(nq)
+    hist_lin = np.empty(nl)
+    q = np.zeros(nq)
+    qdot = np.zeros(nq)
+    times = np.empty(4)
+    while tstop - fs[T] > min_step:
+        if fs[T] >= t_until:
+            return PAUSED
+        if si[COUNT] >= out_t.size:
+            return FULL
+        t = fs[T]
+        while si[BI] < breaks.size - 1 and breaks[si[BI]] <= t + min_step:
+            si[BI] += 1
+        next_break = breaks[si[BI]]
+        h = fs[H]
+        order = si[ORDER]
+        if fixed > 0:
+            h = fixed
+            if si[AT_BREAK]:
+                order = 1
+        elif si[AT_BREAK]:
+            order = 1
+            h = min(h, 0.1 * min(fs[SAVED_H], next_break - t))
+            if si[FIRST]:
+                h /= 10
+        si[AT_BREAK] = 0
+        if fixed == 0:
+            h = min(h, max_step)
+        landing = False
+        if t + h >= next_break - min_step:
+            fs[SAVED_H] = h
+            h = next_break - t
+            landing = True
+
+        nh = si[NHIST]
+        while True:
+            si[ATTEMPTS] += 1
+            if si[ATTEMPTS] > max_steps:
+                fs[H] = h
+                return TOO_MANY_STEPS
+            h_prev = ht[0] - ht[1] if nh > 1 else h
+            a0, a1, a2, b1 = coefficients(method, order, h, h_prev)
+            for k in range(nq):
+                hist[k] = a1 * hq[0, k] + b1 * hi[0, k] + a2 * hq[1, k]
+            for k in range(nl):
+                hist_lin[k] = hist[lin[k]]
+            ref_a0 = ref[nports] if nl else a0
+            settled = a0 != ref_a0 and a0 == fs[LAST_A0] and si[SAME_A0] >= REBASE_STEPS
+            if nl and settled:
+                factor_now(plan, st, a0)
+            for k in range(ns):
+                src_values[k] = source_value(
+                    t + h, k, src_kind, src_par, src_dc, pwl_start, pwl_t, pwl_v
+                )
+            ratio = h / h_prev if nh > 1 else 0.0
+            ok = False
+            for attempt in range(2):
+                for k in range(md):  # the predictor (transient.py extrapolates every unknown)
+                    pJ[k] = hv[0, k] + ratio * (hv[0, k] - hv[1, k])
+                for k in range(ms):
+                    vc[k] = hc[0, k] + ratio * (hc[0, k] - hc[1, k])
+                for k in range(nq):
+                    q[k] = 0.0
+                    qdot[k] = 0.0
+                # Newton at this time point, written out rather than called: a call, or a
+                # tuple of arrays unpacked per call, costs reference-count updates (atomic
+                # operations) that measured more than the arithmetic of an iteration here
+                ok = False
+                iterations = 0
+                fresh = True  # the time point's responses are to be (re)computed
+                for iteration in range(1, itl4 + 1):
+                    iterations = iteration
+                    first = iteration == 1
+                    noncon = 0
+                    for k in range(ms):  # SwitchFamily.update_state
+                        keep = accepted[k] if first else state[k]
+                        new = (keep or vc[k] > approach[k, 0]) and vc[k] >= approach[k, 1]
+                        if new != state[k]:
+                            state[k] = new
+                            noncon += 1
+                            si[CFG_STALE] = 1
+                    for k in range(md):  # DiodeFamily.port_load (see newton.py)
+                        v = pJ[k]
+                        vold = vd_accepted[k] if first else vd[k]
+                        vk = v
+                        if abs(v - vold) > jp[k, 9]:
+                            vk, was = pnjlim(v, vold, jp[k, 1], jp[k, 8])
+                            if was:
+                                noncon += 1
+                        ck, gk = junction_current(
+                            vk, jp[k, 0], jp[k, 2], jp[k, 3], jp[k, 4], jp[k, 5], jp[k, 6], jp[k, 7]
+                        )
+                        if has_charge:
+                            qk, capk = junction_charge(
+                                vk, ck, gk, cp[k, 0], cp[k, 1], cp[k, 2], cp[k, 3], cp[k, 4],
+                                cp[k, 5], cp[k, 6], cp[k, 7], cp[k, 8],
+                            )  # fmt: skip
+                            slot = jslot[k]
+                            icap = a0 * qk + hist[slot]
+                            q[slot] = qk
+                            qdot[slot] = icap
+                            ck += icap
+                            gk += a0 * capk
+                        vd[k], cd[k], gd[k] = vk, ck, gk
+                        ieq[k] = ck - gk * vk
+                    solved = False
+                    for again in range(2):  # the second on a factorization at this iterate
+                        if si[CFG_STALE] == 1 or si[CFG_VERSION] != si[VERSION] or fs[CFG_A0] != a0:
+                            # eliminate the switch and charge ports at a0 and the switch states
+                            for k in range(ms):
+                                on = g_switch[k, 0] if state[k] else g_switch[k, 1]
+                                dR[k] = on - ref[md + k]
+                            for k in range(ms, dR.size):
+                                dR[k] = a0 - ref[md + k]
+                            if not configure(K, md, dR, F, FK, Hj, EJ):
+                                if again == 1:
+                                    break
+                                factor_now(plan, st, a0)
+                                continue
+                            fs[CFG_A0] = a0
+                            si[CFG_VERSION] = si[VERSION]
+                            si[CFG_STALE] = 0
+                            fresh = True
+                        if fresh:
+                            time_point(cc, Cb, Kq, src_values, hist_lin, F, EJ, md, c0, e0, Fc0)
+                            fresh = False
+                        for k in range(md):
+                            dJ[k] = gd[k] - ref[k]
+                        solved = junction_solve(Hj, e0, ieq, dJ, A, b, pJ_new)
+                        if solved or again == 1:
+                            break
+                        factor_now(plan, st, a0)
+                    if not solved:
+                        break
+                    remaining_ports(Fc0, FK, ieq, dJ, pJ_new, dR, jv, pR, w)
+                    for k in range(ms):  # the control nodes of this iterate
+                        for side in (2, 3):
+                            node = sw[k, side]
+                            if node >= 0:
+                                x_ext[node] = unknown(
+                                    node, yc, Yb, Zq, Z, src_values, hist_lin, jv, w
+                                )
+                        vc[k] = x_ext[sw[k, 2]] - x_ext[sw[k, 3]]
+                    done = noncon == 0 and (iteration > 1 or linear)
+                    for k in range(md if done else 0):
+                        change = abs(pJ_new[k] - pJ[k])
+                        if change > reltol * max(abs(pJ_new[k]), abs(pJ[k])) + vntol:
+                            done = False
+                            break
+                    for k in range(md if done else 0):  # DiodeFamily.port_converged
+                        delta = gd[k] * (pJ_new[k] - vd[k])
+                        if abs(delta) > reltol * max(abs(cd[k] + delta), abs(cd[k])) + abstol:
+                            done = False
+                            break
+                    for k in range(md):
+                        fail_v[0, k] = pJ_new[k]
+                        fail_v[1, k] = pJ[k]
+                        pJ[k] = pJ_new[k]
+                    if done:
+                        ok = True
+                        break
+                si[NEWTON] += iterations
+                # the update's round-off, not the step, may be what failed (RETRY_RATIO)
+                far = nl and not (a0 / RETRY_RATIO < ref[nports] < RETRY_RATIO * a0)
+                if ok or attempt == 1 or not far:
+                    break
+                factor_now(plan, st, a0)
+            if not ok:
+                si[REJECTED] += 1
+                fs[H] = h
+                if fixed > 0:
+                    return NEWTON_FAILED_FIXED
+                h /= 8
+                order = 1
+                landing = False
+                if h < min_step:
+                    fs[H] = h
+                    return STEP_TOO_SMALL
+                continue
+            for k in range(nl):
+                qk = pR[ms + k]
+                q[lin[k]] = qk
+                qdot[lin[k]] = a0 * qk + hist[lin[k]]
+            transition = False
+            if fixed == 0 and ms:
+                fraction = switch_transition(x_ext, x_prev_ext, sw, state, accepted, approach)
+                if fraction < 1 - TRANSITION_OVERSHOOT and h * fraction > 10 * min_step:
+                    si[REJECTED] += 1
+                    h *= fraction + TRANSITION_OVERSHOOT
+                    landing = False
+                    continue
+                transition = fraction < 1.0
+            new_h = h if fixed > 0 else 2 * h
+            if fixed == 0 and not si[FIRST]:
+                times[0] = t + h
+                for k in range(3):
+                    times[k + 1] = ht[k]
+                npoints = nh + 1
+                if npoints >= order + 2 and nq:
+                    new_h = min(new_h, truncation_step(real, order, times, q, qdot, hq, hi))
+                if ms:
+                    new_h = min(
+                        new_h, switch_truncate(x_ext, x_prev_ext, h, sw, accepted, approach)
+                    )
+                if new_h > 0.9 * h or transition:
+                    if order == 1 and maxord > 1 and npoints >= 4:
+                        trial = 2 * h
+                        if nq:
+                            trial = min(trial, truncation_step(real, 2, times, q, qdot, hq, hi))
+                        if ms:
+                            trial = min(
+                                trial,
+                                switch_truncate(x_ext, x_prev_ext, h, sw, accepted, approach),
+                            )
+                        new_h = trial
+                        if trial > 1.05 * h:
+                            order = 2
+                else:
+                    si[REJECTED] += 1
+                    h = new_h
+                    landing = False
+                    if h < min_step:
+                        fs[H] = h
+                        return STEP_TOO_SMALL_LTE
+                    continue
+            break
+
+        # accept
+        t = next_break if landing else t + h
+        toggled = False
+        for k in range(ms):
+            if state[k] != accepted[k]:
+                toggled = True
+            accepted[k] = state[k]
+            for side in (2, 3):
+                node = sw[k, side]
+                if node >= 0:
+                    x_prev_ext[node] = x_ext[node]
+            hc[1, k] = hc[0, k]
+            hc[0, k] = vc[k]
+        for k in range(md):
+            vd_accepted[k] = pJ[k]
+            hv[1, k] = hv[0, k]
+            hv[0, k] = pJ[k]
+        for j in range(3, 0, -1):
+            ht[j] = ht[j - 1]
+            for i in range(nq):
+                hq[j, i] = hq[j - 1, i]
+        ht[0] = t
+        row = si[COUNT]
+        out_t[row] = t
+        for k in range(rows.size):
+            out_x[row, k] = unknown(rows[k], yc, Yb, Zq, Z, src_values, hist_lin, jv, w)
+        for i in range(nq):
+            hi[1, i] = hi[0, i]
+            hi[0, i] = qdot[i]
+            hq[0, i] = q[i]
+        si[NHIST] = min(nh + 1, 4)
+        si[COUNT] += 1
+        si[ACCEPTED] += 1
+        if a0 == fs[LAST_A0]:
+            si[SAME_A0] += 1
+        else:
+            fs[LAST_A0] = a0
+            si[SAME_A0] = 1
+        if fixed > 0 and order < maxord:
+            order += 1
+        if landing or toggled:
+            si[AT_BREAK] = 1
+        si[FIRST] = 0
+        si[ORDER] = order
+        fs[T] = t
+        fs[H] = new_h
+    return FINISHED

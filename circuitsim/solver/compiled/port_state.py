@@ -1,0 +1,139 @@
+"""The ports kernel's state (numpy only): what port_loop.run changes between calls."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from circuitsim.solver.compiled.plan import KernelPlan, empty_factors
+
+# extra slots beyond compiled/newton.py's indices
+CFG_A0 = 4  # fs: the a0 the configuration was made for
+CFG_VERSION = 14  # ints: the factorization version it was made from (-1: none)
+CFG_STALE = 15  # ints: 1 when a switch toggled since
+
+
+class PortState(NamedTuple):
+    """Everything the ports kernel changes (shapes: md junctions, ms switches, rR = ms + nl
+    eliminated ports, r = md + rR, nq charge slots, nrows recorded unknowns)."""
+
+    fs: np.ndarray  # (5,) t, h, saved h, last a0, configuration a0
+    ints: np.ndarray  # (16,) counters and flags (compiled/newton.py indices, CFG_*)
+    ht: np.ndarray  # (4,) accepted times, newest first
+    hq: np.ndarray  # (4, nq) charges there
+    hi: np.ndarray  # (2, nq) their derivatives
+    hv: np.ndarray  # (2, md) junction voltages at the last two accepted points
+    hc: np.ndarray  # (2, ms) switch control voltages there
+    x_ext: np.ndarray  # (n + 1,) control nodes of the present iterate (others unused)
+    x_prev_ext: np.ndarray  # (n + 1,) control nodes at the last accepted point
+    vd: np.ndarray  # (md,) junction linearization: voltage, current, conductance, ieq
+    cd: np.ndarray
+    gd: np.ndarray
+    ieq: np.ndarray
+    vd_accepted: np.ndarray
+    state: np.ndarray  # (ms,) switch states, bool
+    accepted: np.ndarray
+    fac: object  # plan.Factors
+    dR: np.ndarray  # (rR,) configuration: R ports' value changes since the factorization
+    F: np.ndarray  # (rR, rR)
+    FK: np.ndarray  # (rR, md)
+    H: np.ndarray  # (md, md)
+    EJ: np.ndarray  # (md, rR)
+    c0: np.ndarray  # (r,) time point: port response of sources and charge history
+    e0: np.ndarray  # (md,)
+    Fc0: np.ndarray  # (rR,)
+    A: np.ndarray  # (md, md) Newton scratch
+    b: np.ndarray  # (md,)
+    pJ: np.ndarray  # (md,) iterate's junction voltages
+    pJ_new: np.ndarray
+    dJ: np.ndarray
+    j: np.ndarray  # (md,) junction current deviation
+    pR: np.ndarray  # (rR,)
+    w: np.ndarray  # (rR,) dR * pR
+    vc: np.ndarray  # (ms,) iterate's control voltages
+    fail_v: np.ndarray  # (2, md) the last Newton iterate's junction voltages and the one before
+    rows: np.ndarray  # (nrows,) unknowns recorded at every accepted point
+    out_t: np.ndarray
+    out_x: np.ndarray  # (capacity, nrows)
+
+
+def initial_port_state(
+    plan: KernelPlan,
+    families: dict,
+    x0: np.ndarray,
+    q0: np.ndarray,
+    capacity: int,
+    rows: np.ndarray,
+) -> PortState:
+    """The ports kernel's state at t = 0 from the start solution ``x0`` (shape (n,)), its
+    charges ``q0`` and the families' states; ``rows``: the unknowns to record."""
+    n, nq = x0.size, q0.size
+    md, ms, r = plan.jp.shape[0], plan.sw.shape[0], plan.VT.shape[0]
+    rR = r - md
+
+    def cat(items, pick):
+        arrays = [np.asarray(pick(p), dtype=float) for p in items]
+        return np.concatenate(arrays) if arrays else np.zeros(0)
+
+    junctions, switches = families["junctions"], families["switches"]
+    vd, cd, gd = (cat(junctions, lambda p, i=i: p["state"][i]) for i in range(3))
+    state = cat(switches, lambda p: p["state"]).astype(bool) if ms else np.zeros(0, bool)
+    accepted = cat(switches, lambda p: p["accepted"]).astype(bool) if ms else np.zeros(0, bool)
+    x_ext = np.append(x0, 0.0)
+    ports = x_ext[plan.port_p[:md]] - x_ext[plan.port_n[:md]]
+    control = x_ext[plan.sw[:, 2]] - x_ext[plan.sw[:, 3]] if ms else np.zeros(0)
+    hq = np.zeros((4, nq))
+    hq[0] = q0
+    rows = np.ascontiguousarray(rows, dtype=np.int64)
+    out_x = np.zeros((capacity, rows.size))
+    out_x[0] = x0[rows]
+    ints = np.zeros(16, dtype=np.int64)
+    ints[0] = 1  # order
+    ints[1] = 1  # at a breakpoint (t = 0)
+    ints[2] = 1  # first step
+    ints[9] = 1  # one history point
+    ints[10] = 1  # one output point (t = 0)
+    ints[13] = -1
+    ints[CFG_VERSION] = -1
+    z = np.zeros
+    return PortState(
+        fs=np.array([0.0, 0.0, 0.0, np.nan, np.nan]),
+        ints=ints,
+        ht=z(4),
+        hq=hq,
+        hi=z((2, nq)),
+        hv=np.ascontiguousarray(np.stack([ports, ports])),
+        hc=np.ascontiguousarray(np.stack([control, control])),
+        x_ext=x_ext.copy(),
+        x_prev_ext=x_ext.copy(),
+        vd=vd.copy(),
+        cd=cd.copy(),
+        gd=gd.copy(),
+        ieq=cd - gd * vd,
+        vd_accepted=cat(junctions, lambda p: p["vd_accepted"]).copy(),
+        state=state.copy(),
+        accepted=accepted.copy(),
+        fac=empty_factors(n, r, md, plan.lin_slots.size, plan.src_kind.size),
+        dR=z(rR),
+        F=z((rR, rR)),
+        FK=z((rR, md)),
+        H=z((md, md)),
+        EJ=z((md, rR)),
+        c0=z(r),
+        e0=z(md),
+        Fc0=z(rR),
+        A=z((md, md)),
+        b=z(md),
+        pJ=z(md),
+        pJ_new=z(md),
+        dJ=z(md),
+        j=z(md),
+        pR=z(rR),
+        w=z(rR),
+        vc=z(ms),
+        fail_v=z((2, md)),
+        rows=rows,
+        out_t=z(capacity),
+        out_x=out_x,
+    )
