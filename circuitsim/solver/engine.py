@@ -120,10 +120,12 @@ def _transient_runner(system: MnaSystem, stats: dict):
     if choice == "python":
         stats["kernel"] = "python"
         return run_transient
-    from circuitsim.solver.compiled import kernel_unavailable, run_compiled, run_ports
+    from circuitsim.solver.compiled import auto_kernel, kernel_unavailable, run_compiled, run_ports
 
     reason = kernel_unavailable(system)
     if reason is None:
+        if choice == "auto":
+            choice = auto_kernel(system)
         return run_ports if choice == "ports" else run_compiled
     if choice in ("compiled", "ports"):
         raise CircuitInputError(f"option kernel={choice}: {reason}")

@@ -269,13 +269,23 @@ def test_diode_charge_against_ngspice(kernel, tmp_path):
 # --- stats, progress, output growth -------------------------------------------------------
 
 
-def test_stats_name_the_compiled_kernel():
+def test_stats_name_the_kernel_and_auto_chooses_by_junctions():
     w = simulate_with(GOLDEN / "halfwave.cir", "compiled")
     assert w.stats["kernel"] == "compiled"
     assert w.stats["accepted"] == len(w.time) - 1 and w.stats["rejected"] > 0
     assert w.stats["newton_iterations"] >= w.stats["accepted"]
+    # numba is installed and the circuits supported: auto picks by the number of junctions
     auto = simulate(read_netlist(GOLDEN / "halfwave.cir"))
-    assert auto.stats["kernel"] == "compiled"  # numba is installed and the circuit supported
+    assert auto.stats["kernel"] == "ports"  # 1 junction
+    many = Circuit(
+        elements=[
+            VoltageSource("V1", "a", "0", waveform=Sin(0.0, 1.0, 1e3)),
+            *[Resistor(f"R{k}", "a", f"k{k}", 1e3) for k in range(17)],
+            *[Diode(f"D{k}", f"k{k}", "0", "dm") for k in range(17)],
+        ],
+        models={"dm": Model("dm", "D", {"is": 1e-14})},
+    )
+    assert transient(many, 1e-5, 1e-4).stats["kernel"] == "compiled"  # 17 junctions
 
 
 @pytest.mark.parametrize("kernel", KERNELS)
@@ -460,6 +470,8 @@ def test_wheelset_at_tight_tolerance_survives_the_first_steps(tmp_path):
     assert compiled.stats["kernel"] == "compiled"
     assert compiled.time[-1] == pytest.approx(0.05, abs=1e-12)
     assert kernel_deviation(python, compiled)["v(y)"] <= 1e-6
+    assert runs["ports"].time[-1] == pytest.approx(0.05, abs=1e-12)
+    assert kernel_deviation(python, runs["ports"])["v(y)"] <= 1e-6
 
 
 def _fake_kernel(folder: Path, text: str) -> None:
