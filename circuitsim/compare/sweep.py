@@ -1,7 +1,7 @@
 """Parameter sweeps of the equivalent circuit: many variants, each its own run, peak |state|.
 
     Systems (one per value) --synthesize once, rescale the changed parts--> Circuits
-        --simulate (builtin) or ngspice, one run per variant, a pool of workers-->
+        --simulate (builtin: threads) or ngspice (processes), one run per variant-->
         peak |y| over a late window and over the whole run --> CSV + bifurcation-style plot
 
 The variants share one translation: the amplitude scaling is fixed from the direct solution's
@@ -265,9 +265,10 @@ def run_sweep(
     parameter, unit : str
         Its name and unit (for the CSV and plot).
     engine : {"builtin", "ngspice"}
-        builtin: each variant is its own run of the ports kernel (the same numbers as
-        simulating that variant's circuit alone with ``kernel="ports"``), ``workers``
-        threads at a time; ngspice: one ngspice process per variant, ``workers`` at a time.
+        builtin: each variant is its own run of the ports kernel (the same steps and, to
+        round-off, the same values as simulating that variant's circuit alone, which
+        ``kernel="auto"`` runs on the ports kernel too), ``workers`` threads at a time;
+        ngspice: one ngspice process per variant, ``workers`` at a time.
     options : SynthesisOptions, optional
     state : str, optional
         State to measure (default: the first, the wheelset's y).
@@ -326,8 +327,7 @@ def run_sweep(
 
 def _run_builtin(circuits: list[Circuit], node: str, jobs: int, progress: Progress | None):
     """Every variant as its own ports-kernel run (:func:`~circuitsim.solver.variants.
-    simulate_variants`: the numbers of its single run with ``kernel="ports"``), ``jobs``
-    threads at a time."""
+    simulate_variants`: the steps of its single run), ``jobs`` threads at a time."""
     from circuitsim.solver.variants import simulate_variants
 
     def advance(done: int, total: int) -> None:

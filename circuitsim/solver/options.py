@@ -65,7 +65,7 @@ class SimulationOptions:
         circuit or the machine does not allow it), ``"ports"`` (compiled, Newton on the
         junction voltages alone: solver/compiled/ports.py; same conditions), ``"python"``
         (the reference engine, solver/transient.py) or ``"auto"`` (default: when numba is
-        installed and the circuit is supported, ports up to 16 junctions and compiled above
+        installed and the circuit is supported, ports up to 64 junctions and compiled above
         (solver/compiled/__init__.py, PORTS_MAX_JUNCTIONS), else python;
         ``Waveforms.stats["kernel"]`` says which ran).
     """

@@ -2,7 +2,8 @@
 
 A parameter sweep simulates circuits that differ only in element values. Each variant runs
 exactly what ``simulate(circuit, SimulationOptions.from_circuit(circuit, kernel="ports"))``
-runs (same options, same steps, same numbers), but records only the probed signals, and
+runs (same options, same time steps, same Newton iterates), but records only the probed
+signals (formed row by row, so their values equal the single run's to round-off), and
 ``workers`` variants run at once in threads: the compiled loop releases the GIL, so the
 threads use separate cores without the start-up and pickling of worker processes.
 """

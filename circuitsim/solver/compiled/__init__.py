@@ -41,12 +41,12 @@ def kernel_unavailable(system: MnaSystem) -> str | None:
     return unsupported(system)
 
 
-# ``kernel="auto"`` runs the ports kernel up to this many junctions, the compiled kernel above:
-# a ports iteration solves an md x md system (md^3 / 3 flops), a compiled one applies a
-# low-rank update to all n unknowns and checks it with an n x n product. Measured: the ideal
-# wheelset (4 junctions, 54 unknowns) runs 3x faster on ports, its TL074 version (56
-# junctions, 266 unknowns) 3x slower. 16 is where md^3 / 3 passes n^2 for such circuits.
-PORTS_MAX_JUNCTIONS = 16
+# ``kernel="auto"`` runs the ports kernel up to this many junctions, the compiled kernel above.
+# A ports iteration solves for the active junctions only (ports.junction_solve), but keeps
+# md x md matrices and redoes an md^2 rR elimination at every new step size. Measured: the
+# ideal wheelset (4 junctions, 54 unknowns) 3.2x faster on ports than on compiled, its TL074
+# version (56 junctions, 266 unknowns) 1.7x faster; larger circuits were not measured.
+PORTS_MAX_JUNCTIONS = 64
 
 
 def auto_kernel(system: MnaSystem) -> str:

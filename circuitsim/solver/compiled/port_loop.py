@@ -46,6 +46,7 @@ from circuitsim.solver.compiled.newton import (
 )
 from circuitsim.solver.compiled.port_state import CFG_A0, CFG_STALE, CFG_VERSION
 from circuitsim.solver.compiled.ports import (
+    all_unknowns,
     configure,
     junction_solve,
     remaining_ports,
@@ -94,6 +95,15 @@ def run(plan, st, t_until):
     vd, cd, gd, ieq, pJ_new, dJ = st.vd, st.cd, st.gd, st.ieq, st.pJ_new, st.dJ
     dR, F, FK, Hj, EJ = st.dR, st.F, st.FK, st.H, st.EJ
     c0, e0, Fc0, A, b, jv, w = st.c0, st.e0, st.Fc0, st.A, st.b, st.j, st.w
+    hcol, Hieq, applied, act, xa = st.hcol, st.Hieq, st.ieq_applied, st.act, st.xa
+    new_h_matrix = True  # H changed: H ieq to be recomputed in full
+    # many recorded unknowns: form them all column by column (ports.all_unknowns)
+    every = rows.size * 4 > fac.yc.size
+    ZT, zrel = fac.ZT, fac.zrel
+    x_all = np.empty(fac.yc.size)
+    yJ = np.empty(fac.yc.size)
+    j_applied = np.zeros(md)
+    yj_version = -1
     reltol, abstol, vntol = real[0], real[1], real[2]
     itl4 = ints[2]
     jp, cp, jslot, has_charge = plan.jp, plan.cp, plan.jslot, plan.has_charge
@@ -217,7 +227,7 @@ def run(plan, st, t_until):
                                 dR[k] = on - ref[md + k]
                             for k in range(ms, dR.size):
                                 dR[k] = a0 - ref[md + k]
-                            if not configure(K, md, dR, F, FK, Hj, EJ):
+                            if not configure(K, md, dR, F, FK, Hj, EJ, hcol):
                                 if again == 1:
                                     break
                                 factor_now(plan, st, a0)
@@ -226,12 +236,17 @@ def run(plan, st, t_until):
                             si[CFG_VERSION] = si[VERSION]
                             si[CFG_STALE] = 0
                             fresh = True
+                            new_h_matrix = True
                         if fresh:
                             time_point(cc, Cb, Kq, src_values, hist_lin, F, EJ, md, c0, e0, Fc0)
                             fresh = False
                         for k in range(md):
                             dJ[k] = gd[k] - ref[k]
-                        solved = junction_solve(Hj, e0, ieq, dJ, A, b, pJ_new)
+                        solved = junction_solve(
+                            Hj, hcol, e0, Hieq, ieq, applied, dJ, act, A, b, xa, pJ_new,
+                            new_h_matrix,
+                        )  # fmt: skip
+                        new_h_matrix = False
                         if solved or again == 1:
                             break
                         factor_now(plan, st, a0)
@@ -354,8 +369,17 @@ def run(plan, st, t_until):
         ht[0] = t
         row = si[COUNT]
         out_t[row] = t
-        for k in range(rows.size):
-            out_x[row, k] = unknown(rows[k], yc, Yb, Zq, Z, src_values, hist_lin, jv, w)
+        if every:
+            all_unknowns(
+                x_all, yc, Yb, ZT, src_values, hist_lin, jv, w, md, yJ, j_applied, zrel,
+                yj_version != si[VERSION],
+            )  # fmt: skip
+            yj_version = si[VERSION]
+            for k in range(rows.size):
+                out_x[row, k] = x_all[rows[k]]
+        else:
+            for k in range(rows.size):
+                out_x[row, k] = unknown(rows[k], yc, Yb, Zq, Z, src_values, hist_lin, jv, w)
         for i in range(nq):
             hi[1, i] = hi[0, i]
             hi[0, i] = qdot[i]

@@ -40,6 +40,11 @@ class PortState(NamedTuple):
     FK: np.ndarray  # (rR, md)
     H: np.ndarray  # (md, md)
     EJ: np.ndarray  # (md, rR)
+    hcol: np.ndarray  # (md,) max |H[:, k]|
+    Hieq: np.ndarray  # (md,) H ieq_applied
+    ieq_applied: np.ndarray  # (md,)
+    act: np.ndarray  # (md,) int: active junctions of the iteration
+    xa: np.ndarray  # (md,) their solution
     c0: np.ndarray  # (r,) time point: port response of sources and charge history
     e0: np.ndarray  # (md,)
     Fc0: np.ndarray  # (rR,)
@@ -120,6 +125,11 @@ def initial_port_state(
         FK=z((rR, md)),
         H=z((md, md)),
         EJ=z((md, rR)),
+        hcol=z(md),
+        Hieq=z(md),
+        ieq_applied=z(md),
+        act=np.zeros(md, dtype=np.int64),
+        xa=z(md),
         c0=z(r),
         e0=z(md),
         Fc0=z(rR),

@@ -31,6 +31,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from circuitsim.solver.compiled.lowrank import NEGLIGIBLE
+from circuitsim.solver.compiled.newton import JUNCTION_NEGLIGIBLE
+
 
 @njit(cache=True)
 def solve_small(a, b, out) -> bool:
@@ -67,9 +70,9 @@ def solve_small(a, b, out) -> bool:
 
 
 @njit(cache=True)
-def configure(K, md, dR, F, FK, H, EJ) -> bool:
+def configure(K, md, dR, F, FK, H, EJ, hcol) -> bool:
     """Eliminate the R ports at their value changes ``dR`` (shape (rR,)): fill F, FK = F K_RJ,
-    H and E_J. False when I + K_RR D_R is singular."""
+    H, E_J and hcol (max |H[:, k]| of each column). False when I + K_RR D_R is singular."""
     rR = dR.size
     a = np.empty((rR, rR))
     for i in range(rR):
@@ -104,6 +107,11 @@ def configure(K, md, dR, F, FK, H, EJ) -> bool:
             for k in range(rR):
                 acc -= EJ[i, k] * K[md + k, j]
             H[i, j] = acc
+    for j in range(md):
+        big = 0.0
+        for i in range(md):
+            big = max(big, abs(H[i, j]))
+        hcol[j] = big
     return True
 
 
@@ -132,17 +140,49 @@ def time_point(cc, Cb, Kq, src_values, hist_lin, F, EJ, md, c0, e0, Fc0):
 
 
 @njit(cache=True, inline="always")
-def junction_solve(H, e0, ieq, dJ, a, b, pJ) -> bool:
-    """p_J of (I + H D_J) p_J = e0 - H ieq; a (md, md) and b (md,) are scratch."""
+def junction_solve(H, hcol, e0, Hieq, ieq, applied, dJ, act, A, b, x, pJ, full) -> bool:
+    """p_J of (I + H D_J) p_J = e0 - H ieq; A (md, md), b, x (md,), act (md,) are scratch.
+
+    Only the *active* junctions enter the solve: those whose conductance change moves the
+    solution, |dJ_k| max_i |H_ik| > NEGLIGIBLE (as lowrank.active_columns). The others'
+    columns of I + H D_J are unit columns to round-off (clamp diodes of an op-amp macromodel,
+    far in reverse, keep their factorization's conductance), so p_J follows from the active
+    ones by one product. ``Hieq`` = H ``applied`` is kept up to date by the columns whose
+    companion current changed (``full``: recomputed, after a new configuration).
+    """
     md = e0.size
-    for i in range(md):
-        acc = e0[i]
+    if full:
+        for i in range(md):
+            Hieq[i] = 0.0
         for k in range(md):
-            acc -= H[i, k] * ieq[k]
-            a[i, k] = H[i, k] * dJ[k]
-        a[i, i] += 1.0
-        b[i] = acc
-    return solve_small(a, b, pJ)
+            applied[k] = 0.0
+    for k in range(md):
+        delta = ieq[k] - applied[k]
+        if delta != 0.0:
+            for i in range(md):
+                Hieq[i] += H[i, k] * delta
+            applied[k] = ieq[k]
+    m = 0
+    for k in range(md):
+        if dJ[k] != 0.0 and abs(dJ[k]) * hcol[k] > NEGLIGIBLE:
+            act[m] = k
+            m += 1
+    for a in range(m):
+        i = act[a]
+        for c in range(m):
+            A[a, c] = H[i, act[c]] * dJ[act[c]]
+        A[a, a] += 1.0
+        b[a] = e0[i] - Hieq[i]
+    if not solve_small(A[:m, :m], b[:m], x[:m]):
+        return False
+    for i in range(md):
+        acc = e0[i] - Hieq[i]
+        for c in range(m):
+            acc -= H[i, act[c]] * dJ[act[c]] * x[c]
+        pJ[i] = acc
+    for c in range(m):  # the active ones exactly as solved
+        pJ[act[c]] = x[c]
+    return True
 
 
 @njit(cache=True, inline="always")
@@ -174,3 +214,46 @@ def unknown(i, yc, Yb, Zq, Z, src_values, hist_lin, j, w) -> float:
     for k in range(w.size):
         acc -= Z[i, md + k] * w[k]
     return acc
+
+
+@njit(cache=True, inline="always")
+def all_unknowns(x, yc, Yb, ZT, src_values, hist_lin, jv, w, md, yJ, j_applied, zrel, full):
+    """Every unknown of the present solution into x (shape (n,)), column by column.
+
+    The junction columns' part ``yJ = Z_J j`` is kept between calls and updated only by the
+    junctions whose current deviation j changed enough to move some unknown by more than
+    JUNCTION_NEGLIGIBLE of its absolute tolerance (``zrel``: max_i |Z_ik| / tol_i); ``full``
+    recomputes it (a new factorization). R columns with w = 0 (a0 at the factored value) are
+    skipped.
+    """
+    n = x.size
+    if full:
+        for i in range(n):
+            yJ[i] = 0.0
+        for k in range(md):
+            j_applied[k] = 0.0
+    for k in range(md):
+        delta = jv[k] - j_applied[k]
+        if delta != 0.0 and (full or abs(delta) * zrel[k] > JUNCTION_NEGLIGIBLE):
+            for i in range(n):
+                yJ[i] += ZT[k, i] * delta
+            j_applied[k] = jv[k]
+    for i in range(n):
+        x[i] = yc[i] - yJ[i]
+    for k in range(src_values.size):
+        s = src_values[k]
+        if s != 0.0:
+            for i in range(n):
+                x[i] += Yb[i, k] * s
+    nl = hist_lin.size
+    rR = w.size
+    for k in range(rR):
+        wk = w[k]
+        if wk != 0.0:
+            for i in range(n):
+                x[i] -= ZT[md + k, i] * wk
+    for k in range(nl):  # the charge history: the last nl columns
+        hk = hist_lin[k]
+        if hk != 0.0:
+            for i in range(n):
+                x[i] -= ZT[md + rR - nl + k, i] * hk
