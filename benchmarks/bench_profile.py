@@ -1,5 +1,7 @@
 """Where the time of one builtin wheelset run goes (ideal and TL074 op-amps).
 
+The ports kernel (what ``kernel="auto"`` runs on both circuits) by ablation: bench_ports.py.
+
 Compiled code cannot be seen by cProfile, so the compiled kernel is taken apart by hand: the
 fixed costs (parsing, assembly, operating point, plan, first factorization) are timed around
 their calls, and the kernel's pieces are timed one by one on the run's own matrices (each
@@ -16,6 +18,7 @@ import pstats
 import time
 from pathlib import Path
 
+import bench_ports
 import numpy as np
 from bench_common import table
 from bench_wheelset import SCENARIO, T_STOP
@@ -226,7 +229,7 @@ def run(folder: Path, quick: bool, log) -> dict:
     model = load_model()
     system = model.system(parameters=SCENARIO, nonlinear={"flange": True})
     t_stop = 1.0 if quick else T_STOP
-    out: dict = {"t_stop": t_stop, "kernel": {}}
+    out: dict = {"t_stop": t_stop, "kernel": {}, "ports": {}}
     for opamp in ("ideal", "tl074"):
         circuit = synthesize(
             system, SynthesisOptions(series="exact", t_stop=t_stop, opamp=opamp)
@@ -236,6 +239,8 @@ def run(folder: Path, quick: bool, log) -> dict:
         simulate(read_netlist(path))  # load the compiled code before timing
         out["kernel"][opamp] = kernel_breakdown(path)
         log(f"  {opamp}: kernel {out['kernel'][opamp]['run_compiled_s']:.3g} s")
+        log(f"  {opamp}: ports kernel ablation")
+        out["ports"][opamp] = bench_ports.ablation(path, log)
     circuit = read_netlist(folder / "wheelset_ideal.cir")
     options = SimulationOptions.from_circuit(circuit, kernel="python")
     profile = cProfile.Profile()
@@ -254,6 +259,21 @@ def run(folder: Path, quick: bool, log) -> dict:
 
 def report(data: dict) -> str:
     parts = []
+    rows = []
+    for opamp, ablation in data.get("ports", {}).items():
+        rows += bench_ports.report(f"{opamp} ({ablation['unknowns']} unknowns)", ablation)
+    if rows:
+        parts.append(
+            f"Ports kernel (kernel=auto), wheelset 0-{data['t_stop']:g} s, kernel time only "
+            "(best of 3), by ablation: each piece switched off in turn; its cost per step is "
+            "the difference to the intact kernel recording v(y)"
+        )
+        parts.append(
+            table(
+                ["run", "s", "steps", "Newton iterations", "us per step", "piece, us per step"],
+                rows,
+            )
+        )
     for opamp, k in data["kernel"].items():
         s = k["stats"]
         steps = s["accepted"] + s["rejected"]

@@ -25,6 +25,7 @@ from circuitsim.solver.compiled.devices import (
     switch_transition,
     switch_truncate,
 )
+from circuitsim.solver.compiled.lowrank import NEGLIGIBLE
 from circuitsim.solver.compiled.newton import (
     ACCEPTED,
     AT_BREAK,
@@ -48,10 +49,7 @@ from circuitsim.solver.compiled.port_state import CFG_A0, CFG_STALE, CFG_VERSION
 from circuitsim.solver.compiled.ports import (
     all_unknowns,
     configure,
-    junction_solve,
-    remaining_ports,
-    time_point,
-    unknown,
+    solve_small,
 )
 from circuitsim.solver.compiled.transient import (
     FINISHED,
@@ -112,6 +110,8 @@ def run(plan, st, t_until):
     src_kind, src_par, src_dc = plan.src_kind, plan.src_par, plan.src_dc
     pwl_start, pwl_t, pwl_v = plan.pwl_start, plan.pwl_t, plan.pwl_v
     ns = src_kind.size
+    rR = ms + nl
+    r = md + rR
     src_values = np.empty(ns)
     hist = np.empty(nq)
     hist_lin = np.empty(nl)
@@ -237,29 +237,95 @@ def run(plan, st, t_until):
                             si[CFG_STALE] = 0
                             fresh = True
                             new_h_matrix = True
-                        if fresh:
-                            time_point(cc, Cb, Kq, src_values, hist_lin, F, EJ, md, c0, e0, Fc0)
+                        if fresh:  # the time point's port responses (ports.py: c0, e0, F c0_R)
+                            for i in range(r):
+                                acc = cc[i]
+                                for k in range(ns):
+                                    acc += Cb[i, k] * src_values[k]
+                                for k in range(nl):
+                                    acc -= Kq[i, k] * hist_lin[k]
+                                c0[i] = acc
+                            for i in range(md):
+                                acc = c0[i]
+                                for k in range(rR):
+                                    acc -= EJ[i, k] * c0[md + k]
+                                e0[i] = acc
+                            for i in range(rR):
+                                acc = 0.0
+                                for k in range(rR):
+                                    acc += F[i, k] * c0[md + k]
+                                Fc0[i] = acc
                             fresh = False
                         for k in range(md):
                             dJ[k] = gd[k] - ref[k]
-                        solved = junction_solve(
-                            Hj, hcol, e0, Hieq, ieq, applied, dJ, act, A, b, xa, pJ_new,
-                            new_h_matrix,
-                        )  # fmt: skip
-                        new_h_matrix = False
+                        # (I + H D_J) p_J = e0 - H ieq, for the *active* junctions only: those
+                        # whose conductance change moves the solution, |dJ_k| max_i |H_ik| >
+                        # NEGLIGIBLE (as lowrank.active_columns). The others' columns of
+                        # I + H D_J are unit columns to round-off (an op-amp macromodel's clamp
+                        # diodes, far in reverse, keep their factorization's conductance), so
+                        # their p follows by one product. H ieq is kept up to date by the
+                        # columns whose companion current changed. (Written out, not called:
+                        # see the Newton comment above.)
+                        if new_h_matrix:
+                            for i in range(md):
+                                Hieq[i] = 0.0
+                            for k in range(md):
+                                applied[k] = 0.0
+                            new_h_matrix = False
+                        for k in range(md):
+                            change = ieq[k] - applied[k]
+                            if change != 0.0:
+                                for i in range(md):
+                                    Hieq[i] += Hj[i, k] * change
+                                applied[k] = ieq[k]
+                        m = 0
+                        for k in range(md):
+                            if dJ[k] != 0.0 and abs(dJ[k]) * hcol[k] > NEGLIGIBLE:
+                                act[m] = k
+                                m += 1
+                        for a in range(m):
+                            i = act[a]
+                            for c in range(m):
+                                A[a, c] = Hj[i, act[c]] * dJ[act[c]]
+                            A[a, a] += 1.0
+                            b[a] = e0[i] - Hieq[i]
+                        solved = solve_small(A, b, xa, m)
+                        if solved:
+                            for i in range(md):
+                                acc = e0[i] - Hieq[i]
+                                for c in range(m):
+                                    acc -= Hj[i, act[c]] * dJ[act[c]] * xa[c]
+                                pJ_new[i] = acc
+                            for c in range(m):
+                                pJ_new[act[c]] = xa[c]
                         if solved or again == 1:
                             break
                         factor_now(plan, st, a0)
                     if not solved:
                         break
-                    remaining_ports(Fc0, FK, ieq, dJ, pJ_new, dR, jv, pR, w)
-                    for k in range(ms):  # the control nodes of this iterate
+                    # j = ieq + D_J p_J, p_R = F c0_R - F K_RJ j, w = D_R p_R (ports.py)
+                    for k in range(md):
+                        jv[k] = ieq[k] + dJ[k] * pJ_new[k]
+                    for i in range(rR):
+                        acc = Fc0[i]
+                        for k in range(md):
+                            acc -= FK[i, k] * jv[k]
+                        pR[i] = acc
+                        w[i] = dR[i] * acc
+                    for k in range(ms):  # the control nodes of this iterate (ports.unknown)
                         for side in (2, 3):
                             node = sw[k, side]
                             if node >= 0:
-                                x_ext[node] = unknown(
-                                    node, yc, Yb, Zq, Z, src_values, hist_lin, jv, w
-                                )
+                                acc = yc[node]
+                                for c in range(ns):
+                                    acc += Yb[node, c] * src_values[c]
+                                for c in range(nl):
+                                    acc -= Zq[node, c] * hist_lin[c]
+                                for c in range(md):
+                                    acc -= Z[node, c] * jv[c]
+                                for c in range(rR):
+                                    acc -= Z[node, md + c] * w[c]
+                                x_ext[node] = acc
                         vc[k] = x_ext[sw[k, 2]] - x_ext[sw[k, 3]]
                     done = noncon == 0 and (iteration > 1 or linear)
                     for k in range(md if done else 0):
@@ -378,8 +444,18 @@ def run(plan, st, t_until):
             for k in range(rows.size):
                 out_x[row, k] = x_all[rows[k]]
         else:
-            for k in range(rows.size):
-                out_x[row, k] = unknown(rows[k], yc, Yb, Zq, Z, src_values, hist_lin, jv, w)
+            for k in range(rows.size):  # ports.unknown, written out
+                node = rows[k]
+                acc = yc[node]
+                for c in range(ns):
+                    acc += Yb[node, c] * src_values[c]
+                for c in range(nl):
+                    acc -= Zq[node, c] * hist_lin[c]
+                for c in range(md):
+                    acc -= Z[node, c] * jv[c]
+                for c in range(rR):
+                    acc -= Z[node, md + c] * w[c]
+                out_x[row, k] = acc
         for i in range(nq):
             hi[1, i] = hi[0, i]
             hi[0, i] = qdot[i]

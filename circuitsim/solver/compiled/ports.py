@@ -24,6 +24,12 @@ junction current deviation ``j = ieq + D_J p_J``:
 
 Nothing of size n is touched inside Newton; the unknowns are formed only where they are
 recorded (every accepted point, or only the probed rows of a sweep).
+
+The per-time-point and per-iteration formulas above are written out inside the loop
+(port_loop.py) rather than called: numba updates the reference count of every array passed
+to a function, even an inlined one, and those atomic operations measured more than the
+arithmetic of a 4-junction iteration. Here remain what runs rarely (configure) or once per
+point (all_unknowns).
 """
 
 from __future__ import annotations
@@ -31,15 +37,14 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from circuitsim.solver.compiled.lowrank import NEGLIGIBLE
 from circuitsim.solver.compiled.newton import JUNCTION_NEGLIGIBLE
 
 
 @njit(cache=True)
-def solve_small(a, b, out) -> bool:
-    """Solve a out = b (m x m, partial pivoting); ``a`` and ``b`` are overwritten. False when
-    a pivot vanishes or the result is not finite."""
-    m = b.size
+def solve_small(a, b, out, m) -> bool:
+    """Solve a[:m, :m] out[:m] = b[:m] (partial pivoting); ``a`` and ``b`` are overwritten.
+    False when a pivot vanishes or the result is not finite. (m rather than slices: a slice
+    is a new array object and a non-contiguous type, both slower here.)"""
     for k in range(m):
         p = k
         big = abs(a[k, k])
@@ -85,7 +90,7 @@ def configure(K, md, dR, F, FK, H, EJ, hcol) -> bool:
         rhs = np.zeros(rR)
         rhs[col] = 1.0
         out = np.empty(rR)
-        if not solve_small(work, rhs, out):
+        if not solve_small(work, rhs, out, rR):
             return False
         for i in range(rR):
             F[i, col] = out[i]
@@ -113,107 +118,6 @@ def configure(K, md, dR, F, FK, H, EJ, hcol) -> bool:
             big = max(big, abs(H[i, j]))
         hcol[j] = big
     return True
-
-
-@njit(cache=True, inline="always")
-def time_point(cc, Cb, Kq, src_values, hist_lin, F, EJ, md, c0, e0, Fc0):
-    """c0 = cc + Cb src - Kq hist_lin (shape (r,)), e0 = c0_J - E_J c0_R, Fc0 = F c0_R."""
-    r = c0.size
-    for i in range(r):
-        acc = cc[i]
-        for k in range(src_values.size):
-            acc += Cb[i, k] * src_values[k]
-        for k in range(hist_lin.size):
-            acc -= Kq[i, k] * hist_lin[k]
-        c0[i] = acc
-    rR = r - md
-    for i in range(md):
-        acc = c0[i]
-        for k in range(rR):
-            acc -= EJ[i, k] * c0[md + k]
-        e0[i] = acc
-    for i in range(rR):
-        acc = 0.0
-        for k in range(rR):
-            acc += F[i, k] * c0[md + k]
-        Fc0[i] = acc
-
-
-@njit(cache=True, inline="always")
-def junction_solve(H, hcol, e0, Hieq, ieq, applied, dJ, act, A, b, x, pJ, full) -> bool:
-    """p_J of (I + H D_J) p_J = e0 - H ieq; A (md, md), b, x (md,), act (md,) are scratch.
-
-    Only the *active* junctions enter the solve: those whose conductance change moves the
-    solution, |dJ_k| max_i |H_ik| > NEGLIGIBLE (as lowrank.active_columns). The others'
-    columns of I + H D_J are unit columns to round-off (clamp diodes of an op-amp macromodel,
-    far in reverse, keep their factorization's conductance), so p_J follows from the active
-    ones by one product. ``Hieq`` = H ``applied`` is kept up to date by the columns whose
-    companion current changed (``full``: recomputed, after a new configuration).
-    """
-    md = e0.size
-    if full:
-        for i in range(md):
-            Hieq[i] = 0.0
-        for k in range(md):
-            applied[k] = 0.0
-    for k in range(md):
-        delta = ieq[k] - applied[k]
-        if delta != 0.0:
-            for i in range(md):
-                Hieq[i] += H[i, k] * delta
-            applied[k] = ieq[k]
-    m = 0
-    for k in range(md):
-        if dJ[k] != 0.0 and abs(dJ[k]) * hcol[k] > NEGLIGIBLE:
-            act[m] = k
-            m += 1
-    for a in range(m):
-        i = act[a]
-        for c in range(m):
-            A[a, c] = H[i, act[c]] * dJ[act[c]]
-        A[a, a] += 1.0
-        b[a] = e0[i] - Hieq[i]
-    if not solve_small(A[:m, :m], b[:m], x[:m]):
-        return False
-    for i in range(md):
-        acc = e0[i] - Hieq[i]
-        for c in range(m):
-            acc -= H[i, act[c]] * dJ[act[c]] * x[c]
-        pJ[i] = acc
-    for c in range(m):  # the active ones exactly as solved
-        pJ[act[c]] = x[c]
-    return True
-
-
-@njit(cache=True, inline="always")
-def remaining_ports(Fc0, FK, ieq, dJ, pJ, dR, j, pR, w):
-    """j = ieq + D_J p_J (junction current deviation, A), p_R and w = D_R p_R (shape (rR,))."""
-    md = ieq.size
-    for k in range(md):
-        j[k] = ieq[k] + dJ[k] * pJ[k]
-    for i in range(Fc0.size):
-        acc = Fc0[i]
-        for k in range(md):
-            acc -= FK[i, k] * j[k]
-        pR[i] = acc
-        w[i] = dR[i] * acc
-
-
-@njit(cache=True, inline="always")
-def unknown(i, yc, Yb, Zq, Z, src_values, hist_lin, j, w) -> float:
-    """Unknown i >= 0 of the present solution: y0_i - Z_iJ j - Z_iR w. (No early return for
-    ground: a branch out of this inlined loop nest made the recording loop 7x slower.)"""
-    acc = yc[i]
-    for k in range(src_values.size):
-        acc += Yb[i, k] * src_values[k]
-    for k in range(hist_lin.size):
-        acc -= Zq[i, k] * hist_lin[k]
-    md = j.size
-    for k in range(md):
-        acc -= Z[i, k] * j[k]
-    for k in range(w.size):
-        acc -= Z[i, md + k] * w[k]
-    return acc
 
 
 @njit(cache=True, inline="always")

@@ -1,0 +1,118 @@
+"""Where the ports kernel's time goes, by ablation (part of bench_profile).
+
+A compiled loop cannot be profiled by function, and its pieces are too small to time alone
+(a 4 x 4 solve is ~0.1 us): instead the kernel (solver/compiled/port_loop.py) is recompiled
+with one piece switched off at a time, from a patched copy of its source, and run on the
+same circuit. The difference in time per step against the intact kernel is that piece's
+cost per step. A switched-off piece changes the numbers (and slightly the steps), so the
+ablated runs are timing instruments only; every patch must apply (else the part fails).
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import circuitsim.solver.compiled.port_loop as port_loop
+from circuitsim.netlist.reader import read_netlist
+from circuitsim.solver.compiled import newton as nw
+from circuitsim.solver.compiled.plan import build_plan
+from circuitsim.solver.compiled.port_state import initial_port_state
+from circuitsim.solver.engine import build_system
+from circuitsim.solver.transient import start_transient
+
+# piece -> (source text, replacement) in port_loop.py
+ABLATIONS = {
+    "junction charges (depletion + diffusion, per iteration)": [
+        ("                        if has_charge:\n", "                        if False:\n")
+    ],
+    "truncation error (CKTterr over all charges, per step)": [
+        ("truncation_step(real, order, times, q, qdot, hq, hi)", "np.inf"),
+        ("truncation_step(real, 2, times, q, qdot, hq, hi)", "np.inf"),
+    ],
+    "junction solve (active md x md system, per iteration)": [
+        ("solved = solve_small(A, b, xa, m)", "solved = True")
+    ],
+}
+
+
+def _load(folder: Path, name: str, patches) -> object:
+    text = Path(port_loop.__file__).read_text().replace("cache=True", "cache=False")
+    for old, new in patches:
+        if old not in text:
+            raise RuntimeError(f"bench_ports: patch for {name!r} no longer applies: {old!r}")
+        text = text.replace(old, new)
+    module = f"ablated_{abs(hash(name)) % 10**8}"
+    (folder / f"{module}.py").write_text(text)
+    return importlib.import_module(module)
+
+
+def _timed(module, system, rows, repeat: int = 3) -> tuple[float, int, int]:
+    """Best kernel-only time (s) of ``repeat`` runs, accepted steps, Newton iterations; the
+    time is NaN when the (ablated) run does not finish."""
+    tran = system.circuit.transient
+    best, steps, iterations = np.inf, 0, 0
+    for _ in range(repeat + 1):  # the first compiles
+        stats: dict = {}
+        max_step, min_step, breaks, x, ctx0 = start_transient(
+            system, tran.tstep, tran.tstop, tran.tstart, tran.tmax, tran.uic, stats
+        )
+        plan, families = build_plan(system, breaks, tran.tstop, max_step, min_step)
+        capacity = int(4 * tran.tstop / max_step) + 1000
+        st = initial_port_state(plan, families, x, ctx0.q.copy(), capacity, rows)
+        st.fs[nw.H] = min(tran.tstop / 100, tran.tstep) / 10
+        st.fs[nw.SAVED_H] = tran.tstop / 50
+        nw.factor_now(plan, st, 2.0 / max_step)
+        started = time.perf_counter()
+        status = module.run(plan, st, 2 * tran.tstop)
+        elapsed = time.perf_counter() - started
+        if status != port_loop.FINISHED:  # e.g. without the solve Newton may not converge
+            return np.nan, int(st.ints[nw.ACCEPTED]), int(st.ints[nw.NEWTON])
+        best = min(best, elapsed)
+        steps, iterations = int(st.ints[nw.ACCEPTED]), int(st.ints[nw.NEWTON])
+    return best, steps, iterations
+
+
+def ablation(path: Path, log) -> dict:
+    """The intact kernel and each ablation on the netlist at ``path``, recording v(y) only
+    (as a sweep does) and every unknown (as a single run does)."""
+    system = build_system(read_netlist(path), None)
+    one = np.array([system.signals["v(y)"]])
+    every = np.arange(system.size)
+    out: dict = {"unknowns": system.size, "runs": {}}
+    with tempfile.TemporaryDirectory(prefix="circuitsim-ablation-") as folder:
+        sys.path.insert(0, folder)
+        try:
+            intact = _load(Path(folder), "intact", [])
+            for label, rows in (("intact, v(y) recorded", one), ("intact, all recorded", every)):
+                out["runs"][label] = _timed(intact, system, rows)
+                log(f"    {label}: {out['runs'][label][0]:.3g} s")
+            for name, patches in ABLATIONS.items():
+                module = _load(Path(folder), name, patches)
+                out["runs"][f"without {name}"] = _timed(module, system, one)
+                log(f"    without {name}: {out['runs'][f'without {name}'][0]:.3g} s")
+        finally:
+            sys.path.remove(folder)
+    return out
+
+
+def report(name: str, data: dict) -> list[list]:
+    """Rows: run, seconds, steps, iterations, us per step, difference to intact (us/step)."""
+    runs = data["runs"]
+    base_s, base_steps, _ = runs["intact, v(y) recorded"]
+    base = base_s / base_steps * 1e6
+    rows = []
+    for label, (seconds, steps, iterations) in runs.items():
+        per_step = seconds / steps * 1e6
+        diff = "" if label.startswith("intact, v(y)") else f"{base - per_step:+.3g}"
+        if not np.isfinite(seconds):
+            diff = "n/a: the ablated run did not finish"
+        if label.startswith("intact, all"):
+            diff = f"{per_step - base:+.3g} (recording all)"
+        rows.append([f"{name}: {label}", seconds, steps, iterations, f"{per_step:.3g}", diff])
+    return rows
