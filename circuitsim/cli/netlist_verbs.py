@@ -89,10 +89,11 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--engine", choices=("builtin", "ngspice"), default="builtin")
     parser.add_argument(
         "--kernel",
-        choices=("auto", "compiled", "python"),
+        choices=("auto", "ports", "compiled", "python"),
         default="auto",
-        help="builtin engine's transient loop: compiled (numba), python (the reference), or "
-        "auto (compiled where the circuit allows; default)",
+        help="builtin engine's transient loop: ports (compiled, Newton on the junction "
+        "voltages), compiled (numba, every unknown), python (the reference), or auto (ports up "
+        "to 64 junctions, compiled above, where the circuit allows; default)",
     )
     parser.add_argument("--csv", metavar="FILE", help="write time,v(node),...,i(vsource),...")
     parser.add_argument("--plot", metavar="FILE", help="save a figure (.png, .pdf, .svg)")

@@ -15,7 +15,7 @@ from circuitsim.netlist.circuit import (
 )
 from circuitsim.solver import SimulationOptions, transient
 
-KERNELS = ["python", "compiled"]
+KERNELS = ["python", "compiled", "ports"]
 
 
 def tight(kernel: str) -> SimulationOptions:

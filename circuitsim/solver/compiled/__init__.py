@@ -42,10 +42,10 @@ def kernel_unavailable(system: MnaSystem) -> str | None:
 
 
 # ``kernel="auto"`` runs the ports kernel up to this many junctions, the compiled kernel above.
-# A ports iteration solves for the active junctions only (ports.junction_solve), but keeps
-# md x md matrices and redoes an md^2 rR elimination at every new step size. Measured: the
-# ideal wheelset (4 junctions, 54 unknowns) 3.2x faster on ports than on compiled, its TL074
-# version (56 junctions, 266 unknowns) 1.7x faster; larger circuits were not measured.
+# A ports iteration solves for the active junctions only, and H is formed column by column as
+# needed (ports.py); but the kernel keeps md x md matrices. Measured (docs/performance.md):
+# both wheelset circuits, 4 junctions / 54 unknowns and 56 junctions / 266 unknowns, run
+# faster on ports than on compiled; larger circuits were not measured.
 PORTS_MAX_JUNCTIONS = 64
 
 

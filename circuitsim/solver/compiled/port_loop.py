@@ -45,10 +45,11 @@ from circuitsim.solver.compiled.newton import (
     T,
     factor_now,
 )
-from circuitsim.solver.compiled.port_state import CFG_A0, CFG_STALE, CFG_VERSION
+from circuitsim.solver.compiled.port_state import CFG_A0, CFG_COUNT, CFG_STALE, CFG_VERSION
 from circuitsim.solver.compiled.ports import (
     all_unknowns,
     configure,
+    h_column,
     solve_small,
 )
 from circuitsim.solver.compiled.transient import (
@@ -91,7 +92,8 @@ def run(plan, st, t_until):
     ref, K, cc, Cb, Kq = fac.ref, fac.K, fac.cc, fac.Cb, fac.Kq
     yc, Yb, Zq, Z = fac.yc, fac.Yb, fac.Zq, fac.Z
     vd, cd, gd, ieq, pJ_new, dJ = st.vd, st.cd, st.gd, st.ieq, st.pJ_new, st.dJ
-    dR, F, FK, Hj, EJ = st.dR, st.F, st.FK, st.H, st.EJ
+    dR, F, G, Hj, bound, colv = st.dR, st.F, st.G, st.H, st.bound, st.colv
+    tr, tr2 = st.tr, st.tr2
     c0, e0, Fc0, A, b, jv, w = st.c0, st.e0, st.Fc0, st.A, st.b, st.j, st.w
     hcol, Hieq, applied, act, xa = st.hcol, st.Hieq, st.ieq_applied, st.act, st.xa
     new_h_matrix = True  # H changed: H ieq to be recomputed in full
@@ -227,7 +229,7 @@ def run(plan, st, t_until):
                                 dR[k] = on - ref[md + k]
                             for k in range(ms, dR.size):
                                 dR[k] = a0 - ref[md + k]
-                            if not configure(K, md, dR, F, FK, Hj, EJ, hcol):
+                            if not configure(K, md, dR, F, G, bound):
                                 if again == 1:
                                     break
                                 factor_now(plan, st, a0)
@@ -235,6 +237,7 @@ def run(plan, st, t_until):
                             fs[CFG_A0] = a0
                             si[CFG_VERSION] = si[VERSION]
                             si[CFG_STALE] = 0
+                            si[CFG_COUNT] += 1  # every column of H to be formed anew
                             fresh = True
                             new_h_matrix = True
                         if fresh:  # the time point's port responses (ports.py: c0, e0, F c0_R)
@@ -245,16 +248,19 @@ def run(plan, st, t_until):
                                 for k in range(nl):
                                     acc -= Kq[i, k] * hist_lin[k]
                                 c0[i] = acc
-                            for i in range(md):
+                            for i in range(rR):  # tr = G c0_R, Fc0 = F c0_R
+                                acc = 0.0
+                                acc2 = 0.0
+                                for k in range(rR):
+                                    acc += G[i, k] * c0[md + k]
+                                    acc2 += F[i, k] * c0[md + k]
+                                tr[i] = acc
+                                Fc0[i] = acc2
+                            for i in range(md):  # e0 = c0_J - K_JR G c0_R
                                 acc = c0[i]
                                 for k in range(rR):
-                                    acc -= EJ[i, k] * c0[md + k]
+                                    acc -= K[i, md + k] * tr[k]
                                 e0[i] = acc
-                            for i in range(rR):
-                                acc = 0.0
-                                for k in range(rR):
-                                    acc += F[i, k] * c0[md + k]
-                                Fc0[i] = acc
                             fresh = False
                         for k in range(md):
                             dJ[k] = gd[k] - ref[k]
@@ -266,23 +272,46 @@ def run(plan, st, t_until):
                         # their p follows by one product. H ieq is kept up to date by the
                         # columns whose companion current changed. (Written out, not called:
                         # see the Newton comment above.)
-                        if new_h_matrix:
+                        count = si[CFG_COUNT]
+                        if new_h_matrix:  # H ieq = K_JJ ieq - K_JR G (K_RJ ieq), no H formed
+                            for s_ in range(rR):
+                                acc = 0.0
+                                for k in range(md):
+                                    acc += K[md + s_, k] * ieq[k]
+                                tr2[s_] = acc
+                            for s_ in range(rR):
+                                acc = 0.0
+                                for q_ in range(rR):
+                                    acc += G[s_, q_] * tr2[q_]
+                                tr[s_] = acc
                             for i in range(md):
-                                Hieq[i] = 0.0
+                                acc = 0.0
+                                for k in range(md):
+                                    acc += K[i, k] * ieq[k]
+                                for s_ in range(rR):
+                                    acc -= K[i, md + s_] * tr[s_]
+                                Hieq[i] = acc
                             for k in range(md):
-                                applied[k] = 0.0
+                                applied[k] = ieq[k]
                             new_h_matrix = False
                         for k in range(md):
                             change = ieq[k] - applied[k]
                             if change != 0.0:
+                                if colv[k] != count:
+                                    h_column(K, G, md, k, Hj, hcol, tr)
+                                    colv[k] = count
                                 for i in range(md):
                                     Hieq[i] += Hj[i, k] * change
                                 applied[k] = ieq[k]
                         m = 0
                         for k in range(md):
-                            if dJ[k] != 0.0 and abs(dJ[k]) * hcol[k] > NEGLIGIBLE:
-                                act[m] = k
-                                m += 1
+                            if dJ[k] != 0.0 and abs(dJ[k]) * bound[k] > NEGLIGIBLE:
+                                if colv[k] != count:
+                                    h_column(K, G, md, k, Hj, hcol, tr)
+                                    colv[k] = count
+                                if abs(dJ[k]) * hcol[k] > NEGLIGIBLE:
+                                    act[m] = k
+                                    m += 1
                         for a in range(m):
                             i = act[a]
                             for c in range(m):
@@ -306,10 +335,15 @@ def run(plan, st, t_until):
                     # j = ieq + D_J p_J, p_R = F c0_R - F K_RJ j, w = D_R p_R (ports.py)
                     for k in range(md):
                         jv[k] = ieq[k] + dJ[k] * pJ_new[k]
+                    for s_ in range(rR):  # tr = K_RJ j
+                        acc = 0.0
+                        for k in range(md):
+                            acc += K[md + s_, k] * jv[k]
+                        tr[s_] = acc
                     for i in range(rR):
                         acc = Fc0[i]
-                        for k in range(md):
-                            acc -= FK[i, k] * jv[k]
+                        for k in range(rR):
+                            acc -= F[i, k] * tr[k]
                         pR[i] = acc
                         w[i] = dR[i] * acc
                     for k in range(ms):  # the control nodes of this iterate (ports.unknown)

@@ -12,6 +12,7 @@ from circuitsim.solver.compiled.plan import KernelPlan, empty_factors
 CFG_A0 = 4  # fs: the a0 the configuration was made for
 CFG_VERSION = 14  # ints: the factorization version it was made from (-1: none)
 CFG_STALE = 15  # ints: 1 when a switch toggled since
+CFG_COUNT = 16  # ints: configurations made (H's columns are formed lazily for the present one)
 
 
 class PortState(NamedTuple):
@@ -19,7 +20,7 @@ class PortState(NamedTuple):
     eliminated ports, r = md + rR, nq charge slots, nrows recorded unknowns)."""
 
     fs: np.ndarray  # (5,) t, h, saved h, last a0, configuration a0
-    ints: np.ndarray  # (16,) counters and flags (compiled/newton.py indices, CFG_*)
+    ints: np.ndarray  # (17,) counters and flags (compiled/newton.py indices, CFG_*)
     ht: np.ndarray  # (4,) accepted times, newest first
     hq: np.ndarray  # (4, nq) charges there
     hi: np.ndarray  # (2, nq) their derivatives
@@ -37,10 +38,13 @@ class PortState(NamedTuple):
     fac: object  # plan.Factors
     dR: np.ndarray  # (rR,) configuration: R ports' value changes since the factorization
     F: np.ndarray  # (rR, rR)
-    FK: np.ndarray  # (rR, md)
-    H: np.ndarray  # (md, md)
-    EJ: np.ndarray  # (md, rR)
-    hcol: np.ndarray  # (md,) max |H[:, k]|
+    G: np.ndarray  # (rR, rR) D_R F
+    H: np.ndarray  # (md, md) columns formed for the present configuration (colv)
+    hcol: np.ndarray  # (md,) max |H[:, k]| of the formed columns
+    bound: np.ndarray  # (md,) an upper bound of it for every column
+    colv: np.ndarray  # (md,) int: the configuration count column k was formed at
+    tr: np.ndarray  # (rR,) scratch
+    tr2: np.ndarray  # (rR,) scratch
     Hieq: np.ndarray  # (md,) H ieq_applied
     ieq_applied: np.ndarray  # (md,)
     act: np.ndarray  # (md,) int: active junctions of the iteration
@@ -93,7 +97,7 @@ def initial_port_state(
     rows = np.ascontiguousarray(rows, dtype=np.int64)
     out_x = np.zeros((capacity, rows.size))
     out_x[0] = x0[rows]
-    ints = np.zeros(16, dtype=np.int64)
+    ints = np.zeros(17, dtype=np.int64)
     ints[0] = 1  # order
     ints[1] = 1  # at a breakpoint (t = 0)
     ints[2] = 1  # first step
@@ -122,10 +126,13 @@ def initial_port_state(
         fac=empty_factors(n, r, md, plan.lin_slots.size, plan.src_kind.size),
         dR=z(rR),
         F=z((rR, rR)),
-        FK=z((rR, md)),
+        G=z((rR, rR)),
         H=z((md, md)),
-        EJ=z((md, rR)),
         hcol=z(md),
+        bound=z(md),
+        colv=np.full(md, -1, dtype=np.int64),
+        tr=z(rR),
+        tr2=z(rR),
         Hieq=z(md),
         ieq_applied=z(md),
         act=np.zeros(md, dtype=np.int64),

@@ -10,11 +10,11 @@ with D the port values' change since the factorization (lowrank.py). Within one
 *configuration* (step coefficient a0 and switch states fixed) D_R is constant and the R rows
 can be eliminated once (a Schur complement):
 
-    F = (I + K_RR D_R)^-1,   H = K_JJ - K_JR D_R F K_RJ,   E_J = K_JR D_R F
+    F = (I + K_RR D_R)^-1,   G = D_R F,   H = K_JJ - K_JR G K_RJ
 
 so that a Newton iteration is one md x md solve (md = number of junctions; 4 for the wheelset)
 
-    (I + H D_J) p_J = e0 - H ieq,    e0 = c0_J - E_J c0_R,
+    (I + H D_J) p_J = e0 - H ieq,    e0 = c0_J - K_JR G c0_R,
 
 with ``c0`` the port response of the sources and the charge history (once per time point) and
 ``ieq`` the junctions' companion currents. The R ports and any wanted unknown follow from the
@@ -75,49 +75,82 @@ def solve_small(a, b, out, m) -> bool:
 
 
 @njit(cache=True)
-def configure(K, md, dR, F, FK, H, EJ, hcol) -> bool:
-    """Eliminate the R ports at their value changes ``dR`` (shape (rR,)): fill F, FK = F K_RJ,
-    H, E_J and hcol (max |H[:, k]| of each column). False when I + K_RR D_R is singular."""
+def configure(K, md, dR, F, G, bound) -> bool:
+    """Eliminate the R ports at their value changes ``dR`` (shape (rR,)).
+
+    Fills F = (I + K_RR D_R)^-1 and G = D_R F (rR x rR), so that H = K_JJ - K_JR G K_RJ, and
+    ``bound`` (md,), an upper bound of max_i |H_ik| for each column k. H itself is formed
+    column by column when a column is needed (:func:`h_column`): a circuit with many
+    junctions needs few of them, and forming all would cost md^2 rR at every new step size.
+    False when I + K_RR D_R is singular.
+    """
     rR = dR.size
-    a = np.empty((rR, rR))
+    a = np.empty((rR, 2 * rR))
     for i in range(rR):
         for k in range(rR):
             a[i, k] = K[md + i, md + k] * dR[k]
+            a[i, rR + k] = 0.0
         a[i, i] += 1.0
-    # F = a^-1, column by column (rR is small: the switches and the linear charges)
-    for col in range(rR):
-        work = a.copy()
-        rhs = np.zeros(rR)
-        rhs[col] = 1.0
-        out = np.empty(rR)
-        if not solve_small(work, rhs, out, rR):
+        a[i, rR + i] = 1.0
+    for k in range(rR):  # Gauss-Jordan with partial pivoting
+        p = k
+        big = abs(a[k, k])
+        for i in range(k + 1, rR):
+            if abs(a[i, k]) > big:
+                big, p = abs(a[i, k]), i
+        if big == 0.0 or not np.isfinite(big):
             return False
+        if p != k:
+            for j in range(2 * rR):
+                a[k, j], a[p, j] = a[p, j], a[k, j]
+        inv = 1.0 / a[k, k]
+        for j in range(2 * rR):
+            a[k, j] *= inv
         for i in range(rR):
-            F[i, col] = out[i]
+            f = a[i, k]
+            if i != k and f != 0.0:
+                for j in range(2 * rR):
+                    a[i, j] -= f * a[k, j]
     for i in range(rR):
-        for j in range(md):
-            acc = 0.0
-            for k in range(rR):
-                acc += F[i, k] * K[md + k, j]
-            FK[i, j] = acc
-    for i in range(md):
         for k in range(rR):
-            acc = 0.0
-            for m in range(rR):
-                acc += K[i, md + m] * dR[m] * F[m, k]
-            EJ[i, k] = acc
-    for i in range(md):
-        for j in range(md):
-            acc = K[i, j]
-            for k in range(rR):
-                acc -= EJ[i, k] * K[md + k, j]
-            H[i, j] = acc
-    for j in range(md):
+            F[i, k] = a[i, rR + k]
+            G[i, k] = dR[i] * a[i, rR + k]
+    # bound_k = max_i |K_JJ[i, k]| + sum_s u_s |K_RJ[s, k]|, u_s = sum_r max_i |K_JR[i, r]| |G_rs|
+    u = np.zeros(rR)
+    for r in range(rR):
         big = 0.0
         for i in range(md):
-            big = max(big, abs(H[i, j]))
-        hcol[j] = big
+            big = max(big, abs(K[i, md + r]))
+        for s in range(rR):
+            u[s] += big * abs(G[r, s])
+    for k in range(md):
+        big = 0.0
+        for i in range(md):
+            big = max(big, abs(K[i, k]))
+        for s in range(rR):
+            big += u[s] * abs(K[md + s, k])
+        bound[k] = big
     return True
+
+
+@njit(cache=True)
+def h_column(K, G, md, k, H, hcol, t) -> None:
+    """Column k of H = K_JJ - K_JR G K_RJ into H[:, k], and max_i |H_ik| into hcol[k]
+    (t: scratch, shape (rR,))."""
+    rR = t.size
+    for s in range(rR):
+        acc = 0.0
+        for q in range(rR):
+            acc += G[s, q] * K[md + q, k]
+        t[s] = acc
+    big = 0.0
+    for i in range(md):
+        acc = K[i, k]
+        for s in range(rR):
+            acc -= K[i, md + s] * t[s]
+        H[i, k] = acc
+        big = max(big, abs(acc))
+    hcol[k] = big
 
 
 @njit(cache=True, inline="always")
