@@ -296,8 +296,9 @@ def _add_sweep(sub: argparse._SubParsersAction) -> None:
             "Sweep one model parameter (e.g. --param speed --values 40:70:0.5): the circuit is "
             "translated once (exact resistors, one amplitude scaling for all values) and only "
             "the parts the parameter sets change between variants (for the speed: R33 and "
-            "R44). Each variant is its own run (builtin: the same as simulating that variant's "
-            "circuit alone; ngspice: one process per variant), --jobs at a time. Writes "
+            "R44). Each variant is its own run (builtin: the steps and values of simulating that "
+            "variant's circuit alone, in threads; ngspice: one process per variant), --jobs at "
+            "a time. Writes "
             "sweep.csv and sweep.png (peak |y| over the last --window seconds and over the "
             "whole run, critical speed marked)."
         ),
@@ -333,7 +334,7 @@ def _add_sweep(sub: argparse._SubParsersAction) -> None:
         type=int,
         default=os.cpu_count() or 1,
         metavar="N",
-        help="variants simulated at a time (worker processes; 1: all in this process; "
+        help="variants simulated at a time (builtin: threads, ngspice: processes; "
         f"default: the CPU count, {os.cpu_count() or 1} here)",
     )
     parser.add_argument("--out", default=".", metavar="DIR", help="output folder (default .)")
