@@ -50,7 +50,6 @@ from circuitsim.solver.compiled.ports import (
     all_unknowns,
     configure,
     h_column,
-    solve_small,
 )
 from circuitsim.solver.compiled.transient import (
     FINISHED,
@@ -318,7 +317,36 @@ def run(plan, st, t_until):
                                 A[a, c] = Hj[i, act[c]] * dJ[act[c]]
                             A[a, a] += 1.0
                             b[a] = e0[i] - Hieq[i]
-                        solved = solve_small(A, b, xa, m)
+                        # A xa = b (m x m, partial pivoting), written out as well
+                        solved = True
+                        for k in range(m):
+                            p_ = k
+                            big = abs(A[k, k])
+                            for i in range(k + 1, m):
+                                if abs(A[i, k]) > big:
+                                    big = abs(A[i, k])
+                                    p_ = i
+                            if big == 0.0:
+                                solved = False
+                                break
+                            if p_ != k:
+                                for c in range(m):
+                                    A[k, c], A[p_, c] = A[p_, c], A[k, c]
+                                b[k], b[p_] = b[p_], b[k]
+                            pivot = A[k, k]
+                            for i in range(k + 1, m):
+                                f = A[i, k] / pivot
+                                for c in range(k + 1, m):
+                                    A[i, c] -= f * A[k, c]
+                                b[i] -= f * b[k]
+                        if solved:
+                            for k in range(m - 1, -1, -1):
+                                acc = b[k]
+                                for c in range(k + 1, m):
+                                    acc -= A[k, c] * xa[c]
+                                xa[k] = acc / A[k, k]
+                                if not np.isfinite(xa[k]):
+                                    solved = False
                         if solved:
                             for i in range(md):
                                 acc = e0[i] - Hieq[i]

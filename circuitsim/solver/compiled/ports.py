@@ -41,40 +41,6 @@ from circuitsim.solver.compiled.newton import JUNCTION_NEGLIGIBLE
 
 
 @njit(cache=True)
-def solve_small(a, b, out, m) -> bool:
-    """Solve a[:m, :m] out[:m] = b[:m] (partial pivoting); ``a`` and ``b`` are overwritten.
-    False when a pivot vanishes or the result is not finite. (m rather than slices: a slice
-    is a new array object and a non-contiguous type, both slower here.)"""
-    for k in range(m):
-        p = k
-        big = abs(a[k, k])
-        for i in range(k + 1, m):
-            if abs(a[i, k]) > big:
-                big, p = abs(a[i, k]), i
-        if big == 0.0:
-            return False
-        if p != k:
-            for j in range(m):
-                a[k, j], a[p, j] = a[p, j], a[k, j]
-            b[k], b[p] = b[p], b[k]
-        pivot = a[k, k]
-        for i in range(k + 1, m):
-            f = a[i, k] / pivot
-            if f != 0.0:
-                for j in range(k + 1, m):
-                    a[i, j] -= f * a[k, j]
-                b[i] -= f * b[k]
-    for k in range(m - 1, -1, -1):
-        acc = b[k]
-        for j in range(k + 1, m):
-            acc -= a[k, j] * out[j]
-        out[k] = acc / a[k, k]
-        if not np.isfinite(out[k]):
-            return False
-    return True
-
-
-@njit(cache=True)
 def configure(K, md, dR, F, G, bound) -> bool:
     """Eliminate the R ports at their value changes ``dR`` (shape (rR,)).
 
