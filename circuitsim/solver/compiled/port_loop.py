@@ -374,7 +374,7 @@ def run(plan, st, t_until):
                             acc -= F[i, k] * tr[k]
                         pR[i] = acc
                         w[i] = dR[i] * acc
-                    for k in range(ms):  # the control nodes of this iterate (ports.unknown)
+                    for k in range(ms):  # the control nodes of this iterate: x_i of ports.py
                         for side in (2, 3):
                             node = sw[k, side]
                             if node >= 0:
@@ -506,7 +506,7 @@ def run(plan, st, t_until):
             for k in range(rows.size):
                 out_x[row, k] = x_all[rows[k]]
         else:
-            for k in range(rows.size):  # ports.unknown, written out
+            for k in range(rows.size):  # x_i = y0_i - Z_iJ j - Z_iR w (ports.py)
                 node = rows[k]
                 acc = yc[node]
                 for c in range(ns):
