@@ -323,59 +323,69 @@ def build_plan(
     return plan, {"junctions": junctions, "switches": switches}
 
 
-def initial_state(
-    plan: KernelPlan, families: dict, x0: np.ndarray, q0: np.ndarray, capacity: int
-) -> KernelState:
-    """The loop's state at t = 0 from the start solution and the families' states."""
-    n, nq = x0.size, q0.size
-    md, ms, r = plan.jp.shape[0], plan.sw.shape[0], plan.VT.shape[0]
+def device_states(families: dict) -> dict:
+    """The junctions' linearization (vd, cd, gd, ieq, vd_accepted; shape (md,)) and the
+    switches' states (state, accepted; bool, shape (ms,)) at t = 0, from build_plan's
+    ``families``: what both kernels start from."""
 
     def cat(items, pick):
         arrays = [np.asarray(pick(p), dtype=float) for p in items]
         return np.concatenate(arrays) if arrays else np.zeros(0)
 
     junctions, switches = families["junctions"], families["switches"]
-    vd, cd, gd = (cat(junctions, lambda p, i=i: p["state"][i]) for i in range(3))
-    state = cat(switches, lambda p: p["state"]).astype(bool) if ms else np.zeros(0, bool)
-    accepted = cat(switches, lambda p: p["accepted"]).astype(bool) if ms else np.zeros(0, bool)
-    hx = np.zeros((4, n))
-    hx[0] = x0
-    hq = np.zeros((4, nq))
-    hq[0] = q0
-    x_prev_ext = np.append(x0, 0.0)
-    out_t = np.zeros(capacity)
-    out_x = np.zeros((capacity, n))
-    out_x[0] = x0
-    fac = empty_factors(n, r, md, plan.lin_slots.size, plan.src_kind.size)
-    ints = np.zeros(15, dtype=np.int64)
+    vd, cd, gd = (cat(junctions, lambda p, i=i: p["state"][i]).copy() for i in range(3))
+    return {
+        "vd": vd,
+        "cd": cd,
+        "gd": gd,
+        "ieq": cd - gd * vd,
+        "vd_accepted": cat(junctions, lambda p: p["vd_accepted"]).copy(),
+        "state": cat(switches, lambda p: p["state"]).astype(bool),
+        "accepted": cat(switches, lambda p: p["accepted"]).astype(bool),
+    }
+
+
+def start_counters(size: int) -> np.ndarray:
+    """The loop's integer state at t = 0 (compiled/newton.py indices): order 1, at a
+    breakpoint, first step, one history point, one output point, no junction response yet."""
+    ints = np.zeros(size, dtype=np.int64)
     ints[0] = 1  # order
     ints[1] = 1  # at a breakpoint (t = 0)
     ints[2] = 1  # first step
     ints[9] = 1  # one history point
     ints[10] = 1  # one output point (t = 0)
     ints[13] = -1
+    return ints
+
+
+def initial_state(
+    plan: KernelPlan, families: dict, x0: np.ndarray, q0: np.ndarray, capacity: int
+) -> KernelState:
+    """The loop's state at t = 0 from the start solution and the families' states."""
+    n, nq = x0.size, q0.size
+    md, r = plan.jp.shape[0], plan.VT.shape[0]
+    hx = np.zeros((4, n))
+    hx[0] = x0
+    hq = np.zeros((4, nq))
+    hq[0] = q0
+    out_x = np.zeros((capacity, n))
+    out_x[0] = x0
     return KernelState(
         fs=np.array([0.0, 0.0, 0.0, np.nan]),
-        ints=ints,
+        ints=start_counters(15),
         ht=np.zeros(4),
         hx=hx,
         hq=hq,
         hi=np.zeros((2, nq)),
-        x_prev_ext=x_prev_ext,
-        vd=vd.copy(),
-        cd=cd.copy(),
-        gd=gd.copy(),
-        ieq=cd - gd * vd,
-        vd_accepted=cat(junctions, lambda p: p["vd_accepted"]).copy(),
-        state=state.copy(),
-        accepted=accepted.copy(),
-        fac=fac,
+        x_prev_ext=np.append(x0, 0.0),
+        **device_states(families),
+        fac=empty_factors(n, r, md, plan.lin_slots.size, plan.src_kind.size),
         y0=np.zeros(n),
         c0=np.zeros(r),
         yd=np.zeros(n),
         cd_response=np.zeros(r),
         ieq_applied=np.zeros(md),
-        out_t=out_t,
+        out_t=np.zeros(capacity),
         out_x=out_x,
         fail_x=np.zeros(n),
         fail_prev=np.zeros(n),

@@ -6,7 +6,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from circuitsim.solver.compiled.plan import KernelPlan, empty_factors
+from circuitsim.solver.compiled.plan import (
+    KernelPlan,
+    device_states,
+    empty_factors,
+    start_counters,
+)
 
 # extra slots beyond compiled/newton.py's indices
 CFG_A0 = 4  # fs: the a0 the configuration was made for
@@ -80,15 +85,6 @@ def initial_port_state(
     n, nq = x0.size, q0.size
     md, ms, r = plan.jp.shape[0], plan.sw.shape[0], plan.VT.shape[0]
     rR = r - md
-
-    def cat(items, pick):
-        arrays = [np.asarray(pick(p), dtype=float) for p in items]
-        return np.concatenate(arrays) if arrays else np.zeros(0)
-
-    junctions, switches = families["junctions"], families["switches"]
-    vd, cd, gd = (cat(junctions, lambda p, i=i: p["state"][i]) for i in range(3))
-    state = cat(switches, lambda p: p["state"]).astype(bool) if ms else np.zeros(0, bool)
-    accepted = cat(switches, lambda p: p["accepted"]).astype(bool) if ms else np.zeros(0, bool)
     x_ext = np.append(x0, 0.0)
     ports = x_ext[plan.port_p[:md]] - x_ext[plan.port_n[:md]]
     control = x_ext[plan.sw[:, 2]] - x_ext[plan.sw[:, 3]] if ms else np.zeros(0)
@@ -97,13 +93,7 @@ def initial_port_state(
     rows = np.ascontiguousarray(rows, dtype=np.int64)
     out_x = np.zeros((capacity, rows.size))
     out_x[0] = x0[rows]
-    ints = np.zeros(17, dtype=np.int64)
-    ints[0] = 1  # order
-    ints[1] = 1  # at a breakpoint (t = 0)
-    ints[2] = 1  # first step
-    ints[9] = 1  # one history point
-    ints[10] = 1  # one output point (t = 0)
-    ints[13] = -1
+    ints = start_counters(17)
     ints[CFG_VERSION] = -1
     z = np.zeros
     return PortState(
@@ -116,13 +106,7 @@ def initial_port_state(
         hc=np.ascontiguousarray(np.stack([control, control])),
         x_ext=x_ext.copy(),
         x_prev_ext=x_ext.copy(),
-        vd=vd.copy(),
-        cd=cd.copy(),
-        gd=gd.copy(),
-        ieq=cd - gd * vd,
-        vd_accepted=cat(junctions, lambda p: p["vd_accepted"]).copy(),
-        state=state.copy(),
-        accepted=accepted.copy(),
+        **device_states(families),
         fac=empty_factors(n, r, md, plan.lin_slots.size, plan.src_kind.size),
         dR=z(rR),
         F=z((rR, rR)),
