@@ -50,6 +50,7 @@ from circuitsim.solver.compiled.ports import (
     all_unknowns,
     configure,
     h_column,
+    unknown,
 )
 from circuitsim.solver.compiled.transient import (
     FINISHED,
@@ -374,20 +375,13 @@ def run(plan, st, t_until):
                             acc -= F[i, k] * tr[k]
                         pR[i] = acc
                         w[i] = dR[i] * acc
-                    for k in range(ms):  # the control nodes of this iterate: x_i of ports.py
+                    for k in range(ms):  # the control nodes of this iterate
                         for side in (2, 3):
                             node = sw[k, side]
                             if node >= 0:
-                                acc = yc[node]
-                                for c in range(ns):
-                                    acc += Yb[node, c] * src_values[c]
-                                for c in range(nl):
-                                    acc -= Zq[node, c] * hist_lin[c]
-                                for c in range(md):
-                                    acc -= Z[node, c] * jv[c]
-                                for c in range(rR):
-                                    acc -= Z[node, md + c] * w[c]
-                                x_ext[node] = acc
+                                x_ext[node] = unknown(
+                                    node, yc, Yb, Zq, Z, src_values, hist_lin, jv, w
+                                )
                         vc[k] = x_ext[sw[k, 2]] - x_ext[sw[k, 3]]
                     done = noncon == 0 and (iteration > 1 or linear)
                     for k in range(md if done else 0):
@@ -506,18 +500,8 @@ def run(plan, st, t_until):
             for k in range(rows.size):
                 out_x[row, k] = x_all[rows[k]]
         else:
-            for k in range(rows.size):  # x_i = y0_i - Z_iJ j - Z_iR w (ports.py)
-                node = rows[k]
-                acc = yc[node]
-                for c in range(ns):
-                    acc += Yb[node, c] * src_values[c]
-                for c in range(nl):
-                    acc -= Zq[node, c] * hist_lin[c]
-                for c in range(md):
-                    acc -= Z[node, c] * jv[c]
-                for c in range(rR):
-                    acc -= Z[node, md + c] * w[c]
-                out_x[row, k] = acc
+            for k in range(rows.size):
+                out_x[row, k] = unknown(rows[k], yc, Yb, Zq, Z, src_values, hist_lin, jv, w)
         for i in range(nq):
             hi[1, i] = hi[0, i]
             hi[0, i] = qdot[i]
