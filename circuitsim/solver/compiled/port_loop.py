@@ -196,7 +196,9 @@ def run(plan, st, t_until):
                             state[k] = new
                             noncon += 1
                             si[CFG_STALE] = 1
-                    for k in range(md):  # DiodeFamily.port_load (see newton.py)
+                    # DiodeFamily.port_load, as in newton.py: a shared inline helper taking the
+                    # parameter arrays measured 19-22 % slower per step (its reference counts)
+                    for k in range(md):
                         v = pJ[k]
                         vold = vd_accepted[k] if first else vd[k]
                         vk = v
