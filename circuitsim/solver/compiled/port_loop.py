@@ -27,19 +27,14 @@ from circuitsim.solver.compiled.devices import (
 )
 from circuitsim.solver.compiled.lowrank import NEGLIGIBLE
 from circuitsim.solver.compiled.newton import (
-    ACCEPTED,
-    AT_BREAK,
     ATTEMPTS,
-    BI,
     COUNT,
     FIRST,
     LAST_A0,
     NEWTON,
     NHIST,
-    ORDER,
     REJECTED,
     SAME_A0,
-    SAVED_H,
     VERSION,
     H,
     T,
@@ -63,6 +58,9 @@ from circuitsim.solver.compiled.transient import (
     STEP_TOO_SMALL_LTE,
     TOO_MANY_STEPS,
     coefficients,
+    finish_step,
+    next_step,
+    step_start,
     truncation_step,
 )
 from circuitsim.solver.transient import TRANSITION_OVERSHOOT
@@ -125,30 +123,7 @@ def run(plan, st, t_until):
             return PAUSED
         if si[COUNT] >= out_t.size:
             return FULL
-        t = fs[T]
-        while si[BI] < breaks.size - 1 and breaks[si[BI]] <= t + min_step:
-            si[BI] += 1
-        next_break = breaks[si[BI]]
-        h = fs[H]
-        order = si[ORDER]
-        if fixed > 0:
-            h = fixed
-            if si[AT_BREAK]:
-                order = 1
-        elif si[AT_BREAK]:
-            order = 1
-            h = min(h, 0.1 * min(fs[SAVED_H], next_break - t))
-            if si[FIRST]:
-                h /= 10
-        si[AT_BREAK] = 0
-        if fixed == 0:
-            h = min(h, max_step)
-        landing = False
-        if t + h >= next_break - min_step:
-            fs[SAVED_H] = h
-            h = next_break - t
-            landing = True
-
+        t, next_break, h, order, landing = step_start(fs, si, breaks, fixed, max_step, min_step)
         nh = si[NHIST]
         while True:
             si[ATTEMPTS] += 1
@@ -440,26 +415,17 @@ def run(plan, st, t_until):
                 for k in range(3):
                     times[k + 1] = ht[k]
                 npoints = nh + 1
+                charges = charges2 = switches = np.inf
                 if npoints >= order + 2 and nq:
-                    new_h = min(new_h, truncation_step(real, order, times, q, qdot, hq, hi))
+                    charges = truncation_step(real, order, times, q, qdot, hq, hi)
+                if order == 1 and maxord > 1 and npoints >= 4 and nq:
+                    charges2 = truncation_step(real, 2, times, q, qdot, hq, hi)
                 if ms:
-                    new_h = min(
-                        new_h, switch_truncate(x_ext, x_prev_ext, h, sw, accepted, approach)
-                    )
-                if new_h > 0.9 * h or transition:
-                    if order == 1 and maxord > 1 and npoints >= 4:
-                        trial = 2 * h
-                        if nq:
-                            trial = min(trial, truncation_step(real, 2, times, q, qdot, hq, hi))
-                        if ms:
-                            trial = min(
-                                trial,
-                                switch_truncate(x_ext, x_prev_ext, h, sw, accepted, approach),
-                            )
-                        new_h = trial
-                        if trial > 1.05 * h:
-                            order = 2
-                else:
+                    switches = switch_truncate(x_ext, x_prev_ext, h, sw, accepted, approach)
+                new_h, order, good = next_step(
+                    real, maxord, npoints, order, h, transition, charges, charges2, switches
+                )
+                if not good:
                     si[REJECTED] += 1
                     h = new_h
                     landing = False
@@ -508,20 +474,5 @@ def run(plan, st, t_until):
             hi[1, i] = hi[0, i]
             hi[0, i] = qdot[i]
             hq[0, i] = q[i]
-        si[NHIST] = min(nh + 1, 4)
-        si[COUNT] += 1
-        si[ACCEPTED] += 1
-        if a0 == fs[LAST_A0]:
-            si[SAME_A0] += 1
-        else:
-            fs[LAST_A0] = a0
-            si[SAME_A0] = 1
-        if fixed > 0 and order < maxord:
-            order += 1
-        if landing or toggled:
-            si[AT_BREAK] = 1
-        si[FIRST] = 0
-        si[ORDER] = order
-        fs[T] = t
-        fs[H] = new_h
+        finish_step(fs, si, t, new_h, a0, order, landing, toggled, fixed, maxord, nh)
     return FINISHED
