@@ -121,6 +121,31 @@ class MnaSystem:
 
     # --- assembly -------------------------------------------------------------------------
 
+    def conductances_with(self, values: dict[str, float]):
+        """The constant matrix G with the named elements' values replaced.
+
+        Each family stamps as at assembly, in the same order, so the result equals bit for
+        bit the G of the circuit with those values (a sweep's variants share one assembly).
+
+        Parameters
+        ----------
+        values : dict of str to float
+            Element name to new value (resistors: ohm).
+
+        Raises
+        ------
+        CircuitInputError
+            An unknown element, one whose value cannot change so, or a bad value.
+        """
+        left = dict(values)
+        stamps = Stamps()
+        for family in self.families:
+            mine = {name: left.pop(name) for name in family.names if name in left}
+            (family.with_values(mine) if mine else family).stamp_linear(stamps)
+        if left:
+            raise CircuitInputError(f"{', '.join(left)}: no such element")
+        return self._matrix(stamps)
+
     def _matrix(self, stamps: Stamps):
         r, c, v = stamps.triplets()
         n = self.size

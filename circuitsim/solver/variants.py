@@ -14,10 +14,12 @@ import os
 import time as _time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import replace
+from typing import NamedTuple
 
 import numpy as np
 
-from circuitsim.netlist.circuit import Circuit
+from circuitsim.netlist.circuit import Circuit, Resistor
 from circuitsim.solver.engine import build_system
 from circuitsim.solver.errors import CircuitInputError
 from circuitsim.solver.threads import single_threaded_blas
@@ -35,6 +37,12 @@ def simulate_variants(
 ) -> list[Waveforms]:
     """The ``.tran`` of every circuit on the ports kernel, only ``probes`` recorded.
 
+    Variants that differ from the first circuit only in the values of top-level resistors,
+    with a ``uic`` transient (a sweep's), share its assembly, start and plan: each is run
+    with its own constant matrix G (``MnaSystem.conductances_with``, equal bit for bit to
+    assembling it), which saves the set-up that would otherwise hold the GIL for about as
+    long as a fifth of a short run. Any other variant is assembled on its own.
+
     Parameters
     ----------
     circuits : sequence of Circuit
@@ -48,7 +56,8 @@ def simulate_variants(
     Returns
     -------
     list of Waveforms
-        In the order of ``circuits``; ``stats["wall_time_s"]`` is each variant's own time.
+        In the order of ``circuits``; ``stats["wall_time_s"]`` is each variant's own time
+        (its share of a shared start not included).
 
     Raises
     ------
@@ -64,9 +73,23 @@ def simulate_variants(
     total = len(circuits)
     workers = max(1, min(int(workers or os.cpu_count() or 1), max(total, 1)))
     check_cache()  # once, here, before threads would race for it
+    changes = [resistor_changes(circuits[0], c) for c in circuits] if total else []
+    shared = None
+    if sum(c is not None for c in changes) > 1 and circuits[0].transient is not None:
+        if circuits[0].transient.uic:
+            try:
+                shared = _shared_start(circuits[0], probes)
+            except Exception as error:
+                error.add_note("in variant 0 (0-based)")
+                raise
     results: list = [None] * total
     with single_threaded_blas(), ThreadPoolExecutor(max_workers=workers) as pool:
-        futures = {pool.submit(_one, circuit, probes, k): k for k, circuit in enumerate(circuits)}
+        futures = {}
+        for k, circuit in enumerate(circuits):
+            if shared is not None and changes[k] is not None:
+                futures[pool.submit(_one_shared, shared, changes[k], probes, k)] = k
+            else:
+                futures[pool.submit(_one, circuit, probes, k)] = k
         for done, future in enumerate(as_completed(futures), start=1):
             k = futures[future]
             try:
@@ -81,13 +104,47 @@ def simulate_variants(
     return results
 
 
-def _one(circuit: Circuit, probes: list[str], k: int) -> Waveforms:
-    """One variant's run (in a worker thread)."""
-    from circuitsim.solver.compiled import kernel_unavailable, run_ports
+def resistor_changes(base: Circuit, other: Circuit) -> dict[str, float] | None:
+    """The top-level resistors whose values differ, name to ohm, if ``other`` is ``base``
+    with only such changes (numbers, not expressions); else None."""
+    if other is base:
+        return {}
+    same = (
+        other.models == base.models
+        and other.subcircuits == base.subcircuits
+        and other.params == base.params
+        and other.analyses == base.analyses
+        and other.initial_conditions == base.initial_conditions
+        and other.options == base.options
+        and len(other.elements) == len(base.elements)
+    )
+    if not same:
+        return None
+    changes: dict[str, float] = {}
+    for a, b in zip(base.elements, other.elements, strict=True):
+        if a == b:
+            continue
+        if type(a) is not Resistor or type(b) is not Resistor:
+            return None
+        if isinstance(b.resistance, bool) or not isinstance(b.resistance, int | float):
+            return None
+        if replace(a, resistance=b.resistance) != b:
+            return None
+        changes[b.name] = float(b.resistance)
+    return changes
 
-    started = _time.perf_counter()
-    tran = circuit.transient
-    if tran is None:
+
+class _Shared(NamedTuple):
+    start: object  # compiled.PortsStart
+    index: list[int]  # each probe's unknown (-1: ground)
+    rows: np.ndarray  # the unknowns recorded
+
+
+def _checked_system(circuit: Circuit, probes: list[str], k: int):
+    """The variant's assembled system, its probes' unknowns and the recorded rows."""
+    from circuitsim.solver.compiled import kernel_unavailable
+
+    if circuit.transient is None:
         raise CircuitInputError(f"variant {k}: the circuit has no .tran")
     system = build_system(circuit, None, kernel="ports")
     reason = kernel_unavailable(system)
@@ -100,10 +157,46 @@ def _one(circuit: Circuit, probes: list[str], k: int) -> Waveforms:
         )
     index = [system.signals[p] for p in probes]
     rows = np.array([i for i in index if i >= 0], dtype=np.int64)
+    return system, index, rows
+
+
+def _shared_start(circuit: Circuit, probes: list[str]) -> _Shared:
+    from circuitsim.solver.compiled import ports_start
+
+    system, index, rows = _checked_system(circuit, probes, 0)
+    tran = circuit.transient
+    start = ports_start(system, tran.tstep, tran.tstop, tran.tstart, tran.tmax, tran.uic)
+    return _Shared(start, index, rows)
+
+
+def _one_shared(shared: _Shared, changes: dict[str, float], probes: list[str], k: int):
+    """One variant of the first circuit's resistor values (in a worker thread)."""
+    from circuitsim.solver.compiled import run_ports_from
+
+    started = _time.perf_counter()
+    system = shared.start.system
+    G = system.conductances_with(changes) if changes else None
+    stats: dict = {"analysis": "tran", "newton_iterations": 0}
+    times, values = run_ports_from(shared.start, G, shared.rows, stats)
+    return _waveforms(system, times, values, probes, shared.index, stats, started)
+
+
+def _one(circuit: Circuit, probes: list[str], k: int) -> Waveforms:
+    """One variant's run (in a worker thread)."""
+    from circuitsim.solver.compiled import run_ports
+
+    started = _time.perf_counter()
+    system, index, rows = _checked_system(circuit, probes, k)
+    tran = circuit.transient
     stats: dict = {"analysis": "tran", "newton_iterations": 0}
     times, values = run_ports(
         system, tran.tstep, tran.tstop, tran.tstart, tran.tmax, tran.uic, None, stats, rows=rows
     )
+    stats["factorizations"] = system.factorizations
+    return _waveforms(system, times, values, probes, index, stats, started)
+
+
+def _waveforms(system, times, values, probes, index, stats, started) -> Waveforms:
     signals = {}
     column = 0
     for name, i in zip(probes, index, strict=True):
@@ -112,7 +205,6 @@ def _one(circuit: Circuit, probes: list[str], k: int) -> Waveforms:
             column += 1
         else:
             signals[name] = np.zeros(times.size)
-    stats["factorizations"] = system.factorizations
     stats["unknowns"] = system.size
     stats["method"] = system.options.method
     stats["wall_time_s"] = _time.perf_counter() - started

@@ -7,8 +7,9 @@ import pytest
 
 from circuitsim.netlist.circuit import Capacitor, Circuit, Resistor, Transient, VoltageSource
 from circuitsim.solver import SimulationOptions, simulate
+from circuitsim.solver.engine import build_system
 from circuitsim.solver.errors import CircuitInputError
-from circuitsim.solver.variants import simulate_variants
+from circuitsim.solver.variants import resistor_changes, simulate_variants
 
 
 def rc(r: float, tran: bool = True) -> Circuit:
@@ -55,3 +56,66 @@ def test_variant_errors_name_the_variant():
     )
     with pytest.raises(CircuitInputError, match="variant 0: the ports kernel cannot run it"):
         simulate_variants([resistive], ["v(a)"], workers=1)
+
+
+def test_resistor_changes_finds_only_top_level_resistor_values():
+    base = rc(1e3)
+    assert resistor_changes(base, base) == {}
+    assert resistor_changes(base, rc(2e3)) == {"R1": 2e3}
+    other = rc(1e3)
+    other.elements[2] = Capacitor("C1", "out", "0", 2e-6, ic=0.0)
+    assert resistor_changes(base, other) is None  # a capacitor changed
+    other = rc(2e3)
+    other.elements[1] = Resistor("R1", "in", "mid", 2e3)
+    assert resistor_changes(base, other) is None  # a node changed
+    other = rc(1e3)
+    other.analyses = [Transient(1e-5, 4e-3, uic=True)]
+    assert resistor_changes(base, other) is None
+
+
+def test_conductances_with_equals_assembling_the_changed_circuit():
+    system = build_system(rc(1e3), None)
+    changed = build_system(rc(3.3e3), None)
+    np.testing.assert_array_equal(system.conductances_with({"R1": 3.3e3}), changed.G)
+    np.testing.assert_array_equal(system.conductances_with({}), system.G)
+    with pytest.raises(CircuitInputError, match="R9: no such element"):
+        system.conductances_with({"R9": 1.0})
+    with pytest.raises(CircuitInputError, match="C1: a CapacitorFamily value cannot change"):
+        system.conductances_with({"C1": 1e-6})
+    with pytest.raises(CircuitInputError, match="R1: resistance 0 is not allowed"):
+        system.conductances_with({"R1": 0.0})
+
+
+def test_variants_of_other_elements_or_without_uic_equal_their_single_runs():
+    """The shared-assembly path (resistors only, uic) and the own-assembly path give each
+    variant its single run: a capacitor variant and an operating-point start take the
+    second."""
+    wider = rc(1e3)
+    wider.elements[2] = Capacitor("C1", "out", "0", 2e-6, ic=0.0)
+    no_uic = [rc(r) for r in (1e3, 2e3)]
+    for circuit in no_uic:
+        circuit.analyses = [Transient(1e-5, 5e-3)]
+    for circuits in ([rc(1e3), wider, rc(2e3)], no_uic):
+        waves = simulate_variants(circuits, ["v(out)"], workers=2)
+        for circuit, w in zip(circuits, waves, strict=True):
+            single = simulate(circuit, SimulationOptions.from_circuit(circuit, kernel="ports"))
+            np.testing.assert_array_equal(w.time, single.time)
+            span = np.ptp(single["v(out)"]) or 1.0
+            np.testing.assert_allclose(w["v(out)"], single["v(out)"], rtol=0, atol=1e-12 * span)
+            assert w.stats["factorizations"] == single.stats["factorizations"]
+
+
+def test_a_bad_shared_variant_is_named():
+    with pytest.raises(CircuitInputError, match="R1: resistance 0 is not allowed") as caught:
+        simulate_variants([rc(1e3), rc(2e3), rc(0.0)], ["v(out)"], workers=1)
+    assert "in variant 2 (0-based)" in caught.value.__notes__
+
+
+def test_a_shared_start_takes_a_new_g_only_with_uic():
+    from circuitsim.solver.compiled import ports_start, run_ports_from
+
+    circuit = rc(1e3)
+    system = build_system(circuit, None)
+    start = ports_start(system, 1e-5, 5e-3, uic=False)
+    with pytest.raises(ValueError, match="only for a uic start"):
+        run_ports_from(start, system.G)

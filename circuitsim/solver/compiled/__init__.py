@@ -18,17 +18,27 @@ from __future__ import annotations
 import hashlib
 from collections.abc import Callable
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from circuitsim.atomic import write_text_atomic
-from circuitsim.solver.compiled.plan import build_plan, initial_state, unsupported
+from circuitsim.solver.compiled.plan import KernelPlan, build_plan, initial_state, unsupported
 from circuitsim.solver.errors import ConvergenceError, SingularMatrixError
 from circuitsim.solver.linalg import SingularPivot, factor
 from circuitsim.solver.system import MnaSystem
 from circuitsim.solver.transient import start_transient
 
-__all__ = ["auto_kernel", "check_cache", "kernel_unavailable", "run_compiled", "run_ports"]
+__all__ = [
+    "PortsStart",
+    "auto_kernel",
+    "check_cache",
+    "kernel_unavailable",
+    "ports_start",
+    "run_compiled",
+    "run_ports",
+    "run_ports_from",
+]
 
 
 def kernel_unavailable(system: MnaSystem) -> str | None:
@@ -150,7 +160,96 @@ def check_cache() -> None:
         _CACHE_CHECKED.append(True)
 
 
+class PortsStart(NamedTuple):
+    """A ports-kernel run up to its first step (:func:`ports_start`): what runs that differ
+    only in the constant matrix G can share."""
+
+    system: MnaSystem
+    plan: KernelPlan
+    families: dict  # build_plan's device states at t = 0
+    x: np.ndarray  # (n,) start solution
+    q0: np.ndarray  # (nq,) its charges
+    tstep: float  # s (the first step is a tenth of min(tstep, tstop / 100))
+    tstart: float  # s
+    min_step: float  # s
+    uic: bool  # the start solution does not depend on G
+
+
+def ports_start(
+    system: MnaSystem,
+    tstep: float,
+    tstop: float,
+    tstart: float = 0.0,
+    tmax: float | None = None,
+    uic: bool = False,
+    stats: dict | None = None,
+) -> PortsStart:
+    """The checks, breakpoints, start solution and plan of a ports-kernel run (what
+    :func:`run_ports` does before its first step), for :func:`run_ports_from`."""
+    stats = stats if stats is not None else {}
+    max_step, min_step, breaks, x, ctx0 = start_transient(
+        system, tstep, tstop, tstart, tmax, uic, stats
+    )
+    plan, families = build_plan(system, breaks, tstop, max_step, min_step)
+    return PortsStart(system, plan, families, x, ctx0.q.copy(), tstep, tstart, min_step, bool(uic))
+
+
+def run_ports_from(
+    start: PortsStart,
+    G: np.ndarray | None = None,
+    rows: np.ndarray | None = None,
+    stats: dict | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`run_ports` from a shared start, with the constant matrix ``G`` in place of the
+    system's (a sweep variant: ``MnaSystem.conductances_with``). The start is only read, so
+    threads may share it. ``stats["factorizations"]`` counts this run's (``start.system`` is
+    not updated).
+
+    Raises
+    ------
+    ValueError
+        ``G`` given for a start that is an operating point (it depends on G; use uic).
+    """
+    if G is not None and not start.uic:
+        raise ValueError("run_ports_from: G can change only for a uic start")
+    plan = start.plan
+    if G is not None:
+        G = np.ascontiguousarray(G if isinstance(G, np.ndarray) else G.toarray())
+        plan = plan._replace(G=G)
+    stats = stats if stats is not None else {}
+    stats.update(accepted=0, rejected=0, newton_iterations=stats.get("newton_iterations", 0))
+    counted: list[int] = []
+    try:
+        return _integrate(
+            "ports", start.system, plan, start.families, start.x, start.q0, start.tstep,
+            start.tstart, start.min_step, progress, stats, rows, counted,
+        )  # fmt: skip
+    finally:
+        stats["factorizations"] = sum(counted)
+
+
 def _run(kind, system, tstep, tstop, tstart, tmax, uic, progress, stats, rows):
+    stats = stats if stats is not None else {}
+    max_step, min_step, breaks, x, ctx0 = start_transient(
+        system, tstep, tstop, tstart, tmax, uic, stats
+    )
+    plan, families = build_plan(system, breaks, tstop, max_step, min_step)
+    counted: list[int] = []
+    try:
+        return _integrate(
+            kind, system, plan, families, x, ctx0.q, tstep, tstart, min_step, progress, stats,
+            rows, counted,
+        )  # fmt: skip
+    finally:
+        system.factorizations += sum(counted)
+
+
+def _integrate(
+    kind, system, plan, families, x, q0, tstep, tstart, min_step, progress, stats, rows, counted
+):
+    """The compiled loop from t = 0: (times, recorded values); the run's factorizations are
+    appended to ``counted``, also when it fails."""
     check_cache()
     from circuitsim.solver.compiled import newton as nw
 
@@ -160,20 +259,15 @@ def _run(kind, system, tstep, tstop, tstart, tmax, uic, progress, stats, rows):
     else:
         from circuitsim.solver.compiled import transient as tr
 
-    stats = stats if stats is not None else {}
-    max_step, min_step, breaks, x, ctx0 = start_transient(
-        system, tstep, tstop, tstart, tmax, uic, stats
-    )
     options = system.options
     fixed = options.fixed_step
-
-    plan, families = build_plan(system, breaks, tstop, max_step, min_step)
+    tstop, max_step = float(plan.real[10]), float(plan.real[8])
     capacity = int(min(max(2 * (tstop / (fixed or max_step)) + 100, 1000), 5_000_000))
     if kind == "ports":
         rows = np.arange(system.size) if rows is None else np.asarray(rows, dtype=np.int64)
-        st = initial_port_state(plan, families, x, ctx0.q.copy(), capacity, rows)
+        st = initial_port_state(plan, families, x, q0.copy(), capacity, rows)
     else:
-        st = initial_state(plan, families, x, ctx0.q.copy(), capacity)
+        st = initial_state(plan, families, x, q0.copy(), capacity)
     st.fs[nw.H] = fixed if fixed else min(tstop / 100, tstep) / 10
     st.fs[nw.SAVED_H] = tstop / 50
     step = fixed or max_step
@@ -204,7 +298,7 @@ def _run(kind, system, tstep, tstop, tstart, tmax, uic, progress, stats, rows):
         stats["rejected"] = int(st.ints[nw.REJECTED])
         stats["newton_iterations"] += int(st.ints[nw.NEWTON])
         stats["kernel"] = kind
-        system.factorizations += int(st.ints[nw.FACTORIZATIONS])
+        counted.append(int(st.ints[nw.FACTORIZATIONS]))
     if status != tr.FINISHED:
         raise _failure(system, st, status, options.max_steps)
     count = int(st.ints[nw.COUNT])

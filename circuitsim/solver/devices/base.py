@@ -67,6 +67,25 @@ class DeviceFamily:
     def bind(self, layout: Layout) -> None:
         """Resolve references to other devices' unknowns (all branches now exist)."""
 
+    def with_values(self, values: dict[str, float]) -> DeviceFamily:
+        """This family with the named elements' main values replaced (for a sweep's variants
+        of one assembled circuit); families whose values cannot change so raise.
+
+        Parameters
+        ----------
+        values : dict of str to float
+            Element name (as in :attr:`names`) to its new value, in the element's unit.
+
+        Raises
+        ------
+        CircuitInputError
+            The family does not support it, or a value is not allowed.
+        """
+        raise CircuitInputError(
+            f"{', '.join(values)}: a {type(self).__name__} value cannot change without "
+            "assembling the circuit again"
+        )
+
     def stamp_linear(self, stamps: Stamps) -> None:
         """Constant matrix entries."""
 
