@@ -95,7 +95,9 @@ class _Input:
     switch: tuple | None = None  # (switch name, signal node, control node, model name)
 
 
-def synthesize(system: System, options: SynthesisOptions | None = None) -> Synthesis:
+def synthesize(
+    system: System, options: SynthesisOptions | None = None, *, peaks: bool = True
+) -> Synthesis:
     """Compile ``system`` into an op-amp circuit.
 
     Parameters
@@ -104,6 +106,11 @@ def synthesize(system: System, options: SynthesisOptions | None = None) -> Synth
         The model at its parameter values (enabled nonlinear terms and forcing only).
     options : SynthesisOptions, optional
         Defaults: ideal op-amps, ``abs`` blocks, auto scaling to 5 V, real time, E96.
+    peaks : bool
+        Predict the nodes' peaks from the direct solution and warn where they exceed the
+        op-amps' swing (default). False skips the direct solution when the scaling does not
+        need it (every range given, or unity scaling): ``node_peaks`` is then empty and no
+        swing warning is made (a sweep's variants, which share the scaling of the sweep).
 
     Returns
     -------
@@ -124,7 +131,8 @@ def synthesize(system: System, options: SynthesisOptions | None = None) -> Synth
             f"ranges given for unknown state(s) {', '.join(unknown)}; "
             f"the model's states are {', '.join(system.states)}"
         )
-    trajectory = direct_solution(system, t_stop)
+    needed = options.scaling != "unity" and len(options.ranges) < system.n
+    trajectory = direct_solution(system, t_stop) if peaks or needed else None
     scaling = choose_scaling(system, options, t_stop, trajectory)
     G = scaling.volts_per_unit
     warnings = list(scaling.warnings)
@@ -174,8 +182,22 @@ def synthesize(system: System, options: SynthesisOptions | None = None) -> Synth
         cap.ic = circuit.initial_conditions[cap.positive]
     circuit.analyses.append(Transient(tstep=tmax, tstop=t_stop / K, tmax=tmax, uic=True))
 
-    _, x = trajectory
-    node_peaks = {}
+    node_peaks: dict[str, float] = {}
+    if trajectory is not None:
+        _predicted_peaks(trajectory[1], G, states, nodes, signals, options, node_peaks, warnings)
+    scale_map = ScaleMap(
+        time_scale=K,
+        states={
+            s: StateScale(nodes[s][0], float(G[i]), system.units[i] if system.units else "")
+            for i, s in enumerate(states)
+        },
+    )
+    return Synthesis(circuit, scale_map, builder.bom, warnings, t_stop, node_peaks)
+
+
+def _predicted_peaks(x, G, states, nodes, signals, options, node_peaks, warnings) -> None:
+    """Each state node's and summed signal's peak |v| (V) over the direct solution ``x``
+    (shape (n, m)) into ``node_peaks``, and a warning for each beyond the op-amps' swing."""
     limit = SWING_LIMIT[options.opamp]
     for i, state in enumerate(states):
         peak = float(G[i] * np.max(np.abs(x[i])))
@@ -194,14 +216,6 @@ def synthesize(system: System, options: SynthesisOptions | None = None) -> Synth
                 f"the {term.name} signal ({signal.node}) peaks at {peak:.3g} V, beyond the "
                 f"{options.opamp} op-amp's {limit:g} V swing: it will clip"
             )
-    scale_map = ScaleMap(
-        time_scale=K,
-        states={
-            s: StateScale(nodes[s][0], float(G[i]), system.units[i] if system.units else "")
-            for i, s in enumerate(states)
-        },
-    )
-    return Synthesis(circuit, scale_map, builder.bom, warnings, t_stop, node_peaks)
 
 
 def _add_forcing(system, circuit, names, nodes, inputs, G, K, options) -> None:

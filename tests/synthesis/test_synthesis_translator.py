@@ -195,3 +195,26 @@ def test_flange_signal_peak_is_predicted(wheelset):
     s = synthesize(wheelset, SynthesisOptions())
     G = s.scale_map.states["y"].volts_per_unit
     assert s.node_peaks["flange_sig"] == pytest.approx(G * (14.265e-3 - 0.009), rel=2e-3)
+
+
+def test_without_peaks_the_circuit_is_the_same_and_no_direct_solution_is_run(
+    wheelset, monkeypatch
+):
+    from circuitsim.netlist.writer import write_netlist
+    from circuitsim.synthesis import translator
+
+    ranges = {"y": 0.02, "psi": 0.01, "y_dot": 0.3, "psi_dot": 0.2}
+    options = SynthesisOptions(ranges=ranges, series="exact")
+    with_peaks = synthesize(wheelset, options)
+    assert with_peaks.node_peaks
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("direct solution run")
+
+    monkeypatch.setattr(translator, "direct_solution", refuse)
+    without = synthesize(wheelset, options, peaks=False)
+    assert write_netlist(without.circuit) == write_netlist(with_peaks.circuit)
+    assert without.node_peaks == {}
+    # the scaling still needs it when a range is missing
+    with pytest.raises(AssertionError, match="direct solution run"):
+        synthesize(wheelset, SynthesisOptions(ranges={"y": 0.02}), peaks=False)
