@@ -300,7 +300,9 @@ def _add_sweep(sub: argparse._SubParsersAction) -> None:
             "variant's circuit alone, in threads; ngspice: one process per variant), --jobs at "
             "a time. Writes "
             "sweep.csv and sweep.png (peak |y| over the last --window seconds and over the "
-            "whole run, critical speed marked)."
+            "whole run, critical speed marked). With --opamp tl074 every state node is probed "
+            "and a warning names the values where one reached the op-amp's output swing (the "
+            "scaling, set from the first, middle and last values, let it clip there)."
         ),
     )
     add_model_options(parser)
@@ -397,6 +399,8 @@ def _run_sweep(args: argparse.Namespace) -> int:
         progress=_sweep_bar,
     )
     print(file=sys.stderr)
+    for warning in result.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
     speed = (
         model.option_parameters({"speed": 0.0}).popitem()[0] if "speed" in model.options else None
     )

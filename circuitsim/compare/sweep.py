@@ -32,7 +32,7 @@ from circuitsim.compare.errors import ComparisonError
 from circuitsim.compare.mapping import map_waveforms
 from circuitsim.mechanics.system import System
 from circuitsim.netlist.circuit import Circuit, Resistor
-from circuitsim.synthesis.options import SynthesisOptions
+from circuitsim.synthesis.options import SWING_LIMIT, SynthesisOptions
 from circuitsim.synthesis.scalemap import ScaleMap
 from circuitsim.synthesis.scaling import direct_solution
 from circuitsim.synthesis.translator import synthesize
@@ -40,6 +40,9 @@ from circuitsim.synthesis.translator import synthesize
 Progress = Callable[[float, str], None]
 """Progress callback: fraction done (0..1) and a short message."""
 
+# a node at this fraction of the op-amps' swing or above has clipped (a clipped output
+# stays just below the swing: 12.87 V for the TL074 model's 13 V)
+CLIPPED = 0.95
 _A_ENTRY = re.compile(r"A\[(\w+), (\w+)\]")
 
 
@@ -207,6 +210,9 @@ class SweepResult:
         Engine statistics (time points, Newton iterations ...).
     traces : dict of int to (ndarray, ndarray)
         The state's (t, values) of the variants asked for with ``keep``.
+    warnings : list of str
+        States whose node went beyond the op-amps' swing in some variants (they clipped
+        there; checked for op-amps with a finite swing, every state probed).
     """
 
     parameter: str
@@ -223,6 +229,7 @@ class SweepResult:
     timings: dict[str, float] = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
     traces: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
 
     def csv_text(self) -> str:
         """``<parameter>,peak_late,peak_all`` header and one row per value, full precision."""
@@ -299,16 +306,20 @@ def run_sweep(
     timings["synthesis"] = time.perf_counter() - started
     if progress:
         progress(0.0, f"{len(values)} variants; changed: {', '.join(variants.changed) or 'none'}")
+    limit = SWING_LIMIT[(options or SynthesisOptions()).opamp]
+    # with a finite swing every state node is probed, to tell where a variant clipped
+    probed = list(systems[0].states) if math.isfinite(limit) else [state]
+    nodes = [variants.scale_map.states[s].node for s in probed]
     started = time.perf_counter()
     if engine == "builtin":
-        node = variants.scale_map.states[state].node
-        waves, stats = _run_builtin(variants.circuits, node, workers, progress)
+        waves, stats = _run_builtin(variants.circuits, nodes, workers, progress)
     elif engine == "ngspice":
-        waves, stats = _run_ngspice(variants, state, workers, progress)
+        waves, stats = _run_ngspice(variants, nodes, workers, progress)
     else:
         raise ComparisonError(f"unknown engine {engine!r} (choose builtin or ngspice)")
     timings["simulation"] = time.perf_counter() - started
     peaks = np.array([_peaks(w, variants.scale_map, state, window) for w in waves])
+    warnings = _clipped(waves, nodes, probed, values, parameter, unit, limit, options)
     traces = {k: map_waveforms(waves[k], variants.scale_map, [state])[state] for k in keep}
     return SweepResult(
         parameter=parameter,
@@ -324,10 +335,32 @@ def run_sweep(
         timings=timings,
         stats=stats,
         traces=traces,
+        warnings=warnings,
     )
 
 
-def _run_builtin(circuits: list[Circuit], node: str, jobs: int, progress: Progress | None):
+def _clipped(waves, nodes, states, values, parameter, unit, limit, options) -> list[str]:
+    """A warning per state whose node reached the op-amps' output swing ``limit`` (V; within
+    CLIPPED) in some variants: an output that clips stays just under it."""
+    if not math.isfinite(limit):
+        return []
+    found = []
+    for state, node in zip(states, nodes, strict=True):
+        volts = np.array([float(np.max(np.abs(w[f"v({node})"]))) for w in waves])
+        reached = np.flatnonzero(volts >= CLIPPED * limit)
+        if reached.size:
+            worst = int(np.argmax(volts))
+            found.append(
+                f"state {state} ({node}) reached the {options.opamp} op-amp's output swing "
+                f"(about {limit:g} V) in {reached.size} of {len(waves)} variants ({parameter} "
+                f"{values[reached[0]]:g} to {values[reached[-1]]:g} {unit}; "
+                f"{volts[worst]:.3g} V at {values[worst]:g}): it clipped there. The scaling "
+                "was set from the first, middle and last values: sweep a narrower range"
+            )
+    return found
+
+
+def _run_builtin(circuits: list[Circuit], nodes: list[str], jobs: int, progress: Progress | None):
     """Every variant as its own ports-kernel run (:func:`~circuitsim.solver.variants.
     simulate_variants`: the steps of its single run), ``jobs`` threads at a time."""
     from circuitsim.solver.variants import simulate_variants
@@ -336,7 +369,8 @@ def _run_builtin(circuits: list[Circuit], node: str, jobs: int, progress: Progre
         if progress:
             progress(done / total, f"builtin: {done} of {total} variants")
 
-    waves = simulate_variants(circuits, [f"v({node})"], workers=jobs, progress=advance)
+    probes = [f"v({node})" for node in nodes]
+    waves = simulate_variants(circuits, probes, workers=jobs, progress=advance)
     stats: dict = {"threads": jobs, "variants": len(waves)}
     for key in ("accepted", "rejected", "newton_iterations"):
         stats[key] = int(sum(w.stats.get(key, 0) for w in waves))
@@ -346,10 +380,12 @@ def _run_builtin(circuits: list[Circuit], node: str, jobs: int, progress: Progre
     return waves, stats
 
 
-def _run_ngspice(variants: SweepCircuits, state: str, workers: int, progress: Progress | None):
+def _run_ngspice(
+    variants: SweepCircuits, nodes: list[str], workers: int, progress: Progress | None
+):
     from circuitsim.interop.ngspice import run_ngspice
 
-    node = variants.scale_map.states[state].node
+    probes = [f"v({node})" for node in nodes]
     total = len(variants.circuits)
     waves: list = [None] * total
     with tempfile.TemporaryDirectory(prefix="circuitsim-sweep-") as folder:
@@ -361,7 +397,7 @@ def _run_ngspice(variants: SweepCircuits, state: str, workers: int, progress: Pr
             save_netlist(circuit, path, "ngspice")
             paths.append(path)
         with ThreadPoolExecutor(max_workers=workers) as pool:
-            futures = {pool.submit(run_ngspice, p, [f"v({node})"]): k for k, p in enumerate(paths)}
+            futures = {pool.submit(run_ngspice, p, probes): k for k, p in enumerate(paths)}
             for done, future in enumerate(as_completed(futures), start=1):
                 waves[futures[future]] = future.result()
                 if progress:
