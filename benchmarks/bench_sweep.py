@@ -137,10 +137,33 @@ def run(folder: Path, quick: bool, log) -> dict:
         "single_checks": singles,
         "critical_speed": ours.critical,
     }
+    data["tl074"] = _tl074(systems, values, t_stop, jobs, bar, log)
     save_sweep(ours, folder, "sweep_builtin")
     theirs.critical = ours.critical
     save_sweep(theirs, folder, "sweep_ngspice")
     return data
+
+
+def _tl074(systems, values, t_stop, jobs, bar, log) -> dict:
+    """The same sweep with the TL074 macromodel (every state node probed: its swing is
+    checked), builtin against ngspice, both ``jobs`` at a time."""
+    options = SynthesisOptions(opamp="tl074", t_stop=t_stop)
+    log(f"  tl074 builtin: {len(values)} variants, {jobs} at a time")
+    ours, ours_times = _fastest(
+        systems, values, "V", "m/s", "builtin", options, workers=jobs, progress=bar
+    )
+    log(f"  tl074 ngspice: {len(values)} processes, {jobs} at a time")
+    theirs, theirs_times = _fastest(
+        systems, values, "V", "m/s", "ngspice", options, workers=jobs, progress=bar
+    )
+    rel = np.abs(ours.peak_all / theirs.peak_all - 1)
+    return {
+        "simulation_times_s": {"builtin": ours_times, "ngspice": theirs_times},
+        "builtin": {"timings": ours.timings, "stats": ours.stats, "warnings": ours.warnings},
+        "ngspice": {"timings": theirs.timings, "stats": theirs.stats},
+        "throughput_ratio": theirs.timings["simulation"] / ours.timings["simulation"],
+        "peak_all_max_rel_diff": float(np.max(rel)),
+    }
 
 
 def report(data: dict) -> str:
@@ -213,4 +236,36 @@ def report(data: dict) -> str:
         "(single run: simulate() on the variant's Circuit in this process; netlist run: on its "
         "written and re-read netlist; sweep vs ngspice: max |difference| of y / range of y)",
     ]
+    t = data.get("tl074")
+    if t:
+        lines += [
+            "",
+            "The same sweep with TL074 op-amps (4 state nodes probed, for the swing check):",
+            table(
+                ["engine", "simulation (s)", "per variant (s)", "notes"],
+                [
+                    [
+                        f"builtin, {jobs} threads",
+                        t["builtin"]["timings"]["simulation"],
+                        t["builtin"]["timings"]["simulation"] / count,
+                        f"{t['builtin']['stats'].get('accepted')} steps in all; "
+                        f"{len(t['builtin']['warnings'])} swing warnings",
+                    ],
+                    [
+                        f"ngspice, {jobs} at a time",
+                        t["ngspice"]["timings"]["simulation"],
+                        t["ngspice"]["timings"]["simulation"] / count,
+                        f"{t['ngspice']['stats'].get('time_points')} time points in all",
+                    ],
+                ],
+            ),
+            f"throughput ratio: {t['throughput_ratio']:.3g}; peak |y| builtin vs ngspice, max "
+            f"relative difference {t['peak_all_max_rel_diff']:.3g}; simulation times: best of "
+            f"{data['repeat']} (all: "
+            + "; ".join(
+                f"{k} {', '.join(f'{x:.3g}' for x in v)}"
+                for k, v in t["simulation_times_s"].items()
+            )
+            + " s)",
+        ]
     return "\n".join(lines)
