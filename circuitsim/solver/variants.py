@@ -86,7 +86,7 @@ def simulate_variants(
     with single_threaded_blas(), ThreadPoolExecutor(max_workers=workers) as pool:
         futures = {}
         for k, circuit in enumerate(circuits):
-            if shared is not None and changes[k] is not None:
+            if shared is not None and changes[k] is not None and shared.names >= changes[k].keys():
                 futures[pool.submit(_one_shared, shared, changes[k], probes, k)] = k
             else:
                 futures[pool.submit(_one, circuit, probes, k)] = k
@@ -138,6 +138,7 @@ class _Shared(NamedTuple):
     start: object  # compiled.PortsStart
     index: list[int]  # each probe's unknown (-1: ground)
     rows: np.ndarray  # the unknowns recorded
+    names: frozenset  # the assembled elements' names (a variant's changes must be among them)
 
 
 def _checked_system(circuit: Circuit, probes: list[str], k: int):
@@ -166,7 +167,8 @@ def _shared_start(circuit: Circuit, probes: list[str]) -> _Shared:
     system, index, rows = _checked_system(circuit, probes, 0)
     tran = circuit.transient
     start = ports_start(system, tran.tstep, tran.tstop, tran.tstart, tran.tmax, tran.uic)
-    return _Shared(start, index, rows)
+    names = frozenset(name for family in system.families for name in family.names)
+    return _Shared(start, index, rows, names)
 
 
 def _one_shared(shared: _Shared, changes: dict[str, float], probes: list[str], k: int):
