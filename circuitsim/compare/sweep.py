@@ -451,6 +451,7 @@ def plot_sweep(result: SweepResult, path: str | os.PathLike) -> None:
             rotation=90,
             color="C3",
             fontsize=8,
+            bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "none", "alpha": 0.85},
         )
     ax.set_xlabel(f"{result.parameter} ({result.unit})" if result.unit else result.parameter)
     ax.set_ylabel(f"max |{result.state}| ({unit})")
