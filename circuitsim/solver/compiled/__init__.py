@@ -161,8 +161,8 @@ def check_cache() -> None:
 
 
 class PortsStart(NamedTuple):
-    """A ports-kernel run up to its first step (:func:`ports_start`): what runs that differ
-    only in the constant matrix G can share."""
+    """A compiled run up to its first step (:func:`ports_start`; the same for both kernels):
+    what runs that differ only in the constant matrix G can share."""
 
     system: MnaSystem
     plan: KernelPlan
@@ -231,15 +231,12 @@ def run_ports_from(
 
 def _run(kind, system, tstep, tstop, tstart, tmax, uic, progress, stats, rows):
     stats = stats if stats is not None else {}
-    max_step, min_step, breaks, x, ctx0 = start_transient(
-        system, tstep, tstop, tstart, tmax, uic, stats
-    )
-    plan, families = build_plan(system, breaks, tstop, max_step, min_step)
+    start = ports_start(system, tstep, tstop, tstart, tmax, uic, stats)  # the same for both
     counted: list[int] = []
     try:
         return _integrate(
-            kind, system, plan, families, x, ctx0.q, tstep, tstart, min_step, progress, stats,
-            rows, counted,
+            kind, system, start.plan, start.families, start.x, start.q0, tstep, tstart,
+            start.min_step, progress, stats, rows, counted,
         )  # fmt: skip
     finally:
         system.factorizations += sum(counted)
