@@ -62,6 +62,13 @@ def render_report(result) -> str:
         )
         + "."
     )
+    warm_up = getattr(result, "kernel_warm_up_s", None)
+    if warm_up is not None:
+        add(
+            f"The builtin engine's compiled kernels were made ready in {warm_up:.1f} s before "
+            "the runs (built on their first use after an install, loaded from numba's disk "
+            "cache after that); the simulation times below do not include it."
+        )
     add("")
     _stability(result, add)
     _free(result, add)
@@ -436,6 +443,7 @@ def reproduction_json(result) -> dict:
         "hunting_frequency_hz": result.hunting_frequency,
         "mode_frequency_hz_at_speed": {f"{v:g}": f for v, f in result.mode_frequency.items()},
         "engines": {e: r or "available" for e, r in result.engines.items()},
+        "kernel_warm_up_s": getattr(result, "kernel_warm_up_s", None),
         "ode": result.ode_summary,
         "free_response_max_abs_y_9_10s_m": {f"{v:g}": p for v, p in result.free_summary.items()},
         "rows": [

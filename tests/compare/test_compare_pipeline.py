@@ -116,3 +116,8 @@ def test_reproduce_one_short_scenario_writes_report_figures_and_honest_rows(tmp_
     assert info.growth_rate_model == pytest.approx(slowest, rel=1e-9)
     assert info.growth_rate_realized == pytest.approx(slowest, rel=1e-6)
     assert any("ngspice, ideal, exact: ok" in m for m in messages)
+    # the builtin kernels were made ready before the runs, and the report says so
+    assert result.kernel_warm_up_s is not None and result.kernel_warm_up_s > 0
+    assert metrics["kernel_warm_up_s"] == pytest.approx(result.kernel_warm_up_s)
+    assert "compiled kernels were made ready in" in report
+    assert any(m.startswith("compiled kernels ready in") for m in messages)

@@ -523,3 +523,19 @@ def test_stale_compiled_code_is_cleared_when_any_kernel_file_changes(tmp_path):
     assert not any(path.exists() for path in machine_code)
     assert other.exists()  # only the kernel's numba files go
     assert clear_stale_cache(tmp_path) is False
+
+
+def test_warm_up_runs_every_device_kind_through_the_kernels_it_names():
+    from circuitsim.netlist.reader import parse_netlist
+    from circuitsim.solver.compiled import _WARM_UP_NETLIST, warm_up
+
+    seconds = warm_up(("ports", "compiled"))
+    assert seconds > 0
+    system = build_system(parse_netlist(_WARM_UP_NETLIST), None)
+    kinds = {type(f).__name__ for f in system.families}
+    assert {"DiodeFamily", "SwitchFamily", "CapacitorFamily"} <= kinds
+    assert system.options.kernel == "auto"
+    waves = simulate(parse_netlist(_WARM_UP_NETLIST))
+    assert waves.stats["kernel"] == "ports"
+    with pytest.raises(CircuitInputError, match="kernel"):
+        warm_up(("no-such-kernel",))
