@@ -197,9 +197,7 @@ def test_flange_signal_peak_is_predicted(wheelset):
     assert s.node_peaks["flange_sig"] == pytest.approx(G * (14.265e-3 - 0.009), rel=2e-3)
 
 
-def test_without_peaks_the_circuit_is_the_same_and_no_direct_solution_is_run(
-    wheelset, monkeypatch
-):
+def test_without_peaks_the_circuit_is_the_same_and_no_direct_solution_is_run(wheelset, monkeypatch):
     from circuitsim.netlist.writer import write_netlist
     from circuitsim.synthesis import translator
 
