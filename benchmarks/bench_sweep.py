@@ -4,7 +4,8 @@ ngspice process per variant, both ``jobs`` (the CPU count) at a time.
 Throughput ratio = ngspice's wall time for all variants / ours for all variants (simulation
 only; the shared translation is timed separately), each the best of ``run.py --repeat`` runs
 (the machine is shared). numba's disk cache is warmed first in a separate process (the kernel's
-one-off compilation, if the cache was stale, is timed there). Each checked variant's sweep
+one-off compilation, if the cache was stale, is timed there); run_sweep then loads the kernels
+before it times the simulation. Each checked variant's sweep
 trace is compared with simulating its Circuit alone here and with simulating its written
 netlist; its peak |y| with ngspice's.
 """
@@ -208,9 +209,9 @@ def report(data: dict) -> str:
         + "; ".join(
             f"{k} {', '.join(f'{t:.3g}' for t in v)}" for k, v in data["simulation_times_s"].items()
         )
-        + " s). The first builtin run loads the compiled kernel into this process (about "
-        "0.5 s) from numba's disk cache, warmed beforehand in a separate process "
-        f"({data['kernel_warm_up_s']:.3g} s; compiles only if the kernel changed)",
+        + " s). Builtin times exclude making the compiled kernels ready (run_sweep does it "
+        "before timing: loaded from numba's disk cache, warmed beforehand in a separate "
+        f"process, {data['kernel_warm_up_s']:.3g} s; that compiles only if the kernel changed)",
         f"peak |y| builtin vs ngspice, max relative difference: last second "
         f"{data['peak_late_max_rel_diff']:.3g}, whole run {data['peak_all_max_rel_diff']:.3g}",
         table(

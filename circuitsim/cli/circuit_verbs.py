@@ -411,10 +411,12 @@ def _run_sweep(args: argparse.Namespace) -> int:
         )
     paths = save_sweep(result, args.out)
     per = result.timings["simulation"] / len(values)
+    kernels = result.timings.get("kernels")
+    ready = "" if kernels is None else f", compiled kernels ready {kernels:.3g} s"
     print(
         f"{len(values)} variants of {name} ({result.engine}; changed: "
-        f"{', '.join(result.changed) or 'none'}): synthesis {result.timings['synthesis']:.3g} s, "
-        f"simulation {result.timings['simulation']:.3g} s ({per:.3g} s per variant)"
+        f"{', '.join(result.changed) or 'none'}): synthesis {result.timings['synthesis']:.3g} s"
+        f"{ready}, simulation {result.timings['simulation']:.3g} s ({per:.3g} s per variant)"
     )
     if result.critical is not None:
         print(f"critical {name} (linear) {result.critical:.4f} {unit}")

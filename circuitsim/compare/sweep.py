@@ -205,7 +205,10 @@ class SweepResult:
     changed : list of str
         Elements that differ between variants.
     timings : dict of str to float
-        Wall seconds of ``synthesis`` and ``simulation``.
+        Wall seconds of ``synthesis`` and ``simulation``; for the builtin engine also
+        ``kernels``: making its compiled kernels ready before the simulation (built on their
+        first use after an install, else loaded from numba's disk cache; not in
+        ``simulation``).
     stats : dict
         Engine statistics (time points, Newton iterations ...).
     traces : dict of int to (ndarray, ndarray)
@@ -310,6 +313,10 @@ def run_sweep(
     # with a finite swing every state node is probed, to tell where a variant clipped
     probed = list(systems[0].states) if math.isfinite(limit) else [state]
     nodes = [variants.scale_map.states[s].node for s in probed]
+    if engine == "builtin":
+        from circuitsim.solver.compiled import warm_up
+
+        timings["kernels"] = warm_up()
     started = time.perf_counter()
     if engine == "builtin":
         waves, stats = _run_builtin(variants.circuits, nodes, workers, progress)
