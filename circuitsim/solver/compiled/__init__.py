@@ -173,14 +173,20 @@ def warm_up(kernels: tuple[str, ...] = ("ports",)) -> float:
     """Make the compiled ``kernels`` ready in this process: built on their first use after
     an install (tens of seconds, then kept in numba's disk cache), loaded from the cache
     after that (about half a second). Call it before timing runs, so that their times do
-    not include it. Returns the seconds it took.
+    not include it. Returns the seconds it took (0 without numba: nothing to make ready,
+    ``kernel="auto"`` then runs the numpy loop).
 
     Raises
     ------
     CircuitInputError
-        A kernel cannot run here (numba missing).
+        An unknown kernel.
     """
     import time
+
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return 0.0
 
     from circuitsim.netlist.reader import parse_netlist
     from circuitsim.solver.engine import simulate
