@@ -33,8 +33,10 @@ ABLATIONS = {
         ("                        if has_charge:\n", "                        if False:\n")
     ],
     "truncation error (CKTterr over all charges, per step)": [
-        ("truncation_step(real, order, times, q, qdot, hq, hi)", "np.inf"),
-        ("truncation_step(real, 2, times, q, qdot, hq, hi)", "np.inf"),
+        ("truncation_step(real, order, times, q, qdot, hq, hi, live)", "np.inf"),
+        ("truncation_step(real, 2, times, q, qdot, hq, hi, live)", "np.inf"),
+        ("zero_charge_step(real, order, times[0] - times[1])", "np.inf"),
+        ("zero_charge_step(real, 2, times[0] - times[1])", "np.inf"),
     ],
     "junction solve (active md x md system, per iteration)": [
         ("for k in range(m):\n" + _PIVOT, "for k in range(0):\n" + _PIVOT),

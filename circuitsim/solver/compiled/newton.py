@@ -163,7 +163,7 @@ def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
             ck, gk = junction_current(
                 vk, jp[k, 0], jp[k, 2], jp[k, 3], jp[k, 4], jp[k, 5], jp[k, 6], jp[k, 7]
             )
-            if has_charge:
+            if has_charge and (cp[k, 7] != 0.0 or cp[k, 8] != 0.0):  # else q = C = 0
                 qk, capk = junction_charge(
                     vk,
                     ck,

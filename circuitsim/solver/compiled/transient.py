@@ -65,19 +65,41 @@ def coefficients(method, order, h, h_prev):
     return a0, a1, a2, 0.0
 
 
+@njit(cache=True)
+def charge_slots(nq, jslot, cp, has_charge):
+    """The charge slots that can be nonzero (every slot but those of junctions without CJO
+    and TT, whose charge, its derivative and history are exactly 0), and whether any slot is
+    such a zero."""
+    zero = np.zeros(nq, dtype=np.bool_)
+    if has_charge:
+        for k in range(jslot.size):
+            if cp[k, 7] == 0.0 and cp[k, 8] == 0.0:
+                zero[jslot[k]] = True
+    live = np.empty(nq - np.count_nonzero(zero), dtype=np.int64)
+    count = 0
+    for i in range(nq):
+        if not zero[i]:
+            live[count] = i
+            count += 1
+    return live, count < nq
+
+
 @njit(cache=True, inline="always")
-def truncation_step(real, order, times, q_new, qdot_new, hq, hi):
+def truncation_step(real, order, times, q_new, qdot_new, hq, hi, live):
     """Largest step the charges allow (integration.truncation_step, ngspice's CKTterr).
 
     ``times`` = (t_new, t_n, t_n-1, t_n-2); charges: q_new then the rows of hq, newest first;
-    their derivatives qdot_new and hi[0].
+    their derivatives qdot_new and hi[0]. Only the slots ``live`` are read: the others'
+    charges are exactly 0 (:func:`charge_slots`), and what they allow is
+    :func:`zero_charge_step` (52 of the TL074 wheelset's 73 slots).
     """
     reltol, abstol, chgtol, trtol = real[0], real[1], real[3], real[4]
     factor = real[5] if order == 1 else real[6]
     t0, t1, t2 = times[0], times[1], times[2]
     h = t0 - t1
     step = np.inf
-    for i in range(q_new.size):
+    for j in range(live.size):
+        i = live[j]
         q0, q1, q2 = q_new[i], hq[0, i], hq[1, i]
         d1a = (q0 - q1) * (1.0 / h)
         d1b = (q1 - q2) * (1.0 / (t1 - t2))
@@ -92,6 +114,19 @@ def truncation_step(real, order, times, q_new, qdot_new, hq, hi):
         denominator = max(abs(diff) * factor, abstol)
         step = min(step, tol / denominator)
     step *= trtol
+    return math.sqrt(step) if order == 2 else step
+
+
+@njit(cache=True)
+def zero_charge_step(real, order, h):
+    """What :func:`truncation_step` gives for a slot whose charge, derivative and history are
+    0, by the same operations (diff = 0, volttol = abstol): the minimum with it equals
+    reading such slots, as the final scaling is monotonic. A separate call, not a branch in
+    truncation_step's loop (that measured 9 % slower per step on the ideal wheelset)."""
+    reltol, abstol, chgtol, trtol = real[0], real[1], real[3], real[4]
+    factor = real[5] if order == 1 else real[6]
+    tol = max(abstol, max(0.0, chgtol) * (reltol / h))
+    step = min(np.inf, tol / max(0.0 * factor, abstol)) * trtol
     return math.sqrt(step) if order == 2 else step
 
 
@@ -206,6 +241,7 @@ def run(plan, st, t_until):
     rhs_const, src_kind, src_par, src_dc = plan.rhs_const, plan.src_kind, plan.src_par, plan.src_dc
     pwl_start, pwl_t, pwl_v = plan.pwl_start, plan.pwl_t, plan.pwl_v
     src_rows, src_signs = plan.src_rows, plan.src_signs
+    live, zeros = charge_slots(nq, plan.jslot, plan.cp, plan.has_charge)
     while tstop - fs[T] > min_step:
         if fs[T] >= t_until:
             return PAUSED
@@ -296,9 +332,13 @@ def run(plan, st, t_until):
                 npoints = nh + 1
                 charges = charges2 = switches = np.inf
                 if npoints >= order + 2 and nq:
-                    charges = truncation_step(real, order, times, q, qdot, hq, hi)
+                    charges = truncation_step(real, order, times, q, qdot, hq, hi, live)
+                    if zeros:
+                        charges = min(charges, zero_charge_step(real, order, times[0] - times[1]))
                 if order == 1 and maxord > 1 and npoints >= 4 and nq:
-                    charges2 = truncation_step(real, 2, times, q, qdot, hq, hi)
+                    charges2 = truncation_step(real, 2, times, q, qdot, hq, hi, live)
+                    if zeros:
+                        charges2 = min(charges2, zero_charge_step(real, 2, times[0] - times[1]))
                 if ms:
                     switches = switch_truncate(x_ext, x_prev_ext, h, sw, accepted, approach)
                 new_h, order, good = next_step(
