@@ -539,3 +539,32 @@ def test_warm_up_runs_every_device_kind_through_the_kernels_it_names():
     assert waves.stats["kernel"] == "ports"
     with pytest.raises(CircuitInputError, match="kernel"):
         warm_up(("no-such-kernel",))
+
+
+@pytest.mark.parametrize("order", [1, 2])
+@pytest.mark.parametrize("h", [1e-9, 3.4e-4, 0.7])
+def test_the_zero_charge_limit_equals_reading_a_zero_slot(order, h):
+    # Slots of junctions without CJO and TT are not read by the truncation error; what they
+    # would allow is formed once instead, and must be that value bit for bit.
+    from circuitsim.solver.compiled.plan import CHARGE_PARAMS
+    from circuitsim.solver.compiled.transient import (
+        charge_slots,
+        truncation_step,
+        zero_charge_step,
+    )
+
+    real = np.array([1e-3, 1e-12, 1e-6, 1e-14, 7.0, 0.5, 1 / 12, 0.0, 1e-3, 1e-12, 5.0])
+    t = 1.0
+    times = np.array([t + h, t, t - 1.3 * h, t - 2.1 * h])
+    zeros = np.zeros(1)
+    read = truncation_step(
+        real, order, times, zeros, zeros, np.zeros((4, 1)), np.zeros((2, 1)), np.array([0])
+    )
+    assert zero_charge_step(real, order, times[0] - times[1]) == read
+    # which slots are zero: junction 1 has neither CJO nor TT, junction 0 has CJO
+    cp = np.zeros((2, len(CHARGE_PARAMS)))
+    cp[0, CHARGE_PARAMS.index("cjo")] = 1e-12
+    live, any_zero = charge_slots(4, np.array([2, 3]), cp, True)
+    assert list(live) == [0, 1, 2] and any_zero
+    live, any_zero = charge_slots(4, np.array([2, 3]), cp, False)
+    assert list(live) == [0, 1, 2, 3] and not any_zero
