@@ -30,6 +30,7 @@ from circuitsim.solver.compiled.newton import (
     ATTEMPTS,
     COUNT,
     FIRST,
+    JUNCTION_NEGLIGIBLE,
     LAST_A0,
     NEWTON,
     NHIST,
@@ -121,6 +122,7 @@ def run(plan, st, t_until):
     qdot = np.zeros(nq)
     times = np.empty(4)
     live, zeros = charge_slots(nq, jslot, cp, has_charge)
+    negligible_v = JUNCTION_NEGLIGIBLE * vntol
     while tstop - fs[T] > min_step:
         if fs[T] >= t_until:
             return PAUSED
@@ -253,8 +255,8 @@ def run(plan, st, t_until):
                         # I + H D_J are unit columns to round-off (an op-amp macromodel's clamp
                         # diodes, far in reverse, keep their factorization's conductance), so
                         # their p follows by one product. H ieq is kept up to date by the
-                        # columns whose companion current changed. (Written out, not called:
-                        # see the Newton comment above.)
+                        # columns whose companion current changed (by more than negligibly,
+                        # below). (Written out, not called: see the Newton comment above.)
                         count = si[CFG_COUNT]
                         if new_h_matrix:  # H ieq = K_JJ ieq - K_JR G (K_RJ ieq), no H formed
                             for s_ in range(rR):
@@ -277,9 +279,14 @@ def run(plan, st, t_until):
                             for k in range(md):
                                 applied[k] = ieq[k]
                             new_h_matrix = False
+                        # A change that moves no junction voltage by more than
+                        # JUNCTION_NEGLIGIBLE vntol (bound: max_i |H_ik| or more) waits until it
+                        # grows, as in newton.junction_response: the companion currents of clamp
+                        # diodes far in reverse change by round-off at every iteration (42 of the
+                        # TL074 wheelset's 56; applying them took a third of its step).
                         for k in range(md):
                             change = ieq[k] - applied[k]
-                            if change != 0.0:
+                            if change != 0.0 and abs(change) * bound[k] > negligible_v:
                                 if colv[k] != count:
                                     h_column(K, G, md, k, Hj, hcol, tr)
                                     colv[k] = count
