@@ -30,7 +30,10 @@ _PIVOT = "                            p_ = k"  # the elimination's first line, a
 # piece -> (source text, replacement) in port_loop.py
 ABLATIONS = {
     "junction charges (depletion + diffusion, per iteration)": [
-        ("                        if has_charge:\n", "                        if False:\n")
+        (
+            "                        if has_charge and (cp[k, 7] != 0.0 or cp[k, 8] != 0.0):\n",
+            "                        if False:\n",
+        )
     ],
     "truncation error (CKTterr over all charges, per step)": [
         ("truncation_step(real, order, times, q, qdot, hq, hi, live)", "np.inf"),
