@@ -185,7 +185,9 @@ def run_case(
     if engine == "builtin":  # its compiled kernels loaded (or built) outside the timing
         from circuitsim.solver.compiled import warm_up
 
-        timings["kernels"] = warm_up()
+        ready = warm_up()
+        if ready is not None:
+            timings["kernels"] = ready
     started = time.perf_counter()
     waves = run_engine(engine, synthesis.circuit, written)
     timings["simulation"] = time.perf_counter() - started

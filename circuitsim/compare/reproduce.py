@@ -341,8 +341,9 @@ def reproduce(
         from circuitsim.solver.compiled import warm_up
 
         warm_up_s = warm_up()
-        say(f"compiled kernels ready in {warm_up_s:.1f} s")
-        initializer = warm_up
+        if warm_up_s is not None:
+            say(f"compiled kernels ready in {warm_up_s:.1f} s")
+            initializer = warm_up
     with ProcessPoolExecutor(max_workers=workers, initializer=initializer) as pool:
         futures = {pool.submit(functions[kind], *args): (kind, args) for kind, args in everything}
         for done, future in enumerate(as_completed(futures), start=1):

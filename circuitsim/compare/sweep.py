@@ -316,7 +316,9 @@ def run_sweep(
     if engine == "builtin":
         from circuitsim.solver.compiled import warm_up
 
-        timings["kernels"] = warm_up()
+        ready = warm_up()
+        if ready is not None:
+            timings["kernels"] = ready
     started = time.perf_counter()
     if engine == "builtin":
         waves, stats = _run_builtin(variants.circuits, nodes, workers, progress)

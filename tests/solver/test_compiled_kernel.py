@@ -568,3 +568,12 @@ def test_the_zero_charge_limit_equals_reading_a_zero_slot(order, h):
     assert list(live) == [0, 1, 2] and any_zero
     live, any_zero = charge_slots(4, np.array([2, 3]), cp, False)
     assert list(live) == [0, 1, 2, 3] and not any_zero
+
+
+def test_warm_up_without_numba_has_nothing_to_make_ready(monkeypatch):
+    import sys
+
+    from circuitsim.solver.compiled import warm_up
+
+    monkeypatch.setitem(sys.modules, "numba", None)  # `import numba` raises ImportError
+    assert warm_up() is None

@@ -169,12 +169,12 @@ S1 b 0 in 0 SW1
 """
 
 
-def warm_up(kernels: tuple[str, ...] = ("ports",)) -> float:
+def warm_up(kernels: tuple[str, ...] = ("ports",)) -> float | None:
     """Make the compiled ``kernels`` ready in this process: built on their first use after
     an install (tens of seconds, then kept in numba's disk cache), loaded from the cache
     after that (about half a second). Call it before timing runs, so that their times do
-    not include it. Returns the seconds it took (0 without numba: nothing to make ready,
-    ``kernel="auto"`` then runs the numpy loop).
+    not include it. Returns the seconds it took; None without numba (nothing to make
+    ready: ``kernel="auto"`` then runs the numpy loop).
 
     Raises
     ------
@@ -186,7 +186,7 @@ def warm_up(kernels: tuple[str, ...] = ("ports",)) -> float:
     try:
         import numba  # noqa: F401
     except ImportError:
-        return 0.0
+        return None
 
     from circuitsim.netlist.reader import parse_netlist
     from circuitsim.solver.engine import simulate
