@@ -4,11 +4,25 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
+from collections.abc import Callable
 
 
 def progress(message: str) -> None:
     """Progress callback handed to long-running library calls: one line on stderr."""
     print(message, file=sys.stderr, flush=True)
+
+
+def progress_after(delay: float = 1.0) -> Callable[[str], None]:
+    """:func:`progress`, silent until ``delay`` seconds after this call: a run that ends
+    sooner prints no progress lines, a long one reports as usual."""
+    started = time.monotonic()
+
+    def report(message: str) -> None:
+        if time.monotonic() - started >= delay:
+            progress(message)
+
+    return report
 
 
 def add_model_options(parser: argparse.ArgumentParser) -> None:

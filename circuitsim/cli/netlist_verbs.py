@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from circuitsim.cli.common import (
-    progress,
+    progress_after,
     read_netlist_reporting_warnings,
 )
 
@@ -117,7 +117,7 @@ def _run_simulate(args: argparse.Namespace) -> int:
 
         circuit = read_netlist(args.netlist)
         options = SimulationOptions.from_circuit(circuit, kernel=args.kernel)
-        waves = simulate(circuit, options, progress=progress)
+        waves = simulate(circuit, options, progress=progress_after(1.0))
         if args.probe:
             missing = [p for p in args.probe if p not in waves]
             if missing:

@@ -1,6 +1,7 @@
 """`circuitsim simulate`: CSV on the solver's time points, probes, plots, clear failures."""
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -22,7 +23,20 @@ def test_csv_header_and_rc_values(tmp_path, capsys):
     exact = 1 - np.exp(-(t[late] - 0.1e-3 - 0.5e-6) / 1e-3)
     assert np.max(np.abs(w["v(out)"][late] - exact)) < 1e-3
     assert np.all(np.diff(t) > 0) and len(t) > 100
-    assert "accepted" in capsys.readouterr().out
+    captured = capsys.readouterr()
+    assert "accepted" in captured.out
+    assert "transient: t =" not in captured.err  # a run shorter than a second: no progress
+
+
+def test_progress_after_stays_silent_then_reports(capsys, monkeypatch):
+    from circuitsim.cli import common
+
+    clock = iter([100.0, 100.5, 101.2])  # creation, then two reports
+    monkeypatch.setattr(common, "time", SimpleNamespace(monotonic=lambda: next(clock)))
+    report = common.progress_after(1.0)
+    report("early")
+    report("late")
+    assert capsys.readouterr().err == "late\n"
 
 
 def test_probe_and_plot(tmp_path):
