@@ -31,7 +31,7 @@ _PIVOT = "                            p_ = k"  # the elimination's first line, a
 ABLATIONS = {
     "junction charges (depletion + diffusion, per iteration)": [
         (
-            "                        if has_charge and (cp[k, 7] != 0.0 or cp[k, 8] != 0.0):\n",
+            "                        if has_charge and charged[k]:\n",
             "                        if False:\n",
         )
     ],

@@ -546,7 +546,6 @@ def test_warm_up_runs_every_device_kind_through_the_kernels_it_names():
 def test_the_zero_charge_limit_equals_reading_a_zero_slot(order, h):
     # Slots of junctions without CJO and TT are not read by the truncation error; what they
     # would allow is formed once instead, and must be that value bit for bit.
-    from circuitsim.solver.compiled.plan import CHARGE_PARAMS
     from circuitsim.solver.compiled.transient import (
         charge_slots,
         truncation_step,
@@ -562,11 +561,10 @@ def test_the_zero_charge_limit_equals_reading_a_zero_slot(order, h):
     )
     assert zero_charge_step(real, order, times[0] - times[1]) == read
     # which slots are zero: junction 1 has neither CJO nor TT, junction 0 has CJO
-    cp = np.zeros((2, len(CHARGE_PARAMS)))
-    cp[0, CHARGE_PARAMS.index("cjo")] = 1e-12
-    live, any_zero = charge_slots(4, np.array([2, 3]), cp, True)
+    charged = np.array([True, False])
+    live, any_zero = charge_slots(4, np.array([2, 3]), charged, True)
     assert list(live) == [0, 1, 2] and any_zero
-    live, any_zero = charge_slots(4, np.array([2, 3]), cp, False)
+    live, any_zero = charge_slots(4, np.array([2, 3]), charged, False)
     assert list(live) == [0, 1, 2, 3] and not any_zero
 
 

@@ -116,7 +116,7 @@ def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
     """
     reltol, abstol = plan.real[0], plan.real[1]
     itl4 = plan.ints[2]
-    jp, cp, jslot, has_charge = plan.jp, plan.cp, plan.jslot, plan.has_charge
+    jp, cp, jslot, has_charge, charged = plan.jp, plan.cp, plan.jslot, plan.has_charge, plan.charged
     port_p, port_n, abs_tol = plan.port_p, plan.port_n, plan.abs_tol
     sw, approach, g_switch = plan.sw, plan.approach, plan.g_switch
     vt = (plan.VT_ptr, plan.VT_idx, plan.VT_val)
@@ -163,7 +163,7 @@ def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
             ck, gk = junction_current(
                 vk, jp[k, 0], jp[k, 2], jp[k, 3], jp[k, 4], jp[k, 5], jp[k, 6], jp[k, 7]
             )
-            if has_charge and (cp[k, 7] != 0.0 or cp[k, 8] != 0.0):  # else q = C = 0
+            if has_charge and charged[k]:  # else q = C = 0
                 qk, capk = junction_charge(
                     vk,
                     ck,

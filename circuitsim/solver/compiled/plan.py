@@ -61,6 +61,7 @@ class KernelPlan(NamedTuple):
     cp: np.ndarray  # (md, 9) CHARGE_PARAMS
     jslot: np.ndarray  # (md,) charge slot of each junction
     has_charge: bool
+    charged: np.ndarray  # (md,) bool: the junction has CJO or TT (else q = C = 0 exactly)
     sw: np.ndarray  # (ms, 4) p, n, control +, control - nodes
     approach: np.ndarray  # (ms, 4) on_above, off_below (V), approach fraction, floor (V)
     g_switch: np.ndarray  # (ms, 2) on, off conductance (S)
@@ -284,6 +285,7 @@ def build_plan(
         cp=cp,
         jslot=jslot,
         has_charge=has_charge,
+        charged=(cp[:, CHARGE_PARAMS.index("cjo")] != 0) | (cp[:, CHARGE_PARAMS.index("tt")] != 0),
         sw=np.ascontiguousarray(sw),
         approach=np.ascontiguousarray(cat(switches, "approach", (0, 4))),
         g_switch=np.ascontiguousarray(cat(switches, "g", (0, 2))),

@@ -107,7 +107,7 @@ def run(plan, st, t_until):
     yj_version = -1
     reltol, abstol, vntol = real[0], real[1], real[2]
     itl4 = ints[2]
-    jp, cp, jslot, has_charge = plan.jp, plan.cp, plan.jslot, plan.has_charge
+    jp, cp, jslot, has_charge, charged = plan.jp, plan.cp, plan.jslot, plan.has_charge, plan.charged
     g_switch = plan.g_switch
     linear = md == 0 and ms == 0
     src_kind, src_par, src_dc = plan.src_kind, plan.src_par, plan.src_dc
@@ -121,7 +121,7 @@ def run(plan, st, t_until):
     q = np.zeros(nq)
     qdot = np.zeros(nq)
     times = np.empty(4)
-    live, zeros = charge_slots(nq, jslot, cp, has_charge)
+    live, zeros = charge_slots(nq, jslot, charged, has_charge)
     negligible_v = JUNCTION_NEGLIGIBLE * vntol
     while tstop - fs[T] > min_step:
         if fs[T] >= t_until:
@@ -192,7 +192,7 @@ def run(plan, st, t_until):
                         # a junction without CJO and TT has no charge: its q, C and charge
                         # current are exactly 0 (the op-amp macromodel's clamp diodes, 52 of
                         # the TL074 wheelset's 56 junctions; 17 % of its step)
-                        if has_charge and (cp[k, 7] != 0.0 or cp[k, 8] != 0.0):
+                        if has_charge and charged[k]:
                             qk, capk = junction_charge(
                                 vk, ck, gk, cp[k, 0], cp[k, 1], cp[k, 2], cp[k, 3], cp[k, 4],
                                 cp[k, 5], cp[k, 6], cp[k, 7], cp[k, 8],

@@ -66,14 +66,14 @@ def coefficients(method, order, h, h_prev):
 
 
 @njit(cache=True)
-def charge_slots(nq, jslot, cp, has_charge):
+def charge_slots(nq, jslot, charged, has_charge):
     """The charge slots that can be nonzero (every slot but those of junctions without CJO
-    and TT, whose charge, its derivative and history are exactly 0), and whether any slot is
-    such a zero."""
+    and TT, ``charged`` False, whose charge, its derivative and history are exactly 0), and
+    whether any slot is such a zero."""
     zero = np.zeros(nq, dtype=np.bool_)
     if has_charge:
         for k in range(jslot.size):
-            if cp[k, 7] == 0.0 and cp[k, 8] == 0.0:
+            if not charged[k]:
                 zero[jslot[k]] = True
     live = np.empty(nq - np.count_nonzero(zero), dtype=np.int64)
     count = 0
@@ -241,7 +241,7 @@ def run(plan, st, t_until):
     rhs_const, src_kind, src_par, src_dc = plan.rhs_const, plan.src_kind, plan.src_par, plan.src_dc
     pwl_start, pwl_t, pwl_v = plan.pwl_start, plan.pwl_t, plan.pwl_v
     src_rows, src_signs = plan.src_rows, plan.src_signs
-    live, zeros = charge_slots(nq, plan.jslot, plan.cp, plan.has_charge)
+    live, zeros = charge_slots(nq, plan.jslot, plan.charged, plan.has_charge)
     while tstop - fs[T] > min_step:
         if fs[T] >= t_until:
             return PAUSED
