@@ -35,3 +35,20 @@ def write_atomic(
 def write_text_atomic(path: str | os.PathLike, text: str) -> None:
     """Write ``text`` to ``path`` atomically."""
     write_atomic(path, lambda handle: handle.write(text))
+
+
+def write_figure_atomic(figure, path: str | os.PathLike, **savefig: object) -> None:
+    """Render a matplotlib ``figure`` in memory, then write it to ``path`` atomically.
+
+    The format follows ``path``'s suffix (PNG, PDF, SVG ...) unless ``savefig`` names one;
+    ``savefig`` options (``dpi``, ``bbox_inches`` ...) go to ``Figure.savefig``. A figure made
+    as ``matplotlib.figure.Figure`` needs no pyplot: nothing here chooses a backend (a
+    notebook's stays as it was) or keeps the figure alive.
+    """
+    import io
+
+    path = Path(path)
+    buffer = io.BytesIO()
+    savefig.setdefault("format", path.suffix.lstrip(".").lower() or "png")
+    figure.savefig(buffer, **savefig)
+    write_atomic(path, lambda handle: handle.write(buffer.getvalue()), binary=True)

@@ -5,24 +5,13 @@ Written atomically as PNG; small enough on disk to commit.
 
 from __future__ import annotations
 
-import io
 import os
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from circuitsim.atomic import write_atomic  # noqa: E402
-from circuitsim.mechanics.solve import OdeResult  # noqa: E402
-
-
-def _save(figure, path: str | os.PathLike, dpi: int) -> None:
-    buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=dpi)
-    plt.close(figure)
-    write_atomic(path, lambda handle: handle.write(buffer.getvalue()), binary=True)
+from circuitsim.compare.plots import save_figure
+from circuitsim.mechanics.solve import OdeResult
 
 
 def default_pair(result: OdeResult) -> tuple[str, str]:
@@ -74,7 +63,8 @@ def plot_response(
     d_unit = result.units[result.states.index(displacement)]
     v_unit = result.units[result.states.index(velocity)]
 
-    figure, axes = plt.subplots(1, 3, figsize=(12, 3.6))
+    figure = Figure(figsize=(12, 3.6))
+    axes = figure.subplots(1, 3)
     axes[0].plot(t, d, color="tab:blue", linewidth=0.9)
     axes[0].set(xlabel="time (s)", ylabel=f"{displacement} ({d_unit})", title="displacement")
     axes[1].plot(t, v, color="tab:red", linewidth=0.9)
@@ -100,4 +90,4 @@ def plot_response(
     if title:
         figure.suptitle(title, fontsize=10)
     figure.tight_layout()
-    _save(figure, path, dpi)
+    save_figure(figure, path, dpi)

@@ -9,14 +9,11 @@ from __future__ import annotations
 
 import os
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from circuitsim.compare.mapping import Trace  # noqa: E402
-from circuitsim.compare.plots import save_figure  # noqa: E402
+from circuitsim.compare.mapping import Trace
+from circuitsim.compare.plots import save_figure
 
 
 def plot_free_response(
@@ -40,7 +37,8 @@ def plot_free_response(
     scale, scaled_unit : float, str
         Display factor and its unit (metres shown as millimetres).
     """
-    figure, axes = plt.subplots(1, len(responses), figsize=(5.2 * len(responses), 3.2))
+    figure = Figure(figsize=(5.2 * len(responses), 3.2))
+    axes = figure.subplots(1, len(responses))
     axes = np.atleast_1d(axes)
     for axis, (speed, (t, values)) in zip(axes, responses.items(), strict=True):
         axis.plot(t, values * scale, color="tab:blue", linewidth=0.8)
@@ -79,7 +77,8 @@ def plot_growth_rate(
         Label -> critical speeds of realized circuits (from their netlists' mapping checks);
         several values are drawn as the band they span.
     """
-    figure, axes = plt.subplots(1, 2, figsize=(10.5, 3.4))
+    figure = Figure(figsize=(10.5, 3.4))
+    axes = figure.subplots(1, 2)
     colours = ["tab:orange", "tab:green", "tab:purple", "tab:brown"]
     for axis, zoom in zip(axes, (False, True), strict=True):
         mask = np.abs(speeds - critical) <= 2.0 if zoom else np.ones(speeds.size, bool)

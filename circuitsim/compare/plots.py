@@ -5,17 +5,13 @@ Kept small on disk (PNG, ~100 dpi) so that the validation figures can be committ
 
 from __future__ import annotations
 
-import io
 import os
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from circuitsim.atomic import write_atomic  # noqa: E402
-from circuitsim.compare.mapping import Trace, resample  # noqa: E402
+from circuitsim.atomic import write_figure_atomic
+from circuitsim.compare.mapping import Trace, resample
 
 # Solid thin lines in distinct colours over a wide grey reference: dashes over dense oscillations
 # look like noise and triple the PNG size.
@@ -28,11 +24,8 @@ _STYLES = [
 
 
 def save_figure(figure, path: str | os.PathLike, dpi: int = 90) -> None:
-    """Render ``figure`` to PNG in memory, write it atomically to ``path``, close it."""
-    buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=dpi)
-    plt.close(figure)
-    write_atomic(path, lambda handle: handle.write(buffer.getvalue()), binary=True)
+    """Render ``figure`` as PNG and write it atomically to ``path``."""
+    write_figure_atomic(figure, path, format="png", dpi=dpi)
 
 
 def plot_overlay(
@@ -84,9 +77,8 @@ def plot_overlay(
     units = units or {}
     scales = scales or {}
     rows = 2 * len(states) if errors else len(states)
-    figure, axes = plt.subplots(
-        rows, 1, figsize=(6.4, 1.5 * rows + 0.6), sharex=True, squeeze=False
-    )
+    figure = Figure(figsize=(6.4, 1.5 * rows + 0.6))
+    axes = figure.subplots(rows, 1, sharex=True, squeeze=False)
     panels = axes[::2, 0] if errors else axes[:, 0]
     for axis, state in zip(panels, states, strict=True):
         factor = scales.get(state, 1.0)

@@ -7,7 +7,6 @@ They are plain functions of arrays so that they apply to any model's states and 
 from __future__ import annotations
 
 import numpy as np
-from scipy import signal
 from scipy.interpolate import CubicSpline
 from scipy.optimize import minimize_scalar
 
@@ -61,6 +60,8 @@ def dominant_frequency(t: np.ndarray, values: np.ndarray, zero_pad: int = 8) -> 
     t, values = np.asarray(t, float), np.asarray(values, float)
     n = values.size
     dt = (t[-1] - t[0]) / (n - 1)
+    from scipy import signal  # here, not at the top: importing it takes 0.5 s (sweeps need none)
+
     x = signal.detrend(values, type="linear") * signal.windows.hann(n, sym=False)
     n_fft = int(zero_pad) * n
     magnitude = np.abs(np.fft.rfft(x, n=n_fft))
@@ -126,6 +127,8 @@ def phase_lag(
     c_win = c[window] - np.mean(c[window])
     m = c_win.size
     # Sum over the window of c' * r shifted by j - lags samples, for j = 0 .. 2 lags.
+    from scipy import signal  # (see dominant_frequency)
+
     products = signal.correlate(r, c_win, mode="valid")
     cumulative = np.concatenate(([0.0], np.cumsum(r)))
     cumulative_sq = np.concatenate(([0.0], np.cumsum(r * r)))

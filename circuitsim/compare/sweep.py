@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from circuitsim.atomic import write_atomic, write_text_atomic
+from circuitsim.atomic import write_figure_atomic, write_text_atomic
 from circuitsim.compare.errors import ComparisonError
 from circuitsim.compare.mapping import map_waveforms
 from circuitsim.mechanics.system import System
@@ -433,12 +433,10 @@ def save_sweep(result: SweepResult, folder: str | os.PathLike, stem: str = "swee
 
 def plot_sweep(result: SweepResult, path: str | os.PathLike) -> None:
     """Peak |state| (late window and whole run) against the parameter, critical value marked."""
-    import matplotlib
+    from matplotlib.figure import Figure  # here: a sweep's CSV alone does not load it
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 4.2))
+    fig = Figure(figsize=(7, 4.2))
+    ax = fig.subplots()
     scale, unit = (1e3, "mm") if result.state_unit == "m" else (1.0, result.state_unit)
     ax.plot(result.values, result.peak_all * scale, "o-", ms=3, color="0.6", label="whole run")
     ax.plot(
@@ -468,11 +466,4 @@ def plot_sweep(result: SweepResult, path: str | os.PathLike) -> None:
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper left", fontsize=8)
     fig.tight_layout()
-
-    def write(handle) -> None:
-        fig.savefig(handle, format="png", dpi=120)
-
-    try:
-        write_atomic(path, write, binary=True)
-    finally:
-        plt.close(fig)
+    write_figure_atomic(fig, path, format="png", dpi=120)

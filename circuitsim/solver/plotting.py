@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 
+from circuitsim.atomic import write_figure_atomic
 from circuitsim.solver.waveforms import Waveforms
 
 
@@ -15,10 +16,7 @@ def plot_waveforms(waves: Waveforms, path: str | os.PathLike, title: str = "") -
     as ``v(xu1a.mid)``) are left out when top-level ones exist: a macromodel's internals would
     bury the circuit's own traces. Legends go beside the panels.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # here: a run without --plot does not load it
 
     names = [n for n in waves.names if "." not in n] or waves.names
     groups = [
@@ -26,9 +24,8 @@ def plot_waveforms(waves: Waveforms, path: str | os.PathLike, title: str = "") -
         ("current (A)", [n for n in names if not n.startswith("v(")]),
     ]
     groups = [g for g in groups if g[1]]
-    fig, axes = plt.subplots(
-        len(groups) or 1, 1, sharex=True, figsize=(10, 3.5 * max(len(groups), 1)), squeeze=False
-    )
+    fig = Figure(figsize=(10, 3.5 * max(len(groups), 1)))
+    axes = fig.subplots(len(groups) or 1, 1, sharex=True, squeeze=False)
     for ax, (label, names) in zip(axes[:, 0], groups, strict=False):
         for name in names:
             ax.plot(
@@ -46,5 +43,4 @@ def plot_waveforms(waves: Waveforms, path: str | os.PathLike, title: str = "") -
     axes[-1, 0].set_xlabel("time (s)")
     if title:
         axes[0, 0].set_title(title)
-    fig.savefig(path, bbox_inches="tight")
-    plt.close(fig)
+    write_figure_atomic(fig, path, bbox_inches="tight")
