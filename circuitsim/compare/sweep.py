@@ -153,17 +153,20 @@ def sweep_circuits(
     options = replace(options or SynthesisOptions(), series="exact")
     middle = systems[len(systems) // 2]
     ranges = dict(options.ranges)
+    t_stop = float(options.t_stop or (middle.circuit_hints or {}).get("t_stop", 5.0))
+    trajectory = None  # the middle value's direct solution, for its node peaks as well
     if options.scaling == "auto" and len(ranges) < middle.n:
-        t_stop = float(options.t_stop or (middle.circuit_hints or {}).get("t_stop", 5.0))
         probes = {0: systems[0], len(systems) // 2: middle, len(systems) - 1: systems[-1]}
         peaks = np.zeros(middle.n)
         for system in probes.values():
-            _, x = direct_solution(system, t_stop)
-            peaks = np.maximum(peaks, np.max(np.abs(x), axis=1))
+            solution = direct_solution(system, t_stop)
+            if system is middle:
+                trajectory = solution
+            peaks = np.maximum(peaks, np.max(np.abs(solution[1]), axis=1))
         for name, peak in zip(middle.states, peaks, strict=True):
             ranges.setdefault(name, float(peak) if peak > 0 else 1.0)
         options = replace(options, ranges=ranges)
-    base = synthesize(middle, options)
+    base = synthesize(middle, options, trajectory=trajectory)
     circuits: list[Circuit] = []
     rescaled = all(_same_except_a(middle, s) for s in systems)
     for system in systems:

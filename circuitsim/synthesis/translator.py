@@ -96,7 +96,11 @@ class _Input:
 
 
 def synthesize(
-    system: System, options: SynthesisOptions | None = None, *, peaks: bool = True
+    system: System,
+    options: SynthesisOptions | None = None,
+    *,
+    peaks: bool = True,
+    trajectory: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> Synthesis:
     """Compile ``system`` into an op-amp circuit.
 
@@ -111,6 +115,10 @@ def synthesize(
         op-amps' swing (default). False skips the direct solution when the scaling does not
         need it (every range given, or unity scaling): ``node_peaks`` is then empty and no
         swing warning is made (a sweep's variants, which share the scaling of the sweep).
+    trajectory : tuple of ndarray, optional
+        ``(t, x)`` of :func:`~circuitsim.synthesis.scaling.direct_solution` for this system
+        and the options' ``t_stop``, if the caller already has it (a sweep's middle value);
+        computed here when needed otherwise.
 
     Returns
     -------
@@ -132,7 +140,8 @@ def synthesize(
             f"the model's states are {', '.join(system.states)}"
         )
     needed = options.scaling != "unity" and len(options.ranges) < system.n
-    trajectory = direct_solution(system, t_stop) if peaks or needed else None
+    if trajectory is None and (peaks or needed):
+        trajectory = direct_solution(system, t_stop)
     scaling = choose_scaling(system, options, t_stop, trajectory)
     G = scaling.volts_per_unit
     warnings = list(scaling.warnings)

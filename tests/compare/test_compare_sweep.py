@@ -168,3 +168,32 @@ def test_a_tl074_sweep_warns_where_a_state_reached_the_swing():
     )
     assert runs["own"].warnings == []
     assert runs["ideal"].warnings == []
+
+
+def test_sweep_scaling_solves_each_probe_once(monkeypatch):
+    """The shared scaling needs the direct solutions of the first, middle and last values;
+    the middle one serves the base synthesis as well (three solutions in all), which gives
+    the circuit of synthesizing the middle value alone at the sweep's ranges."""
+    import circuitsim.compare.sweep as sweep_module
+    import circuitsim.synthesis.translator as translator
+    from circuitsim.synthesis.scaling import direct_solution
+
+    systems = wheelset_systems([50.0, 52.0, 55.5, 58.0, 61.0])
+    options = SynthesisOptions(opamp="ideal", t_stop=T_STOP)
+    calls = []
+
+    def counted(system, t_stop):
+        calls.append(system)
+        return direct_solution(system, t_stop)
+
+    monkeypatch.setattr(sweep_module, "direct_solution", counted)
+    monkeypatch.setattr(translator, "direct_solution", counted)
+    variants = sweep_circuits(systems, options)
+    assert calls == [systems[0], systems[2], systems[-1]]
+
+    monkeypatch.undo()
+    alone = translator.synthesize(
+        systems[2], SynthesisOptions(opamp="ideal", t_stop=T_STOP, series="exact",
+                                     ranges=variants.ranges)
+    )  # fmt: skip
+    assert write_netlist(variants.circuits[2]) == write_netlist(alone.circuit)
