@@ -48,8 +48,26 @@ def _fastest(*args, **kwargs):
     return runs[int(np.argmin(times))], times
 
 
+def _commands(spec: str, t_stop: float, folder: Path, log) -> dict:
+    """Wall time (s) of the whole ``circuitsim sweep`` command per engine, as a user runs it
+    (a new process: start-up, imports, translation, kernels, simulation, CSV and plot): the
+    best of ``REPEAT[0]`` runs each, alternating the engines."""
+    times: dict[str, list[float]] = {"builtin": [], "ngspice": []}
+    for _ in range(max(1, REPEAT[0])):
+        for engine, runs in times.items():
+            command = [sys.executable, "-m", "circuitsim", "sweep", "--param", "speed"]
+            command += ["--values", spec, "--tstop", f"{t_stop:g}", "--engine", engine]
+            command += ["--out", str(folder / f"command_{engine}")]
+            started = time.perf_counter()
+            subprocess.run(command, check=True, capture_output=True)
+            runs.append(time.perf_counter() - started)
+    log("  whole command: " + "; ".join(f"{k} {min(v):.3g} s" for k, v in times.items()))
+    return {"spec": spec, "wall_s": times, "best_s": {k: min(v) for k, v in times.items()}}
+
+
 def run(folder: Path, quick: bool, log) -> dict:
-    values = parse_values("40:70:5" if quick else "40:70:0.5")
+    spec = "40:70:5" if quick else "40:70:0.5"
+    values = parse_values(spec)
     t_stop = 1.0 if quick else 5.0
     jobs = os.cpu_count() or 1
     model = load_model()
@@ -139,6 +157,7 @@ def run(folder: Path, quick: bool, log) -> dict:
         "critical_speed": ours.critical,
     }
     data["tl074"] = _tl074(systems, values, t_stop, jobs, bar, log)
+    data["commands"] = _commands(spec, t_stop, folder, log)
     save_sweep(ours, folder, "sweep_builtin")
     theirs.critical = ours.critical
     save_sweep(theirs, folder, "sweep_ngspice")
@@ -237,6 +256,19 @@ def report(data: dict) -> str:
         "(single run: simulate() on the variant's Circuit in this process; netlist run: on its "
         "written and re-read netlist; sweep vs ngspice: max |difference| of y / range of y)",
     ]
+    c = data.get("commands")
+    if c:
+        best = c["best_s"]
+        lines += [
+            "",
+            f"The whole command, `circuitsim sweep --param speed --values {c['spec']} --tstop "
+            f"{data['t_stop']:g} --engine E` in a new process (start-up, imports, translation, "
+            "kernels, simulation, CSV and plot), best of "
+            f"{len(c['wall_s']['builtin'])}: builtin {best['builtin']:.3g} s, ngspice "
+            f"{best['ngspice']:.3g} s ({best['ngspice'] / best['builtin']:.3g}x; all: "
+            + "; ".join(f"{k} {', '.join(f'{x:.3g}' for x in v)}" for k, v in c["wall_s"].items())
+            + " s)",
+        ]
     t = data.get("tl074")
     if t:
         lines += [
