@@ -91,7 +91,7 @@ def run_transient(
     Returns
     -------
     times : ndarray, shape (m,)
-        Accepted time points >= tstart, seconds.
+        Accepted time points >= tstart (with uic, after 0: see ``recorded``), seconds.
     solutions : ndarray, shape (m, n)
         The unknowns at those points.
     """
@@ -241,8 +241,19 @@ def run_transient(
 
     out_t = np.array(out_t)
     out_x = np.array(out_x)
-    keep = out_t >= tstart - min_step
+    keep = recorded(out_t, tstart, min_step, uic)
     return out_t[keep], out_x[keep]
+
+
+def recorded(times: np.ndarray, tstart: float, min_step: float, uic: bool) -> np.ndarray:
+    """Which accepted points (``times``, s) a transient returns: those at or after ``tstart``,
+    and with ``uic`` not t = 0, whose unknowns are only the initial conditions set in x, not
+    a solution of the circuit (every node without an .ic at 0 V, whatever the capacitors hold;
+    ngspice writes no t = 0 point in a uic run either). Returns a boolean mask."""
+    keep = times >= tstart - min_step
+    if uic:
+        keep &= times > 0.0
+    return keep
 
 
 def _failure(system, message, time, step, ctx: StepContext, x_new) -> ConvergenceError:

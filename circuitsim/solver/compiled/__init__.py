@@ -27,7 +27,7 @@ from circuitsim.solver.compiled.plan import KernelPlan, build_plan, initial_stat
 from circuitsim.solver.errors import ConvergenceError, SingularMatrixError
 from circuitsim.solver.linalg import SingularPivot, factor
 from circuitsim.solver.system import MnaSystem
-from circuitsim.solver.transient import start_transient
+from circuitsim.solver.transient import recorded, start_transient
 
 __all__ = [
     "PortsStart",
@@ -125,7 +125,7 @@ def run_compiled(
     Returns
     -------
     times : ndarray, shape (m,)
-        Accepted time points >= tstart, seconds.
+        Accepted time points >= tstart (with uic, after 0: see ``recorded``), seconds.
     solutions : ndarray, shape (m, n)
     """
     return _run("compiled", system, tstep, tstop, tstart, tmax, uic, progress, stats, None)
@@ -148,7 +148,7 @@ def run_ports(
     Returns
     -------
     times : ndarray, shape (m,)
-        Accepted time points >= tstart, seconds.
+        Accepted time points >= tstart (with uic, after 0: see ``recorded``), seconds.
     solutions : ndarray, shape (m, len(rows))
     """
     return _run("ports", system, tstep, tstop, tstart, tmax, uic, progress, stats, rows)
@@ -267,10 +267,7 @@ def run_ports_from(
     stats.update(accepted=0, rejected=0, newton_iterations=stats.get("newton_iterations", 0))
     counted: list[int] = []
     try:
-        return _integrate(
-            "ports", start.system, plan, start.families, start.x, start.q0, start.tstep,
-            start.tstart, start.min_step, progress, stats, rows, counted,
-        )  # fmt: skip
+        return _integrate("ports", start, plan, progress, stats, rows, counted)
     finally:
         stats["factorizations"] = sum(counted)
 
@@ -280,20 +277,17 @@ def _run(kind, system, tstep, tstop, tstart, tmax, uic, progress, stats, rows):
     start = ports_start(system, tstep, tstop, tstart, tmax, uic, stats)  # the same for both
     counted: list[int] = []
     try:
-        return _integrate(
-            kind, system, start.plan, start.families, start.x, start.q0, tstep, tstart,
-            start.min_step, progress, stats, rows, counted,
-        )  # fmt: skip
+        return _integrate(kind, start, start.plan, progress, stats, rows, counted)
     finally:
         system.factorizations += sum(counted)
 
 
-def _integrate(
-    kind, system, plan, families, x, q0, tstep, tstart, min_step, progress, stats, rows, counted
-):
-    """The compiled loop from t = 0: (times, recorded values); the run's factorizations are
-    appended to ``counted``, also when it fails."""
+def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted):
+    """The compiled loop from t = 0 on ``plan`` (``start.plan``, or it with a variant's G):
+    (times, recorded values); the run's factorizations are appended to ``counted``, also
+    when it fails."""
     check_cache()
+    system, families, x, q0, tstep = start.system, start.families, start.x, start.q0, start.tstep
     from circuitsim.solver.compiled import newton as nw
 
     if kind == "ports":
@@ -346,7 +340,7 @@ def _integrate(
         raise _failure(system, st, status, options.max_steps)
     count = int(st.ints[nw.COUNT])
     out_t, out_x = st.out_t[:count], st.out_x[:count]
-    keep = out_t >= tstart - min_step
+    keep = recorded(out_t, start.tstart, start.min_step, start.uic)
     return out_t[keep].copy(), out_x[keep].copy()
 
 
