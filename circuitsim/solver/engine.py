@@ -15,7 +15,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from circuitsim.netlist.circuit import Circuit, Expression, SubcircuitCall
+from circuitsim.netlist.circuit import Circuit, Expression, OperatingPoint, SubcircuitCall
 from circuitsim.solver.dc import operating_point_solution
 from circuitsim.solver.errors import CircuitInputError
 from circuitsim.solver.options import SimulationOptions
@@ -138,12 +138,24 @@ def simulate(
     options: SimulationOptions | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> Waveforms:
-    """Run the circuit's first ``.tran``, or its ``.op`` if it has no ``.tran``.
+    """Run the circuit's first ``.tran``, or its operating point if it has no ``.tran``
+    (an ``.op`` line, or no analysis at all: a circuit built in Python).
 
     ``options`` default to ngspice's, overridden by the circuit's ``.options``.
+
+    Raises
+    ------
+    CircuitInputError
+        Analyses only of kinds this engine does not run (``.ac``): an operating point in
+        their place would answer another question.
     """
     tran = circuit.transient
     if tran is None:
+        if circuit.analyses and not any(isinstance(a, OperatingPoint) for a in circuit.analyses):
+            raise CircuitInputError(
+                "the netlist asks for .ac only; this engine runs .tran and .op "
+                "(ngspice runs .ac: --engine ngspice)"
+            )
         return operating_point(circuit, options)
     return transient(
         circuit, tran.tstep, tran.tstop, tran.tstart, tran.tmax, tran.uic, options, progress
