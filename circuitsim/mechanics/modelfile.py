@@ -6,6 +6,7 @@ file, the dotted key and what is wrong. The format is documented in docs/model.m
 
 from __future__ import annotations
 
+import math
 import tomllib
 from dataclasses import dataclass
 from importlib import resources
@@ -257,6 +258,7 @@ def read_model(path: str | Path | None = None) -> ModelSpec:
     initial_table = reader.table(document.get("initial"), "initial", False)
     initial = _row(reader, initial_table, "initial", states, kind, allow_coordinates=False)
     circuit = reader.table(document.get("circuit"), "circuit", False)
+    _circuit_hints(reader, circuit)
     return ModelSpec(
         file=file,
         name=name,
@@ -291,6 +293,23 @@ def _units(reader: _Reader, section: dict, key: str, count: int) -> tuple[str, .
     if len(value) != count:
         raise reader.fail(f"{key}.units", f"wrong length: {len(value)} units for {count} names")
     return tuple(value)
+
+
+def _circuit_hints(reader: _Reader, circuit: dict) -> None:
+    """Check the hints of ``[circuit]`` that are numbers; the rest is the translator's.
+
+    ``t_stop`` (model seconds simulated) becomes the netlist's ``.tran`` stop time: checked here
+    so that a bad one is reported against the model file, not as an unreadable netlist line.
+    """
+    if "t_stop" not in circuit:
+        return
+    value = circuit["t_stop"]
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise reader.fail(
+            "circuit.t_stop", f"wrong type: expected a number of seconds, got {_type(value)}"
+        )
+    if not math.isfinite(value) or value <= 0:
+        raise reader.fail("circuit.t_stop", f"must be a positive number of seconds, got {value}")
 
 
 def _parameters(reader: _Reader, document: dict, states: set[str]) -> dict[str, Parameter]:

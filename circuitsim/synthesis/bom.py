@@ -43,21 +43,26 @@ def save_bom(entries: list[BomEntry], path: str | os.PathLike) -> None:
 
 def load_bom(path: str | os.PathLike) -> list[BomEntry]:
     """Read a file written by :func:`save_bom`; SynthesisError naming file and line if bad."""
-    entries = []
     with open(path, newline="") as handle:
-        reader = csv.DictReader(handle)
-        if tuple(reader.fieldnames or ()) != COLUMNS:
-            raise SynthesisError(f"{path}:1: expected the header {','.join(COLUMNS)}")
-        for line, row in enumerate(reader, start=2):
-            try:
-                entries.append(
-                    BomEntry(
-                        row["part"], float(row["value"]), row["unit"], row["series"], row["role"],
-                        float(row["target"] or "nan"), float(row["realized"] or "nan"),
-                    )
-                )  # fmt: skip
-            except (TypeError, ValueError) as exc:
-                raise SynthesisError(
-                    f"{path}:{line}: malformed bill-of-materials row ({exc})"
-                ) from None
+        return parse_bom(handle.read(), source=str(path))
+
+
+def parse_bom(text: str, source: str = "<bill of materials>") -> list[BomEntry]:
+    """Parse :func:`bom_text`'s CSV; SynthesisError naming ``source`` and the line if bad."""
+    entries = []
+    reader = csv.DictReader(io.StringIO(text, newline=""))
+    if tuple(reader.fieldnames or ()) != COLUMNS:
+        raise SynthesisError(f"{source}:1: expected the header {','.join(COLUMNS)}")
+    for line, row in enumerate(reader, start=2):
+        try:
+            entries.append(
+                BomEntry(
+                    row["part"], float(row["value"]), row["unit"], row["series"], row["role"],
+                    float(row["target"] or "nan"), float(row["realized"] or "nan"),
+                )
+            )  # fmt: skip
+        except (TypeError, ValueError) as exc:
+            raise SynthesisError(
+                f"{source}:{line}: malformed bill-of-materials row ({exc})"
+            ) from None
     return entries

@@ -1,8 +1,12 @@
 """Generate the three files of a circuit: ``FILE.cir``, ``FILE.scale.json``, ``FILE.bom.csv``.
 
-The netlist is written in the chosen dialect, then read back from disk and checked against the
-model (:func:`~circuitsim.synthesis.check.check_mapping`), so what is reported is what the file
-realizes.
+The three texts are rendered first (the netlist in the chosen dialect), then parsed back exactly
+as a reader of the files would parse them and checked against the model
+(:func:`~circuitsim.synthesis.check.check_mapping`), so what is reported is what the files
+realize. Only then are they written, all or nothing
+(:func:`~circuitsim.atomic.write_files_atomic`): a failure anywhere - a bad output path, a
+netlist that does not read back, a folder in place of a companion file - leaves every existing
+file as it was, never a new netlist beside an old bill of materials.
 """
 
 from __future__ import annotations
@@ -11,11 +15,14 @@ import os
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from circuitsim.atomic import check_writable, write_files_atomic
 from circuitsim.mechanics.system import System
-from circuitsim.netlist.writer import save_netlist
-from circuitsim.synthesis.bom import save_bom
+from circuitsim.netlist.reader import parse_netlist
+from circuitsim.netlist.writer import write_netlist
+from circuitsim.synthesis.bom import bom_text, parse_bom
 from circuitsim.synthesis.check import MappingReport, check_mapping
 from circuitsim.synthesis.options import SynthesisOptions
+from circuitsim.synthesis.scalemap import ScaleMap
 from circuitsim.synthesis.translator import Synthesis, synthesize
 
 
@@ -55,26 +62,56 @@ def generate(
     options: SynthesisOptions | None = None,
     dialect: str = "ngspice",
 ) -> Generated:
-    """Translate ``system``, write the netlist, scale file and BOM, and check the netlist.
+    """Translate ``system``, check the circuit, and write the netlist, scale file and BOM.
+
+    The files are written only if everything before succeeded, and then all together: on any
+    error no file has changed. A mapping check that finds mismatches is not an error: the files
+    are written and ``report`` lists the mismatches.
 
     Parameters
     ----------
     system : System
+        The model to realize.
     path : path-like
-        The netlist file (``.cir``); the scale file and BOM are written beside it.
+        The netlist file (``.cir``); the scale file and BOM are written beside it (see
+        :func:`companion_paths`).
     options : SynthesisOptions, optional
+        Translator options (op-amp model, scaling, resistor series ...).
     dialect : str
         ``ngspice``, ``ltspice`` or ``multisim``.
 
     Returns
     -------
     Generated
+
+    Raises
+    ------
+    OSError
+        A :class:`~circuitsim.atomic.WriteError` naming the file that cannot be written (a
+        missing folder, a folder in its place, no permission), raised before the translation.
+    SynthesisError, NetlistError
+        The model cannot be translated, or the netlist does not read back.
     """
-    synthesis = synthesize(system, options)
+    # The output paths first: a bad one fails at once, not after the translation.
+    check_writable(path)
     netlist = Path(path)
     scale_file, bom_file = companion_paths(netlist)
-    save_netlist(synthesis.circuit, netlist, dialect)
-    synthesis.scale_map.save(scale_file)
-    save_bom(synthesis.bom, bom_file)
-    report = check_mapping(netlist, scale_file, system, bom=bom_file)
+    check_writable(scale_file)
+    check_writable(bom_file)
+    synthesis = synthesize(system, options)
+    texts = {
+        netlist: write_netlist(synthesis.circuit, dialect),
+        scale_file: synthesis.scale_map.to_text(),
+        bom_file: bom_text(synthesis.bom),
+    }
+    # Parsed from the very texts the files will hold, as read_netlist and the loaders would
+    # (same names in messages, includes looked up beside the netlist): nothing of the
+    # generator's memory enters the check, and nothing is on disk if the texts are unreadable.
+    circuit = parse_netlist(
+        texts[netlist], source=str(netlist), base_dir=str(netlist.resolve().parent)
+    )
+    scale_map = ScaleMap.from_text(texts[scale_file], source=str(scale_file))
+    bom = parse_bom(texts[bom_file], source=str(bom_file))
+    report = check_mapping(circuit, scale_map, system, bom=bom)
+    write_files_atomic(texts)
     return Generated(synthesis, netlist, scale_file, bom_file, report)

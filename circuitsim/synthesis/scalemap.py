@@ -100,16 +100,24 @@ class ScaleMap:
                 raise SynthesisError(f"{source}: states.{name}.volts_per_unit must be nonzero")
         return cls(time_scale=time_scale, states=states)
 
+    def to_text(self) -> str:
+        """The scale file's text (indented JSON, ending with a newline)."""
+        return json.dumps(self.to_json(), indent=2) + "\n"
+
+    @classmethod
+    def from_text(cls, text: str, source: str = "<scale map>") -> ScaleMap:
+        """Parse a scale file's text; SynthesisError naming ``source`` (and line) if bad."""
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise SynthesisError(f"{source}:{exc.lineno}: not JSON ({exc.msg})") from None
+        return cls.from_json(data, source=source)
+
     def save(self, path: str | os.PathLike) -> None:
         """Write the scale file atomically (temporary name, then rename)."""
-        write_text_atomic(path, json.dumps(self.to_json(), indent=2) + "\n")
+        write_text_atomic(path, self.to_text())
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> ScaleMap:
         """Read a scale file."""
-        text = Path(path).read_text()
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise SynthesisError(f"{path}:{exc.lineno}: not JSON ({exc.msg})") from None
-        return cls.from_json(data, source=str(path))
+        return cls.from_text(Path(path).read_text(), source=str(path))
