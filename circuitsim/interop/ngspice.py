@@ -12,6 +12,11 @@ analyses and writes the chosen analysis' vectors to a rawfile, which
     write <tmp>/out.raw
     .endc
 
+An ``.include file`` (or ``.lib file section``) line of the deck that names no file beside the
+netlist but a file of the package part library (``.include parts.lib``) is pointed at that
+library file by its absolute path, as the netlist reader finds it (ngspice knows only the first
+place). Includes inside included files are left to ngspice.
+
 ngspice's exit status is not trusted (a failed run may still exit 0): a run counts as failed
 when the rawfile is missing or empty, or when the log holds error lines ("Error", "singular
 matrix", "Timestep too small", "doAnalyses: ...", "simulation(s) aborted"); the error then
@@ -95,6 +100,7 @@ def run_ngspice(
         no ``.tran``/``.op``, or a probe is not among the results.
     """
     deck, cwd = _deck_text(netlist)
+    deck = _library_includes(deck, Path(cwd) if cwd else Path(os.getcwd()))
     analysis = _chosen_analysis(deck, analysis)
     binary = shutil.which("ngspice")
     if binary is None:
@@ -155,6 +161,63 @@ def _deck_text(netlist: Circuit | str | os.PathLike) -> tuple[str, str | None]:
     except OSError as exc:
         raise NgspiceError(f"cannot read the netlist {path}: {exc}") from None
     return text, str(path.resolve().parent)
+
+
+_INCLUDE_LINE = re.compile(
+    r"""^(?P<lead>\s*)(?P<word>\.include|\.inc|\.lib)(?P<gap>\s+)
+    (?P<path>"[^"]*"|'[^']*'|[^\s"']+)(?P<rest>.*)$""",
+    re.IGNORECASE | re.VERBOSE,
+)
+
+
+def _library_includes(deck: str, folder: Path) -> str:
+    """``deck`` with includes of the package part library given as absolute paths.
+
+    Parameters
+    ----------
+    deck : str
+        SPICE text; its first line is the title.
+    folder : Path
+        Where the netlist's relative includes are looked for first (the netlist's folder).
+
+    Returns
+    -------
+    str
+        The same text, except each top-level ``.include``/``.inc file`` or ``.lib file
+        section`` line whose relative file is not in ``folder`` but is in the package part
+        library, which now names the library file by its absolute path, quoted. A ``.lib``
+        with one word is left alone (ngspice reads it as a section name, not a file).
+    """
+    from circuitsim.netlist.reader import LIBRARY_DIR
+
+    lines = deck.splitlines(keepends=True)
+    in_control = False
+    for index, line in enumerate(lines[1:], start=1):
+        word = line.strip().split(maxsplit=1)[0].lower() if line.strip() else ""
+        if word == ".control":
+            in_control = True
+        elif word == ".endc":
+            in_control = False
+        match = None if in_control else _INCLUDE_LINE.match(line.rstrip("\r\n"))
+        if match is None:
+            continue
+        name = match["path"].strip("\"'")
+        if match["word"].lower() == ".lib" and not match["rest"].split():
+            continue
+        try:
+            if not name or Path(name).is_absolute() or (folder / name).is_file():
+                continue
+            library_file = LIBRARY_DIR / name
+            if not library_file.is_file():
+                continue
+        except (OSError, ValueError):  # a name no file system takes: ngspice will say so
+            continue
+        ending = line[len(line.rstrip("\r\n")) :]
+        lines[index] = (
+            f'{match["lead"]}{match["word"]}{match["gap"]}"{library_file.resolve()}"'
+            f"{match['rest']}{ending}"
+        )
+    return "".join(lines)
 
 
 def _logical_lines(deck: str) -> list[str]:

@@ -16,7 +16,8 @@ LTspice's ``log`` is also natural) sin cos tan atan abs min max pow. Comparisons
 ternary operator are not supported.
 
 Every failure (bad token, unknown name, wrong number of arguments, division by zero, a result
-outside the float range, nesting deeper than 100) is a ValueError that names the culprit.
+outside the float range, nesting deeper than 100) is a ValueError that names the culprit; an
+unknown name is the subclass :class:`UndefinedParameterError`, which also carries the name.
 """
 
 from __future__ import annotations
@@ -27,9 +28,25 @@ from collections.abc import Callable, Mapping
 
 from circuitsim.netlist.values import parse_value
 
-__all__ = ["evaluate", "check_syntax", "FUNCTIONS", "names_in"]
+__all__ = ["evaluate", "check_syntax", "FUNCTIONS", "names_in", "UndefinedParameterError"]
 
 _MAX_DEPTH = 100
+
+
+class UndefinedParameterError(ValueError):
+    """An expression names a parameter that is not defined.
+
+    Parameters
+    ----------
+    message : str
+        The whole message (``"undefined parameter 'rx' in '2*rx'"``).
+    name : str
+        The parameter name as written in the expression.
+    """
+
+    def __init__(self, message: str, name: str):
+        super().__init__(message)
+        self.name = name
 
 
 def _ln(x: float) -> float:
@@ -223,7 +240,7 @@ class _Parser:
                 return math.pi
             if key in FUNCTIONS:
                 raise ValueError(f"function {text!r} needs its arguments in parentheses")
-            raise ValueError(f"undefined parameter {text!r} in {self.text!r}")
+            raise UndefinedParameterError(f"undefined parameter {text!r} in {self.text!r}", text)
         if kind == "op" and text == "(":
             value = self.expression()
             self.expect(")")

@@ -29,11 +29,17 @@ line: a Circuit does not remember lines) naming the instance path and element: u
 subcircuit, wrong number of connections, recursion (direct or indirect), an instance parameter
 the subcircuit does not declare, an undefined parameter, a bad expression, and circuits that
 would expand past 200 000 elements and instances or 64 levels.
+
+Given a ``problems`` list, :func:`flatten` goes on past values that do not evaluate: each one
+is recorded there as a :class:`ValueProblem` and stands as NaN in the result, and a value
+that fails only because it uses such a NaN parameter is not recorded again. The topology
+checks use this to report every bad value at once; the structural errors above still raise.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
@@ -50,14 +56,41 @@ from circuitsim.netlist.circuit import (
     Value,
 )
 from circuitsim.netlist.errors import NetlistError
-from circuitsim.netlist.expressions import evaluate
+from circuitsim.netlist.expressions import evaluate, names_in
 
-__all__ = ["flatten", "evaluate_value", "MAX_ELEMENTS", "MAX_DEPTH"]
+__all__ = ["flatten", "evaluate_value", "ValueProblem", "MAX_ELEMENTS", "MAX_DEPTH"]
 
 MAX_ELEMENTS = 200_000
 MAX_DEPTH = 64
 
 _NODE_FIELDS = ("positive", "negative", "control_positive", "control_negative", "anode", "cathode")
+
+
+@dataclass(frozen=True)
+class ValueProblem:
+    """A value that could not be evaluated, recorded by :func:`flatten` when asked to go on.
+
+    Attributes
+    ----------
+    what : str
+        The value: instance path, then element or parameter and field (``"R1 resistance"``,
+        ``"global parameter p"``, ``"in X1: R.X1.RB resistance"``).
+    message : str
+        Why it failed, from the expression evaluator (``"division by zero in '1/0'"``).
+    element : str or None
+        Flat name of the element holding the value; None for parameters, models, ``.ic`` and
+        options.
+    undefined : str or None
+        The parameter name, when the cause is an undefined parameter.
+    """
+
+    what: str
+    message: str
+    element: str | None = None
+    undefined: str | None = None
+
+    def __str__(self) -> str:
+        return f"{self.what}: {self.message}"
 
 
 @dataclass
@@ -68,12 +101,14 @@ class _Scope:
 
 
 class _Flattener:
-    def __init__(self, circuit: Circuit):
+    def __init__(self, circuit: Circuit, problems: list[ValueProblem] | None = None):
         self.circuit = circuit
         self.file = circuit.source
         self.elements: list[Element] = []
         self.models: dict[str, Model] = {}
         self.expanded = 0  # elements and instances so far
+        self.problems = problems
+        self.owner: str | None = None  # flat name of the element being evaluated
 
     def error(self, message: str) -> NetlistError:
         return NetlistError(message, file=self.file)
@@ -82,7 +117,12 @@ class _Flattener:
         try:
             return evaluate_value(value, params)
         except ValueError as exc:
-            raise self.error(f"{what}: {exc}") from None
+            if self.problems is None:
+                raise self.error(f"{what}: {exc}") from None
+            if not _uses_failed(value, params):
+                undefined = getattr(exc, "name", None)
+                self.problems.append(ValueProblem(what, str(exc), self.owner, undefined))
+            return math.nan
 
     # --- scopes ---
     def scope_for(
@@ -190,6 +230,7 @@ class _Flattener:
             )
         declared = {k.lower() for k in sub.params}
         overrides: dict[str, float] = {}
+        self.owner = f"X.{'.'.join(path)}.{call.name}" if path else call.name
         for name, value in call.params.items():
             if name.lower() not in declared:
                 known = ", ".join(sorted(declared)) or "none"
@@ -200,6 +241,7 @@ class _Flattener:
             overrides[name.lower()] = self.value(
                 value, scope.params, f"{where}{call.name} parameter {name}"
             )
+        self.owner = None
         inner_path = [*path, call.name]
         inner_where = f"in {'.'.join(inner_path)}: "
         inner = self.scope_for(
@@ -226,6 +268,7 @@ class _Flattener:
         where: str,
     ) -> Element:
         what = f"{where}{element.name}"
+        self.owner = element_name(element.name)
         kwargs: dict[str, object] = {}
         for f in dataclasses.fields(element):
             value = getattr(element, f.name)
@@ -241,6 +284,7 @@ class _Flattener:
                 kwargs[f.name] = value
             else:
                 kwargs[f.name] = self.field_value(value, scope.params, f"{what} {f.name}")
+        self.owner = None
         return type(element)(**kwargs)
 
     def field_value(self, value: object, params: Mapping[str, float], what: str) -> object:
@@ -266,6 +310,18 @@ class _Flattener:
         return self.value(value, params, what)
 
 
+def _uses_failed(value: object, params: Mapping[str, float]) -> bool:
+    """Whether ``value`` is an expression naming a parameter that already failed (NaN)."""
+    if not isinstance(value, Expression):
+        return False
+    try:
+        names = names_in(value.text)
+    except ValueError:
+        return False
+    lowered = {str(k).lower(): v for k, v in params.items()}
+    return any(math.isnan(lowered.get(name, 0.0)) for name in names)
+
+
 def evaluate_value(value: object, params: Mapping[str, float]) -> float:
     """A Value as a float: numbers pass through, Expressions are evaluated against ``params``.
 
@@ -280,13 +336,16 @@ def evaluate_value(value: object, params: Mapping[str, float]) -> float:
     raise ValueError(f"expected a number or Expression, got {value!r}")
 
 
-def flatten(circuit: Circuit) -> Circuit:
+def flatten(circuit: Circuit, problems: list[ValueProblem] | None = None) -> Circuit:
     """A new Circuit with every subcircuit instance expanded and every value a float.
 
     Parameters
     ----------
     circuit : Circuit
         A circuit as read or built; it is not modified.
+    problems : list of ValueProblem, optional
+        When given, values that do not evaluate are appended to it (and are NaN in the
+        result) instead of raising; see the module docstring.
 
     Returns
     -------
@@ -298,9 +357,9 @@ def flatten(circuit: Circuit) -> Circuit:
     Raises
     ------
     NetlistError
-        See the module docstring.
+        See the module docstring; with ``problems`` given, only for the structural errors.
     """
-    work = _Flattener(circuit)
+    work = _Flattener(circuit, problems)
     top = work.scope_for(
         None, circuit.params, {}, circuit.models, circuit.subcircuits, "", "global "
     )

@@ -33,8 +33,9 @@ simulator prints or saves and carry no circuit meaning: ``.save .print .plot .pr
 unknown directives, unsupported element letters (Q M J K T B ...), ``.global`` (only ground is
 global here; pass nodes through subcircuit ports instead), ``.endl``/``.ends`` without their
 opening line (and ``.endc``), a ``.subckt`` without ``.ends``, a ``.control`` without
-``.endc``, duplicate ``.model``/``.subckt`` names in one scope. Lines after ``.end`` are not
-read (``.end`` in an included file ends that file only).
+``.endc``, duplicate element, ``.model`` or ``.subckt`` names in one scope (the top level with
+its included files, or one ``.subckt`` body; names compared ignoring case). Lines after
+``.end`` are not read (``.end`` in an included file ends that file only).
 """
 
 from __future__ import annotations
@@ -116,6 +117,7 @@ class _Scope:
     subcircuits: dict
     params: dict
     subcircuit: Subcircuit | None = None
+    names: dict[str, Line] = field(default_factory=dict)  # element name, lower case -> line
 
 
 @dataclass
@@ -135,8 +137,25 @@ class _Reader:
             if entry.text.startswith("."):
                 self.directive(entry, base_dir)
             else:
-                element = parse_element(entry)
-                self.scopes[-1].elements.append(element)
+                self.add_element(entry)
+
+    def add_element(self, line: Line) -> None:
+        """Parse an element line into the open scope; names are unique per scope, any case.
+
+        ngspice refuses a second ``R1`` (or ``r1``) in one scope ("device already exists"),
+        also inside a ``.subckt`` body once it is instantiated; instances of one body, and a
+        body and the top level, do not clash because instance elements get prefixed names.
+        """
+        element = parse_element(line)
+        scope = self.scopes[-1]
+        key = element.name.lower()
+        first = scope.names.get(key)
+        if first is not None:
+            where = f"{first.file}:{first.number}"
+            inside = f" in .subckt {scope.subcircuit.name}" if scope.subcircuit else ""
+            raise line.error(f"element {element.name} defined twice{inside} (first at {where})")
+        scope.names[key] = line
+        scope.elements.append(element)
 
     # --- directives ---
     def directive(self, line: Line, base_dir: Path) -> None:

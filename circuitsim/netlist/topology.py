@@ -19,6 +19,20 @@ Kinds of finding
     An ``F``/``H`` source names a controlling voltage source that its scope does not have.
 ``unconnected-port``
     A ``.subckt`` port that no element inside it touches.
+``undefined-parameter`` / ``bad-expression``
+    A value (element field, ``.param``, instance or model parameter, ``.ic``, option) names a
+    parameter that no scope defines, or cannot be evaluated (division by zero, square root of
+    a negative number, a result beyond the float range ...). Values that fail only because
+    they use such a parameter are not reported again.
+``zero-resistance``
+    A resistor of 0 ohms: the engine stamps conductances and refuses it (ngspice quietly
+    makes it 1 milliohm).
+``no-nodes``
+    The circuit has no node besides ground (an empty or title-only netlist): nothing to
+    solve.
+``unflattenable``
+    Subcircuit expansion failed for a structural reason (recursion, an instance parameter
+    the subcircuit does not declare ...) and no other finding explains it.
 ``floating-node``
     A node with a single terminal on it (the element ends there and carries no current).
 ``no-dc-path``
@@ -42,6 +56,7 @@ a capacitor it is a capacitor (and current source) cut set, i.e. a node set with
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import networkx as nx
@@ -57,6 +72,7 @@ from circuitsim.netlist.circuit import (
     Element,
     Inductor,
     Model,
+    Resistor,
     Subcircuit,
     SubcircuitCall,
     Switch,
@@ -66,6 +82,7 @@ from circuitsim.netlist.circuit import (
     VoltageSource,
 )
 from circuitsim.netlist.errors import NetlistError
+from circuitsim.netlist.flatten import ValueProblem, flatten
 
 GROUND = "0"
 
@@ -96,30 +113,71 @@ class Finding:
 
 
 def check_circuit(circuit: Circuit) -> list[Finding]:
-    """All findings for ``circuit``: naming and reference checks per scope, then electrical.
+    """All findings for ``circuit``: naming and reference checks per scope, values, electrical.
 
-    The electrical checks (floating nodes, DC paths, cut sets, loops) run on the flattened
-    circuit when it has subcircuit calls; if it cannot be flattened (an undefined subcircuit,
-    a parameter that does not evaluate) they run on the top level alone, treating each
-    unresolved ``X`` call as conducting between all its nodes, so its problems are still
-    reported by the reference checks above rather than hidden.
+    Every value is evaluated as :func:`~circuitsim.netlist.flatten.flatten` evaluates it
+    (global ``.param`` values, then each instance's parameters), collecting every failure
+    instead of stopping at the first. The electrical checks (floating nodes, DC paths, cut
+    sets, loops) run on the flattened circuit; if it cannot be flattened (an undefined
+    subcircuit, recursion) they run on the top level alone, treating each unresolved ``X``
+    call as conducting between all its nodes, so its problems are still reported by the
+    reference checks above rather than hidden.
     """
     findings: list[Finding] = []
     _check_scope(
         circuit.elements, [circuit.models], [circuit.subcircuits], "", findings, circuit.elements
     )
-    flat = circuit
-    if any(isinstance(e, SubcircuitCall) for e in circuit.elements):
+    problems: list[ValueProblem] = []
+    try:
+        flat = flatten(circuit, problems)
+        valued = flat.elements
+    except NetlistError as exc:
+        if not findings:
+            findings.append(Finding("unflattenable", str(exc)))
+        flat = circuit
+        # The top level's own values can still be checked without the calls.
+        own = [e for e in circuit.elements if not isinstance(e, SubcircuitCall)]
+        problems = []
         try:
-            from circuitsim.netlist.flatten import flatten
-
-            flat = flatten(circuit)
-        except NetlistError as exc:
-            if not findings:
-                findings.append(Finding("unflattenable", str(exc)))
-            flat = circuit
+            valued = flatten(dataclasses.replace(circuit, elements=own), problems).elements
+        except NetlistError:
+            valued = []
+    findings += [_value_finding(problem) for problem in problems]
+    findings += _zero_resistances(valued)
+    if not any(node != GROUND for element in flat.elements for node in element.nodes):
+        findings.append(
+            Finding(
+                "no-nodes",
+                "the circuit has no nodes besides ground (no elements, or all of them on 0): "
+                "there is nothing to solve",
+            )
+        )
     findings += electrical_findings(flat.elements)
     return findings
+
+
+# --- values ---------------------------------------------------------------------------------
+
+
+def _value_finding(problem: ValueProblem) -> Finding:
+    kind = "undefined-parameter" if problem.undefined is not None else "bad-expression"
+    elements = (problem.element,) if problem.element is not None else ()
+    return Finding(kind, str(problem), elements)
+
+
+def _zero_resistances(elements: list[Element]) -> list[Finding]:
+    """Resistors of exactly 0 ohms (after evaluation) among flat elements."""
+    return [
+        Finding(
+            "zero-resistance",
+            f"{e.name}: resistance 0 is not allowed (join nodes {e.positive} and {e.negative} "
+            "into one, or put a 0 V source between them to measure the current)",
+            (e.name,),
+            (e.positive, e.negative),
+        )
+        for e in elements
+        if isinstance(e, Resistor) and isinstance(e.resistance, int | float) and e.resistance == 0
+    ]
 
 
 # --- naming and reference checks, per scope -----------------------------------------------

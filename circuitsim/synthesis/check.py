@@ -384,9 +384,10 @@ class _Checker:
                     if f[0] == i and math.isclose(f[2], force.frequency, rel_tol=1e-9)
                 ]  # fmt: skip
                 if not match:
-                    self.problems.append(
-                        f"forcing {k} into {self.sys.states[i]}: not in the netlist"
-                    )
+                    if model != 0.0:  # a zero forcing (the free response) needs no source
+                        self.problems.append(
+                            f"forcing {k} into {self.sys.states[i]}: not in the netlist"
+                        )
                     continue
                 f = match[0]
                 realized.remove(f)

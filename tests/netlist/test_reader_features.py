@@ -169,13 +169,15 @@ def test_include_with_quotes_and_inc_alias(tmp_path):
     (tmp_path / "my parts.inc").write_text("R9 x 0 9k\n.end\nR10 x 0 1\n")
     (tmp_path / "sub").mkdir()
     (tmp_path / "sub" / "inner.inc").write_text(".inc ../other.inc\n")
-    (tmp_path / "other.inc").write_text("C9 x 0 9p\n")
+    (tmp_path / "other.inc").write_text(".param cv=9p\n")
     c = parse_netlist(
-        't\n.include "my parts.inc"\n.INC sub/inner.inc\n.include sub/inner.inc\n',
+        't\n.include "my parts.inc"\n.INC sub/inner.inc\n.include sub/inner.inc\nC9 x 0 {cv}\n',
         base_dir=str(tmp_path),
     )
-    # .end inside an include ends only that file; a file may be included twice (no cycle)
-    assert [e.name for e in c.elements] == ["R9", "C9", "C9"]
+    # .end inside an include ends only that file; a file may be included twice (no cycle;
+    # twice is harmless for a .param, while an element would be defined twice)
+    assert [e.name for e in c.elements] == ["R9", "C9"]
+    assert c.params == {"cv": 9e-12}
 
 
 def test_lib_sections_skip_unselected_text(tmp_path):
