@@ -48,6 +48,36 @@ class TermSignal:
     negated: str | None
     sigma: int
     beta: float
+    inner: tuple[InnerNode, ...] = ()
+
+
+@dataclass(frozen=True)
+class InnerNode:
+    """A node inside a term's blocks: an |x| block's output or an argument summer's, carrying
+    +-alpha (row . x + offset) or its absolute value (V); its peak is predicted like the
+    states' (an offset can take it past the op-amps' swing though every state is within).
+
+    Attributes
+    ----------
+    node : str
+    what : str
+        In words, for warnings (``"|x| block 1"``).
+    alpha : float
+        Volts per unit of ``row . x``.
+    row : ndarray, shape (n,)
+    offset : float
+        In the units of ``row . x``.
+    """
+
+    node: str
+    what: str
+    alpha: float
+    row: np.ndarray
+    offset: float = 0.0
+
+    def peak(self, x: np.ndarray) -> float:
+        """max |v| (V) over states ``x`` of shape (n, m)."""
+        return float(self.alpha * np.max(np.abs(self.row @ x + self.offset)))
 
 
 def dead_zone_shape(term: PiecewiseLinearTerm) -> tuple[np.ndarray, float, float] | None:
@@ -85,6 +115,7 @@ class TermBuilder:
         self.nodes = nodes
         self.G = volts_per_unit
         self.r_unit = r_unit
+        self.inner: list[InnerNode] = []  # of the term being built
 
     def _node_for(self, j: int, sign: float) -> str:
         """The node carrying sign(sign) * G_j x_j."""
@@ -100,6 +131,7 @@ class TermBuilder:
         sigma = 1 if direction[entries[0]] > 0 else -1
         prefix = node_name(term.name).upper()
         n = prefix.lower()
+        self.inner = []
         if mode == "deadzone":
             shape = dead_zone_shape(term)
             if shape is None:
@@ -120,7 +152,7 @@ class TermBuilder:
                 [("IN", node, 1.0, 1.0, f"inverter of {term.name} signal")],
                 self.r_unit,
             )
-        return TermSignal(node, negated, sigma, beta)
+        return TermSignal(node, negated, sigma, beta, tuple(self.inner))
 
     def _argument(
         self, row: np.ndarray, prefix: str, out: str, want_sign: int
@@ -144,6 +176,7 @@ class TermBuilder:
             node = self._node_for(int(j), -want_sign * row[j])
             inputs.append((node_name(self.states[j]).upper(), node, weight, weight, "argument"))
         self.b.summer(prefix, prefix, out, inputs, self.r_unit)
+        self.inner.append(InnerNode(out, f"argument summer {prefix}", alpha, row))
         return out, alpha, want_sign
 
     def _abs_sum(
@@ -185,6 +218,11 @@ class TermBuilder:
                 sign=-1 if c > 0 else 1,
             )
             self._record_block(f"{prefix}_ABS{m}", f"{term.name}: |x| block {m}")
+            self.inner.append(
+                InnerNode(
+                    out, f"|x| block {m}", alpha, np.asarray(piece.row, dtype=float), piece.offset
+                )
+            )
             inputs.append((f"ABS{m}", out, abs(c), abs(c), f"{term.name}: |x| block {m}"))
         if term.constant:
             source = f"{n}_const"

@@ -225,6 +225,17 @@ def _predicted_peaks(x, G, states, nodes, signals, options, node_peaks, warnings
                 f"the {term.name} signal ({signal.node}) peaks at {peak:.3g} V, beyond the "
                 f"{options.opamp} op-amp's {limit:g} V swing: it will clip"
             )
+        for inner in signal.inner:
+            peak = inner.peak(x)
+            node_peaks[inner.node] = peak
+            if peak > limit:
+                rows = [s for s, r in zip(states, inner.row, strict=True) if r]
+                warnings.append(
+                    f"the {term.name} {inner.what} ({inner.node}) peaks at {peak:.3g} V, beyond "
+                    f"the {options.opamp} op-amp's {limit:g} V swing: it will clip (its offset "
+                    f"alone is {abs(inner.alpha * inner.offset):.3g} V; a larger --range for "
+                    f"{', '.join(rows)} lowers it)"
+                )
 
 
 def _add_forcing(system, circuit, names, nodes, inputs, G, K, options) -> None:

@@ -1,0 +1,89 @@
+"""The peaks of the nodes inside piecewise-linear blocks (|x| block outputs, argument summers)
+are predicted like the states' and checked against the op-amps' swing: an |x| block's offset
+can take it past the swing while every state is within."""
+
+import numpy as np
+import pytest
+
+from circuitsim.mechanics import load_model
+from circuitsim.solver import simulate
+from circuitsim.synthesis.options import SynthesisOptions
+from circuitsim.synthesis.translator import synthesize
+
+# a first-order oscillator whose u saturates at +-1 (offsets of 1 unit against a peak of 0.2)
+SATURATION = """
+[model]
+name = "saturated"
+kind = "first_order"
+
+[states]
+names = ["u", "w"]
+units = ["V", "A"]
+
+[parameters]
+b = 2.0
+g = 0.5
+
+[matrices]
+A = [[-0.1, "b"], ["-b", 0]]
+
+[nonlinear.sat]
+enters = { u = 1 }
+abs = [
+  { gain = "-g", row = { u = 1 }, offset = 1 },
+  { gain = "g", row = { u = 1 }, offset = -1 },
+]
+
+[forcing.drive]
+amplitude = 0.3
+frequency = 1.5
+enters = { w = 1 }
+
+[initial]
+u = 0.2
+"""
+
+
+def _simulated_peak(synthesis, node, after=0.0):
+    w = simulate(synthesis.circuit)
+    late = w.time >= after
+    return float(np.max(np.abs(w[f"v({node})"][late])))
+
+
+@pytest.fixture(scope="module")
+def saturated(tmp_path_factory):
+    path = tmp_path_factory.mktemp("model") / "saturated.toml"
+    path.write_text(SATURATION)
+    return load_model(path).system()
+
+
+def test_an_offset_past_the_swing_is_warned_of(saturated):
+    tl074 = synthesize(saturated, SynthesisOptions(opamp="tl074", t_stop=5.0))
+    G = tl074.scale_map.states["u"].volts_per_unit
+    assert G * 1.0 > 13.0  # the offset alone is past the TL074's swing
+    for m in (1, 2):
+        assert tl074.node_peaks[f"sat_abs{m}"] > G * 1.0
+        assert any(f"|x| block {m} (sat_abs{m})" in w and "clip" in w for w in tl074.warnings)
+    # a range that leaves room for the offset: no warning
+    roomy = synthesize(
+        saturated, SynthesisOptions(opamp="tl074", t_stop=5.0, ranges={"u": 0.5, "w": 1.0})
+    )
+    assert not any("|x| block" in w for w in roomy.warnings)
+
+
+def test_predicted_block_peaks_match_the_simulated_circuit(saturated):
+    ideal = synthesize(saturated, SynthesisOptions(t_stop=5.0, series="exact"))
+    for m in (1, 2):
+        predicted = ideal.node_peaks[f"sat_abs{m}"]
+        assert _simulated_peak(ideal, f"sat_abs{m}") == pytest.approx(predicted, rel=1e-2)
+
+
+def test_wheelset_blocks_are_predicted_and_within_the_tl074_swing():
+    wheelset = load_model().system(parameters={"V": 55.0, "f": 3.0, "a": 0.04})
+    tl074 = synthesize(wheelset, SynthesisOptions(opamp="tl074"))
+    assert not any("clip" in w for w in tl074.warnings)
+    ideal = synthesize(wheelset, SynthesisOptions(series="exact"))
+    for node in ("flange_abs1", "flange_abs2"):
+        assert tl074.node_peaks[node] < 13.0
+        predicted = ideal.node_peaks[node]
+        assert _simulated_peak(ideal, node) == pytest.approx(predicted, rel=1e-2)
