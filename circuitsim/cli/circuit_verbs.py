@@ -5,15 +5,26 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from typing import TYPE_CHECKING, TextIO
 
 from circuitsim.cli.common import (
+    UsageError,
     add_model_options,
     add_scenario_options,
+    check_scenario_options,
     parameter_assignment,
+    prepare_output_folder,
     progress,
+    require_count,
+    require_figure_path,
+    require_positive,
+    require_writable,
     scenario_system,
     state_range,
 )
+
+if TYPE_CHECKING:
+    from circuitsim.mechanics.model import Model
 
 
 def _add_generate(sub: argparse._SubParsersAction) -> None:
@@ -49,7 +60,7 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
         "unity: 1 V per SI unit (the paper's mapping)",
     )
     parser.add_argument(
-        "--swing", type=float, default=5.0, metavar="VOLTS", help="target peak, V (default 5)"
+        "--swing", type=float, default=5.0, metavar="VOLTS", help="target peak, V (> 0; default 5)"
     )
     parser.add_argument(
         "--range",
@@ -64,7 +75,7 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
         type=float,
         default=1.0,
         metavar="K",
-        help="one model second takes 1/K circuit seconds (default 1, real time)",
+        help="one model second takes 1/K circuit seconds (K > 0; default 1, real time)",
     )
     parser.add_argument(
         "--series",
@@ -85,17 +96,28 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
         "--switch-at",
         type=float,
         metavar="T",
-        help="close the nonlinear switches (S1) at model time T instead of from the start; "
+        help="close the nonlinear switches (S1) at model time T >= 0 instead of from the start; "
         "'inf' keeps them open (the linear circuit with the blocks in place)",
     )
     parser.add_argument("-o", "--output", required=True, metavar="FILE.cir", help="netlist file")
     parser.set_defaults(func=_run_generate)
 
 
+def _check_generate(args: argparse.Namespace) -> None:
+    """Refuse non-positive or non-finite --swing, --time-scale, --tstop and a bad --switch-at."""
+    check_scenario_options(args)
+    require_positive("--swing", args.swing)
+    require_positive("--time-scale", args.time_scale)
+    require_positive("--tstop", args.tstop)
+    if args.switch_at is not None and not args.switch_at >= 0:  # NaN fails the comparison
+        raise UsageError(f"--switch-at must be a time >= 0 or inf, got {args.switch_at:g}")
+
+
 def _run_generate(args: argparse.Namespace) -> int:
     from circuitsim.synthesis.generate import generate, switch_at
     from circuitsim.synthesis.options import SynthesisOptions
 
+    _check_generate(args)
     system = switch_at(scenario_system(args), args.switch_at)
     options = SynthesisOptions(
         opamp=args.opamp,
@@ -154,21 +176,40 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:
         "--max-nrmsd",
         type=float,
         metavar="PERCENT",
-        help="NRMSD threshold (default 0.5 for ideal op-amps, 2 for tl074)",
+        help="NRMSD threshold, > 0 (default 0.5 for ideal op-amps, 2 for tl074)",
     )
     parser.add_argument(
         "--tolerance",
         type=float,
         default=0.01,
         metavar="FRACTION",
-        help="allowed |peak ratio - 1| and |frequency ratio - 1| (default 0.01)",
+        help="allowed |peak ratio - 1| and |frequency ratio - 1|, > 0 (default 0.01)",
     )
     parser.add_argument(
         "--netlist", metavar="FILE.cir", help="also write the netlist, scale file and BOM here"
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
-    parser.add_argument("--plot", metavar="FILE.png", help="draw the circuit traces over the ODE's")
+    parser.add_argument(
+        "--plot",
+        metavar="FILE.png",
+        help="draw the circuit traces over the ODE's, in the format of the suffix (.png, .pdf, "
+        ".svg ...)",
+    )
     parser.set_defaults(func=_run_compare, error_exit_code=2)
+
+
+def _check_compare(args: argparse.Namespace) -> None:
+    """Refuse bad times, thresholds (NaN would pass everything) and figure suffix."""
+    check_scenario_options(args)
+    require_positive("--tstop", args.tstop)
+    require_positive("--max-nrmsd", args.max_nrmsd)
+    require_positive("--tolerance", args.tolerance)
+    require_figure_path("--plot", args.plot)
+    if args.netlist is not None:
+        from circuitsim.synthesis.generate import companion_paths
+
+        require_writable(args.netlist, *companion_paths(args.netlist))
+    require_writable(args.plot)
 
 
 def _run_compare(args: argparse.Namespace) -> int:
@@ -179,6 +220,7 @@ def _run_compare(args: argparse.Namespace) -> int:
     from circuitsim.compare.case import run_case
     from circuitsim.synthesis.options import SynthesisOptions
 
+    _check_compare(args)
     thresholds = replace(
         Thresholds.for_opamp(args.opamp),
         peak_ratio_tolerance=args.tolerance,
@@ -252,13 +294,17 @@ def _add_reproduce(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--series", action="append", choices=("exact", "E96"), help="repeatable; default both"
     )
-    parser.add_argument("--workers", type=int, metavar="N", help="processes (default: every core)")
+    parser.add_argument(
+        "--workers", type=int, metavar="N", help="processes, at least 1 (default: every core)"
+    )
     parser.set_defaults(func=_run_reproduce)
 
 
 def _run_reproduce(args: argparse.Namespace) -> int:
     from circuitsim.compare.reproduce import OPAMPS, SERIES, reproduce
 
+    require_count("--workers", args.workers)
+    prepare_output_folder("--out", args.out, "report.md", "metrics.json")
     result = reproduce(
         args.out,
         progress=progress,
@@ -289,6 +335,8 @@ def _sweep_param_item(text: str) -> tuple[str, float] | str:
 
 
 def _add_sweep(sub: argparse._SubParsersAction) -> None:
+    from circuitsim.compare.sweep import MAX_VALUES
+
     parser = sub.add_parser(
         "sweep",
         help="peak |y| against a parameter: many circuit variants, one run each",
@@ -313,42 +361,133 @@ def _add_sweep(sub: argparse._SubParsersAction) -> None:
             action.metavar = "NAME[=VALUE]"
             action.help = (
                 "NAME: the parameter to sweep (speed, freq, amplitude or any model parameter); "
-                "NAME=VALUE: set a fixed parameter in its SI unit (repeatable)"
+                "NAME=VALUE: set a fixed parameter in its SI unit (repeatable; not the swept "
+                "one, which --speed, --freq and --amplitude must not set either)"
             )
     parser.add_argument(
         "--values",
         required=True,
         metavar="START:STOP:STEP",
-        help="values of the swept parameter (STOP included), or a comma-separated list",
+        help="values of the swept parameter: START, START+STEP, ... up to STOP (included when "
+        "on the grid; a STEP longer than STOP-START gives START alone), or a comma-separated "
+        f"list; finite numbers, at most {MAX_VALUES:,} of them",
     )
     parser.add_argument("--engine", choices=("builtin", "ngspice"), default="builtin")
     parser.add_argument(
         "--opamp", choices=("ideal", "tl074"), default="ideal", help="op-amp model (default ideal)"
     )
     parser.add_argument(
-        "--tstop", type=float, metavar="T", help="model seconds to simulate (default 5)"
+        "--tstop", type=float, metavar="T", help="model seconds to simulate (> 0; default 5)"
     )
     parser.add_argument(
-        "--window", type=float, default=1.0, metavar="T", help="late window, s (default 1)"
+        "--window",
+        type=float,
+        metavar="T",
+        help="late window, s (> 0 and at most the simulated time; default 1, or the simulated "
+        "time if shorter)",
     )
     parser.add_argument(
         "--jobs",
         type=int,
         default=os.cpu_count() or 1,
         metavar="N",
-        help="variants simulated at a time (builtin: threads, ngspice: processes; "
+        help="variants simulated at a time, at least 1 (builtin: threads, ngspice: processes; "
         f"default: the CPU count, {os.cpu_count() or 1} here)",
     )
-    parser.add_argument("--out", default=".", metavar="DIR", help="output folder (default .)")
+    parser.add_argument(
+        "--out",
+        default=".",
+        metavar="DIR",
+        help="output folder, created (and checked) before the sweep runs (default .)",
+    )
     parser.set_defaults(func=_run_sweep, error_exit_code=2)
 
 
-def _sweep_bar(fraction: float, message: str) -> None:
-    """Progress bar on stderr (one line, redrawn)."""
+class _SweepBar:
+    """The sweep's progress on stderr.
+
+    On a terminal one bar, redrawn in place; elsewhere (a log file, a pipe) a plain line at the
+    start and at every further tenth of the way. :meth:`close` ends a bar left open with a
+    newline, so that what follows (a summary, an error message) starts on its own line.
+
+    Parameters
+    ----------
+    stream : text stream, optional
+        Where to write (default: ``sys.stderr`` at the time of each call).
+    """
+
     width = 30
-    filled = int(round(width * max(0.0, min(1.0, fraction))))
-    text = f"\r[{'#' * filled}{'.' * (width - filled)}] {100 * fraction:5.1f}%  {message[:60]:60s}"
-    print(text, end="", file=sys.stderr, flush=True)
+
+    def __init__(self, stream: TextIO | None = None) -> None:
+        self._stream = stream
+        self._open = False  # a bar without its newline is on the terminal
+        self._tenths = -1  # the last tenth reported as a plain line
+
+    @property
+    def stream(self) -> TextIO:
+        """The stream written to."""
+        return self._stream or sys.stderr
+
+    def _terminal(self) -> bool:
+        isatty = getattr(self.stream, "isatty", None)
+        return bool(isatty and isatty())
+
+    def __call__(self, fraction: float, message: str) -> None:
+        """Report ``fraction`` (0..1) of the sweep done, with a short ``message``."""
+        fraction = max(0.0, min(1.0, fraction))
+        if self._terminal():
+            filled = int(round(self.width * fraction))
+            bar = f"[{'#' * filled}{'.' * (self.width - filled)}]"
+            text = f"\r{bar} {100 * fraction:5.1f}%  {message[:60]:60s}"
+            print(text, end="", file=self.stream, flush=True)
+            self._open = True
+            return
+        tenths = int(fraction * 10 + 1e-9)
+        if tenths > self._tenths:
+            self._tenths = tenths
+            print(f"{100 * fraction:5.1f}%  {message}", file=self.stream, flush=True)
+
+    def close(self) -> None:
+        """End an open bar's line (nothing to do for plain lines)."""
+        if self._open:
+            print(file=self.stream, flush=True)
+            self._open = False
+
+
+def _plural(count: int, noun: str) -> str:
+    return f"{count} {noun}" if count == 1 else f"{count} {noun}s"
+
+
+def _swept_parameter(model: Model, swept: str) -> str:
+    """The model parameter ``--param swept`` names: an option's (speed: V) or its own."""
+    if swept in model.options:
+        return model.options[swept]
+    if swept in model.parameters:
+        return swept
+    options = ", ".join(model.options) or "none"
+    raise UsageError(
+        f"--param {swept}: model {model.name} has no parameter {swept!r}; "
+        f"known: {', '.join(model.parameters)} (or the options {options})"
+    )
+
+
+def _refuse_fixed_swept(args: argparse.Namespace, model: Model, swept: str, name: str) -> None:
+    """Refuse a --param NAME=VALUE, --speed, --freq or --amplitude that fixes the parameter
+    the sweep varies: its values would be silently overridden."""
+    sources = [
+        (f"--{option} {getattr(args, option):g}", model.options[option])
+        for option in ("speed", "freq", "amplitude")
+        if getattr(args, option) is not None and option in model.options
+    ]
+    fixed = [item for item in args.param if not isinstance(item, str)]
+    sources += [(f"--param {parameter}={value:g}", parameter) for parameter, value in fixed]
+    sweeps = f"--param {swept} sweeps" if swept == name else f"--param {swept} sweeps {name}"
+    for source, parameter in sources:
+        if parameter == name:
+            raise UsageError(
+                f"{source} fixes {name}, which {sweeps}: a parameter is either swept or fixed, "
+                "drop one of the two"
+            )
 
 
 def _run_sweep(args: argparse.Namespace) -> int:
@@ -358,52 +497,50 @@ def _run_sweep(args: argparse.Namespace) -> int:
 
     swept = [p for p in args.param if isinstance(p, str)]
     if len(swept) != 1:
-        print("circuitsim sweep: error: name exactly one --param to sweep", file=sys.stderr)
-        return 2
-    if args.jobs < 1:
-        print("circuitsim sweep: error: --jobs must be at least 1", file=sys.stderr)
-        return 2
+        raise UsageError("name exactly one --param to sweep (a NAME without =VALUE)")
+    require_count("--jobs", args.jobs)
+    require_positive("--tstop", args.tstop)
+    require_positive("--window", args.window)
+    check_scenario_options(args)
     values = parse_values(args.values)
     model = load_model(args.model)
-    aliases = {"speed", "freq", "amplitude"}
-    name = (
-        model.option_parameters({swept[0]: 0.0}).popitem()[0] if swept[0] in aliases else swept[0]
-    )
-    if name not in model.parameters:
-        print(
-            f"circuitsim sweep: error: model {model.name} has no parameter {name!r}; "
-            f"known: {', '.join(model.parameters)}",
-            file=sys.stderr,
-        )
-        return 2
+    name = _swept_parameter(model, swept[0])
+    _refuse_fixed_swept(args, model, swept[0], name)
     fixed = [p for p in args.param if not isinstance(p, str)]
     systems = []
     for value in values:
         variant = argparse.Namespace(**vars(args))
         variant.param = [*fixed, (name, float(value))]
-        if swept[0] in aliases:
-            variant.param = fixed
-            setattr(variant, swept[0], float(value))
-        systems.append(scenario_system(variant))
+        systems.append(scenario_system(variant, model=model))
+    middle = systems[len(systems) // 2]
+    t_stop = args.tstop or float((middle.circuit_hints or {}).get("t_stop", 5.0))
+    if args.window is not None and args.window > t_stop:
+        given = "--tstop" if args.tstop else "the model's default"
+        raise UsageError(
+            f"--window {args.window:g} s is longer than the simulated time ({given}: {t_stop:g} s)"
+        )
+    window = min(1.0, t_stop) if args.window is None else args.window
+    prepare_output_folder("--out", args.out, "sweep.csv", "sweep.png")
     options = SynthesisOptions(opamp=args.opamp, t_stop=args.tstop)
     unit = model.parameter_info[name].unit
-    result = run_sweep(
-        systems,
-        values,
-        name,
-        unit,
-        args.engine,
-        options,
-        window=args.window,
-        workers=args.jobs,
-        progress=_sweep_bar,
-    )
-    print(file=sys.stderr)
+    bar = _SweepBar()
+    try:
+        result = run_sweep(
+            systems,
+            values,
+            name,
+            unit,
+            args.engine,
+            options,
+            window=window,
+            workers=args.jobs,
+            progress=bar,
+        )
+    finally:
+        bar.close()
     for warning in result.warnings:
         print(f"warning: {warning}", file=sys.stderr)
-    speed = (
-        model.option_parameters({"speed": 0.0}).popitem()[0] if "speed" in model.options else None
-    )
+    speed = model.options.get("speed")
     if name == speed:
         coefficients = args.coeffs or model.default_coefficients
         result.critical, _ = critical_speed(
@@ -414,7 +551,7 @@ def _run_sweep(args: argparse.Namespace) -> int:
     kernels = result.timings.get("kernels")
     ready = "" if kernels is None else f", compiled kernels ready {kernels:.3g} s"
     print(
-        f"{len(values)} variants of {name} ({result.engine}; changed: "
+        f"{_plural(len(values), 'variant')} of {name} ({result.engine}; changed: "
         f"{', '.join(result.changed) or 'none'}): synthesis {result.timings['synthesis']:.3g} s"
         f"{ready}, simulation {result.timings['simulation']:.3g} s ({per:.3g} s per variant)"
     )

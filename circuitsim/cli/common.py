@@ -1,11 +1,169 @@
-"""Option helpers shared by several verbs, and the progress printer."""
+"""Option helpers shared by several verbs: checks of option values, warnings printed as lines,
+and the progress printer."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import math
 import sys
 import time
-from collections.abc import Callable
+import warnings
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from circuitsim.mechanics.model import Model
+
+
+class UsageError(Exception):
+    """A bad command line found after parsing (a value out of range, options that conflict).
+
+    :func:`circuitsim.cli.main` prints it as ``circuitsim VERB: error: <message>`` and exits
+    with code 2. The verbs check their options with the ``require_*`` helpers first, before
+    any long computation.
+    """
+
+
+def _number(value: float) -> str:
+    """``value`` as the user would type it (``nan``, ``inf``, ``0.5``), never a numpy repr."""
+    return f"{float(value):g}"
+
+
+def require_finite(option: str, value: float | None) -> None:
+    """Refuse a NaN or infinite ``value`` of ``option`` (None: not given, accepted).
+
+    Raises
+    ------
+    UsageError
+        Naming ``option`` and the value.
+    """
+    if value is not None and not math.isfinite(value):
+        raise UsageError(f"{option} must be a finite number, got {_number(value)}")
+
+
+def require_positive(option: str, value: float | None) -> None:
+    """Refuse a ``value`` of ``option`` that is not finite and > 0 (None: not given, accepted).
+
+    Raises
+    ------
+    UsageError
+        Naming ``option`` and the value.
+    """
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise UsageError(f"{option} must be a positive finite number, got {_number(value)}")
+
+
+def require_fraction(option: str, value: float | None) -> None:
+    """Refuse a ``value`` of ``option`` outside the open interval (0, 1) (None: accepted).
+
+    Raises
+    ------
+    UsageError
+        Naming ``option`` and the value.
+    """
+    if value is not None and not 0 < value < 1:
+        raise UsageError(f"{option} must be between 0 and 1 (exclusive), got {_number(value)}")
+
+
+def require_count(option: str, value: int | None) -> None:
+    """Refuse a ``value`` of ``option`` below 1 (None: not given, accepted).
+
+    Raises
+    ------
+    UsageError
+        Naming ``option`` and the value.
+    """
+    if value is not None and value < 1:
+        raise UsageError(f"{option} must be at least 1, got {value}")
+
+
+def figure_formats() -> list[str]:
+    """The figure suffixes (without the dot) matplotlib can write here.
+
+    PGF needs a LaTeX installation (``rcParams["pgf.texsystem"]``) and is left out without it:
+    it would fail only when the figure is saved, after the computation.
+    """
+    import shutil
+
+    import matplotlib
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    formats = sorted(FigureCanvasBase.get_supported_filetypes())
+    if shutil.which(matplotlib.rcParams["pgf.texsystem"]) is None:
+        formats.remove("pgf")
+    return formats
+
+
+def require_figure_path(option: str, path: str | None) -> None:
+    """Refuse a figure ``path`` whose suffix names no format matplotlib can write.
+
+    A path without a suffix is accepted (the figure is written as PNG).
+
+    Raises
+    ------
+    UsageError
+        Naming ``option``, the suffix and the formats that can be written.
+    """
+    if path is None:
+        return
+    suffix = Path(path).suffix.lstrip(".").lower()
+    if not suffix:
+        return
+    formats = figure_formats()
+    if suffix not in formats:
+        raise UsageError(
+            f"{option} {path}: cannot write a .{suffix} figure; use .png, .pdf or .svg "
+            f"(any of: {', '.join(formats)})"
+        )
+
+
+def require_writable(*paths: str | Path | None) -> None:
+    """Check that every output file given (None: not asked for) can be written, before any
+    long computation.
+
+    Raises
+    ------
+    OSError
+        A :class:`~circuitsim.atomic.WriteError` naming the path and the problem (a missing
+        folder, a folder in its place, no permission); :func:`circuitsim.cli.main` prints it
+        as one line, exit code 2.
+    """
+    from circuitsim.atomic import check_writable
+
+    for path in paths:
+        if path is not None:
+            check_writable(path)
+
+
+def prepare_output_folder(option: str, folder: str | Path, *names: str) -> Path:
+    """Create the output folder of ``option`` (with its parents) and check that the files
+    ``names`` can be written in it, before any long computation.
+
+    Returns
+    -------
+    Path
+        The folder.
+
+    Raises
+    ------
+    UsageError
+        ``folder`` is a file, or cannot be created.
+    OSError
+        A :class:`~circuitsim.atomic.WriteError` for a file of ``names`` (see
+        :func:`require_writable`).
+    """
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise UsageError(f"{option} {folder}: it is a file, not a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        reason = exc.strerror or str(exc)
+        raise UsageError(f"{option} {folder}: cannot create the folder: {reason}") from None
+    require_writable(*(folder / name for name in names))
+    return folder
 
 
 def progress(message: str) -> None:
@@ -41,14 +199,21 @@ def add_model_options(parser: argparse.ArgumentParser) -> None:
 
 
 def parameter_assignment(text: str) -> tuple[str, float]:
+    """``--param NAME=VALUE``: the name and a finite number.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        No ``=``, no name, or a value that is not a finite number.
+    """
     name, sep, value = text.partition("=")
     try:
-        if not sep or not name.strip():
+        if not sep or not name.strip() or not math.isfinite(float(value)):
             raise ValueError
         return name.strip(), float(value)
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f"expected NAME=VALUE with a number, got {text!r}"
+            f"expected NAME=VALUE with a finite number, got {text!r}"
         ) from None
 
 
@@ -86,16 +251,37 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def scenario_system(args: argparse.Namespace, with_model: bool = False):
+def check_scenario_options(args: argparse.Namespace) -> None:
+    """Refuse non-finite ``--speed``, ``--freq``, ``--amplitude`` and ``--y0`` values.
+
+    Raises
+    ------
+    UsageError
+        Naming the option.
+    """
+    for option in ("speed", "freq", "amplitude", "y0"):
+        require_finite(f"--{option}", getattr(args, option, None))
+
+
+def scenario_system(args: argparse.Namespace, with_model: bool = False, model: Model | None = None):
     """The System of ``--model``/``--coeffs`` and the scenario options.
 
     ``--y0`` (where the verb has it) sets the parameter the model's ``[options]`` table names
     for it, or else the first state's initial value. With ``with_model`` the loaded Model is
-    returned too, as ``(model, system)``.
+    returned too, as ``(model, system)``. ``model``, when given, is used instead of loading
+    ``--model`` again (a sweep builds many systems of one model).
+
+    Raises
+    ------
+    UsageError
+        A non-finite scenario option (see :func:`check_scenario_options`).
+    ModelError
+        The model file, or a parameter it does not know.
     """
     from circuitsim.mechanics import load_model
 
-    model = load_model(args.model)
+    check_scenario_options(args)
+    model = load_model(args.model) if model is None else model
     parameters = model.option_parameters(
         {"speed": args.speed, "freq": args.freq, "amplitude": args.amplitude}
     )
@@ -115,26 +301,53 @@ def scenario_system(args: argparse.Namespace, with_model: bool = False):
 
 
 def state_range(text: str) -> tuple[str, float]:
+    """``--range STATE=PEAK``: the state's name and a positive finite peak.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        No ``=``, no name, or a peak that is not a positive finite number.
+    """
     name, sep, value = text.partition("=")
     try:
-        if not sep or not name.strip() or float(value) <= 0:
+        if not sep or not name.strip() or not (math.isfinite(float(value)) and float(value) > 0):
             raise ValueError
         return name.strip(), float(value)
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f"expected STATE=PEAK with a positive number, got {text!r}"
+            f"expected STATE=PEAK with a positive finite number, got {text!r}"
         ) from None
 
 
-def read_netlist_reporting_warnings(path: str):
-    """``read_netlist(path)``, its NetlistWarnings printed as ``warning:`` lines on stderr."""
-    import warnings
+def print_warning(message: Warning | str, *_: object, **__: object) -> None:
+    """Print one warning as a ``warning: <message>`` line on stderr.
 
+    It has the signature of :func:`warnings.showwarning`, which :func:`warnings_as_lines`
+    replaces with it: no file name, line number or source line of ours in front.
+    """
+    print(f"warning: {message}", file=sys.stderr, flush=True)
+
+
+@contextlib.contextmanager
+def warnings_as_lines() -> Iterator[None]:
+    """Inside, every warning shown is printed by :func:`print_warning` as it is issued.
+
+    The warning filters stay as they are (a repeated identical warning is shown once); on
+    exit the previous ``warnings.showwarning`` is back.
+    """
+    with warnings.catch_warnings():
+        warnings.showwarning = print_warning
+        yield
+
+
+def read_netlist_reporting_warnings(path: str):
+    """``read_netlist(path)``, each of its NetlistWarnings printed as a ``warning:`` line on
+    stderr (see :func:`print_warning`)."""
     from circuitsim.netlist.reader import read_netlist
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         circuit = read_netlist(path)
     for warning in caught:
-        print(f"warning: {warning.message}", file=sys.stderr)
+        print_warning(warning.message)
     return circuit

@@ -3,8 +3,23 @@
 from __future__ import annotations
 
 import argparse
+import math
 
-from circuitsim.cli.common import add_model_options, add_scenario_options, scenario_system
+from circuitsim.cli.common import (
+    UsageError,
+    add_model_options,
+    add_scenario_options,
+    check_scenario_options,
+    require_figure_path,
+    require_finite,
+    require_fraction,
+    require_positive,
+    require_writable,
+    scenario_system,
+)
+
+MAX_CSV_ROWS = 10_000_000
+"""Most rows ``ode --csv`` writes (``--tstop`` / ``--dt`` + 1): about a gigabyte of text."""
 
 
 def _add_stability(sub: argparse._SubParsersAction) -> None:
@@ -32,7 +47,8 @@ def _add_stability(sub: argparse._SubParsersAction) -> None:
         nargs=2,
         metavar=("LO", "HI"),
         default=(1.0, 1000.0),
-        help="speed interval (m/s) searched for the loss of stability (default: 1 1000)",
+        help="speed interval (m/s) searched for the loss of stability, finite with LO < HI "
+        "(default: 1 1000)",
     )
     parser.add_argument(
         "--parameter",
@@ -49,11 +65,20 @@ def _add_stability(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=_run_stability)
 
 
+def _check_stability(args: argparse.Namespace) -> None:
+    """Refuse a non-finite --speed and a --bracket that is not finite and increasing."""
+    require_finite("--speed", args.speed)
+    lo, hi = args.bracket
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise UsageError(f"--bracket LO HI must be finite numbers with LO < HI, got {lo:g} {hi:g}")
+
+
 def _run_stability(args: argparse.Namespace) -> int:
     import json
 
     from circuitsim.mechanics import critical_speed, eigenvalues, load_model
 
+    _check_stability(args)
     model = load_model(args.model)
     if args.parameter:
         speed_parameter = args.parameter
@@ -105,7 +130,7 @@ def _add_ode(sub: argparse._SubParsersAction) -> None:
     add_model_options(parser)
     add_scenario_options(parser)
     parser.add_argument(
-        "--tstop", type=float, default=5.0, metavar="T", help="end time, s (default 5)"
+        "--tstop", type=float, default=5.0, metavar="T", help="end time, s (> 0; default 5)"
     )
     parser.add_argument(
         "--y0",
@@ -117,13 +142,15 @@ def _add_ode(sub: argparse._SubParsersAction) -> None:
         "--rtol",
         type=float,
         default=1e-10,
-        help="relative tolerance of the integrator (default 1e-10; absolute 1e-12)",
+        help="relative tolerance of the integrator, between 0 and 1 (default 1e-10; absolute "
+        "1e-12)",
     )
     parser.add_argument(
         "--dt",
         type=float,
         default=5e-4,
-        help="sample step of the CSV, s (default 0.0005; dense output, exact to the tolerance)",
+        help="sample step of the CSV, s (> 0, at most 10 million rows; default 0.0005; dense "
+        "output, exact to the tolerance)",
     )
     parser.add_argument(
         "--csv",
@@ -134,9 +161,26 @@ def _add_ode(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--plot",
         metavar="FILE",
-        help="write a PNG: displacement, velocity and phase portrait (paper Fig. 4 style)",
+        help="write a figure in the format of its suffix (.png, .pdf, .svg ...): displacement, "
+        "velocity and phase portrait (paper Fig. 4 style)",
     )
     parser.set_defaults(func=_run_ode)
+
+
+def _check_ode(args: argparse.Namespace) -> None:
+    """Refuse bad times, tolerance and figure suffix, and a CSV of more than MAX_CSV_ROWS."""
+    check_scenario_options(args)
+    require_positive("--tstop", args.tstop)
+    require_positive("--dt", args.dt)
+    require_fraction("--rtol", args.rtol)
+    require_figure_path("--plot", args.plot)
+    rows = args.tstop / args.dt + 1
+    if args.csv and rows > MAX_CSV_ROWS:
+        raise UsageError(
+            f"--dt {args.dt:g} with --tstop {args.tstop:g} gives {rows:.3g} CSV rows, more than "
+            f"{MAX_CSV_ROWS:,}: use a larger --dt"
+        )
+    require_writable(args.csv, args.plot)
 
 
 def _run_ode(args: argparse.Namespace) -> int:
@@ -145,6 +189,7 @@ def _run_ode(args: argparse.Namespace) -> int:
     from circuitsim.atomic import write_text_atomic
     from circuitsim.mechanics import solve
 
+    _check_ode(args)
     model, system = scenario_system(args, with_model=True)
     result = solve(system, t_span=(0.0, args.tstop), rtol=args.rtol, atol=1e-12)
     if args.csv:

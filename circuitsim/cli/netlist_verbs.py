@@ -8,6 +8,8 @@ import sys
 from circuitsim.cli.common import (
     progress_after,
     read_netlist_reporting_warnings,
+    require_figure_path,
+    require_writable,
 )
 
 
@@ -96,7 +98,11 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         "to 64 junctions, compiled above, where the circuit allows; default)",
     )
     parser.add_argument("--csv", metavar="FILE", help="write time,v(node),...,i(vsource),...")
-    parser.add_argument("--plot", metavar="FILE", help="save a figure (.png, .pdf, .svg)")
+    parser.add_argument(
+        "--plot",
+        metavar="FILE",
+        help="save a figure in the format of its suffix (.png, .pdf, .svg ...)",
+    )
     parser.add_argument(
         "--probe", nargs="+", metavar="SIGNAL", help="only these signals, e.g. v(out) i(v1)"
     )
@@ -106,8 +112,8 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
 def _run_simulate(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from circuitsim.netlist.reader import read_netlist
-
+    require_figure_path("--plot", args.plot)
+    require_writable(args.csv, args.plot)
     if args.engine == "ngspice":
         from circuitsim.interop.ngspice import run_ngspice
 
@@ -115,7 +121,7 @@ def _run_simulate(args: argparse.Namespace) -> int:
     else:
         from circuitsim.solver import SimulationOptions, simulate
 
-        circuit = read_netlist(args.netlist)
+        circuit = read_netlist_reporting_warnings(args.netlist)
         options = SimulationOptions.from_circuit(circuit, kernel=args.kernel)
         waves = simulate(circuit, options, progress=progress_after(1.0))
         if args.probe:

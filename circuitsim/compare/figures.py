@@ -38,7 +38,7 @@ def plot_response(
     Parameters
     ----------
     path : path-like
-        PNG file to write.
+        Figure file to write, in the format of its suffix (PNG, PDF, SVG ...).
     result : OdeResult
         From :func:`circuitsim.mechanics.solve`.
     displacement, velocity : str, optional

@@ -24,8 +24,9 @@ _STYLES = [
 
 
 def save_figure(figure, path: str | os.PathLike, dpi: int = 90) -> None:
-    """Render ``figure`` as PNG and write it atomically to ``path``."""
-    write_figure_atomic(figure, path, format="png", dpi=dpi)
+    """Render ``figure`` in the format of ``path``'s suffix (PNG without one) and write it
+    atomically to ``path``."""
+    write_figure_atomic(figure, path, dpi=dpi)
 
 
 def plot_overlay(
@@ -49,7 +50,7 @@ def plot_overlay(
     Parameters
     ----------
     path : path
-        PNG to write.
+        Figure to write, in the format of its suffix (PNG, PDF, SVG ...).
     reference : dict of str to (ndarray, ndarray)
         Per state ``(t, values)``, model seconds and physical units.
     circuits : dict of str to dict of str to (ndarray, ndarray)
