@@ -377,7 +377,7 @@ def test_a_closed_pipe_prints_nothing_in_a_real_process(tmp_path):
 
 def test_parse_values_refuses_non_finite_and_too_many():
     from circuitsim.compare.errors import ComparisonError
-    from circuitsim.compare.sweep import parse_values
+    from circuitsim.compare.values import parse_values
 
     for text in ("1:inf:1", "nan:2:1", "1:2:nan", "1,inf", "nan"):
         with pytest.raises(ComparisonError, match="finite"):

@@ -335,7 +335,7 @@ def _sweep_param_item(text: str) -> tuple[str, float] | str:
 
 
 def _add_sweep(sub: argparse._SubParsersAction) -> None:
-    from circuitsim.compare.sweep import MAX_VALUES
+    from circuitsim.compare.values import MAX_VALUES
 
     parser = sub.add_parser(
         "sweep",
@@ -491,7 +491,8 @@ def _refuse_fixed_swept(args: argparse.Namespace, model: Model, swept: str, name
 
 
 def _run_sweep(args: argparse.Namespace) -> int:
-    from circuitsim.compare.sweep import parse_values, run_sweep, save_sweep
+    from circuitsim.compare.sweep import run_sweep, save_sweep
+    from circuitsim.compare.values import parse_values
     from circuitsim.mechanics import critical_speed, load_model
     from circuitsim.synthesis.options import SynthesisOptions
 

@@ -6,15 +6,31 @@ map; ``compare_traces`` resamples circuit and reference onto one grid and measur
 ``Thresholds``, returning a ``Comparison``.
 """
 
-from circuitsim.compare.comparison import (
-    Comparison,
-    StateMetrics,
-    Thresholds,
-    compare_traces,
-    measure,
-)
-from circuitsim.compare.errors import ComparisonError
-from circuitsim.compare.mapping import common_grid, map_waveforms, resample
+# The names below are loaded on first use (PEP 562), not when the package is imported: the
+# metrics pull in scipy.interpolate and scipy.signal (about half a second), which a sweep or
+# the command line's parser does not need.
+_WHERE = {
+    "Comparison": "comparison",
+    "StateMetrics": "comparison",
+    "Thresholds": "comparison",
+    "compare_traces": "comparison",
+    "measure": "comparison",
+    "ComparisonError": "errors",
+    "common_grid": "mapping",
+    "map_waveforms": "mapping",
+    "resample": "mapping",
+}
+
+
+def __getattr__(name: str):
+    if name not in _WHERE:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(f"{__name__}.{_WHERE[name]}"), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = [
     "Comparison",

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from circuitsim.compare.mapping import map_waveforms
-from circuitsim.compare.sweep import parse_values, run_sweep, sweep_circuits
+from circuitsim.compare.sweep import run_sweep, sweep_circuits
+from circuitsim.compare.values import parse_values
 from circuitsim.mechanics import load_model, solve
 from circuitsim.netlist.reader import parse_netlist
 from circuitsim.netlist.writer import write_netlist

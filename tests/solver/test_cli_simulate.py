@@ -65,3 +65,24 @@ def test_ngspice_engine(tmp_path):
     out = tmp_path / "ng.csv"
     assert main(["simulate", str(GOLDEN / "rc.cir"), "--engine", "ngspice", "--csv", str(out)]) == 0
     assert Waveforms.from_csv(out)["v(out)"].size > 100
+
+
+def test_simulate_loads_no_comparison_or_sweep_code(tmp_path):
+    """A one-netlist run pays for what it uses: the sweep and comparison modules (with
+    scipy.interpolate and scipy.signal, about half a second to import) stay unloaded."""
+    import subprocess
+    import sys
+
+    netlist = tmp_path / "rc.cir"
+    netlist.write_text("* rc\nV1 a 0 DC 1\nR1 a b 1k\nC1 b 0 1u\n.tran 10u 1m\n.end\n")
+    script = (
+        "import sys\n"
+        "from circuitsim.cli import main\n"
+        f"assert main(['simulate', {str(netlist)!r}]) == 0\n"
+        "loaded = [m for m in ('circuitsim.compare.sweep', 'circuitsim.compare.comparison',\n"
+        "          'scipy.interpolate', 'scipy.signal') if m in sys.modules]\n"
+        "print('loaded:', loaded, file=sys.stderr)\n"
+        "sys.exit(1 if loaded else 0)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
