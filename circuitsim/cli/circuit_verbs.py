@@ -166,8 +166,8 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:
         "--engine",
         choices=("builtin", "ngspice"),
         default="builtin",
-        help="circuit simulator (default builtin, our MNA solver; with --opamp tl074 it takes "
-        "tens of seconds, ngspice a second)",
+        help="circuit simulator (default builtin, our MNA solver; ngspice, the referee, if "
+        "installed)",
     )
     parser.add_argument(
         "--tstop", type=float, metavar="T", help="model seconds to simulate (default 5)"

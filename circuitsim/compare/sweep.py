@@ -212,12 +212,17 @@ class SweepResult:
 
     def csv_text(self) -> str:
         """``<parameter>,peak_late,peak_all`` header and one row per value, full precision."""
+
+        def unit(text: str) -> str:
+            return f" ({text})" if text else ""
+
         header = (
-            f"{self.parameter} ({self.unit}),max_abs_{self.state}_last_{self.window:g}s "
-            f"({self.state_unit}),max_abs_{self.state}_all ({self.state_unit})"
+            f"{self.parameter}{unit(self.unit)},max_abs_{self.state}_last_{self.window:g}s"
+            f"{unit(self.state_unit)},max_abs_{self.state}_all{unit(self.state_unit)}"
         )
+        # repr: the shortest text that reads back as the same double (55.5, not 55.50000000001)
         rows = [
-            f"{v:.17g},{a:.17g},{b:.17g}"
+            f"{float(v)!r},{float(a)!r},{float(b)!r}"
             for v, a, b in zip(self.values, self.peak_late, self.peak_all, strict=True)
         ]
         return "\n".join([header, *rows]) + "\n"

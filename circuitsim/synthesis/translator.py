@@ -214,7 +214,13 @@ def _predicted_peaks(x, G, states, nodes, signals, options, node_peaks, warnings
         if peak > limit:
             warnings.append(
                 f"state {state} peaks at {peak:.3g} V, beyond the {options.opamp} op-amp's "
-                f"{limit:g} V swing: it will clip (use scaling='auto' or a smaller swing)"
+                f"{limit:g} V swing: it will clip ("
+                + (
+                    "use auto scaling"
+                    if options.scaling == "unity"
+                    else f"a smaller swing or a larger --range for {state} lowers it"
+                )
+                + ")"
             )
     for term, signal in signals:
         # the summed signal swings beta * max|s(x)| whether or not its switch is closed

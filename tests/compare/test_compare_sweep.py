@@ -198,3 +198,17 @@ def test_sweep_scaling_solves_each_probe_once(monkeypatch):
                                      ranges=variants.ranges)
     )  # fmt: skip
     assert write_netlist(variants.circuits[2]) == write_netlist(alone.circuit)
+
+
+def test_sweep_csv_reads_back_exactly_in_shortest_form():
+    from circuitsim.compare.sweep import SweepResult
+
+    values = parse_values("0.1:0.3:0.1")  # 0.1 + 0.1 * 2 is 0.30000000000000004
+    peaks = np.array([1e-3 / 3, 2.5e-3, 0.005])
+    result = SweepResult("k", "", values, "u", "V", peaks, 2 * peaks, "builtin", 0.5)
+    lines = result.csv_text().splitlines()
+    assert lines[0] == "k,max_abs_u_last_0.5s (V),max_abs_u_all (V)"
+    assert lines[1] == "0.1,0.0003333333333333333,0.0006666666666666666"
+    assert lines[3].split(",")[2] == "0.01"
+    table = np.array([[float(x) for x in line.split(",")] for line in lines[1:]])
+    np.testing.assert_array_equal(table, np.column_stack([values, peaks, 2 * peaks]))
