@@ -36,7 +36,8 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
             "state, |x| or dead-zone blocks for the piecewise-linear terms, the paper's part "
             "names for the wheelset) and write FILE.cir, FILE.scale.json (how node voltages "
             "map back to states) and FILE.bom.csv (parts, rounding errors). The written "
-            "netlist is read back and its coefficients checked against the model. See "
+            "netlist is read back and its coefficients checked against the model (exit code "
+            "1 if the check fails; 2 for an error, which writes no file). See "
             "docs/translator.md."
         ),
     )
@@ -100,7 +101,8 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
         "'inf' keeps them open (the linear circuit with the blocks in place)",
     )
     parser.add_argument("-o", "--output", required=True, metavar="FILE.cir", help="netlist file")
-    parser.set_defaults(func=_run_generate)
+    # 1 is the mapping check's failure (the files are written); an error that wrote nothing: 2
+    parser.set_defaults(func=_run_generate, error_exit_code=2)
 
 
 def _check_generate(args: argparse.Namespace) -> None:

@@ -111,7 +111,7 @@ def test_cli_bad_circuit_t_stop_names_the_model_key_and_writes_nothing(tmp_path,
     model = tmp_path / "gc.toml"
     model.write_text(text.replace("\nt_stop = 5.0\n", "\nt_stop = -5.0\n"))
     code = main(["generate", "--model", str(model), "-o", str(tmp_path / "gc3.cir")])
-    assert code == 1
+    assert code == 2  # 1 is kept for a failed mapping check
     err = capsys.readouterr().err
     assert f"{model}: circuit.t_stop: must be a positive number of seconds, got -5.0" in err
     assert [p.name for p in tmp_path.iterdir()] == ["gc.toml"]
