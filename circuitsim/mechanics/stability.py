@@ -122,14 +122,21 @@ def critical_speed(
         grid = np.linspace(lo, hi, scan)
 
     def rate(value: float) -> float:
-        return growth_rate(model, value, parameter, coefficients, parameters)
+        try:
+            return growth_rate(model, value, parameter, coefficients, parameters)
+        except ModelError as exc:  # the bracket reached a value the model is not defined at
+            raise ModelError(
+                f"bracket [{lo:g}, {hi:g}]: at {parameter} = {value:g} the model cannot be "
+                f"evaluated ({exc}); choose a bracket without that value"
+            ) from exc
 
     rates = np.array([rate(v) for v in grid])
     crossing = np.nonzero((rates[:-1] < 0) & (rates[1:] >= 0))[0]
     if crossing.size == 0:
         raise ModelError(
             f"the linear part does not lose stability for {parameter} in [{lo:g}, {hi:g}] "
-            f"(largest real part from {rates.min():.4g} to {rates.max():.4g} 1/s)",
+            f"(largest real part {rates[0]:.4g} 1/s at {lo:g}, {rates[-1]:.4g} 1/s at {hi:g}; "
+            f"between {rates.min():.4g} and {rates.max():.4g} 1/s)",
             file=model.file,
             key=f"parameters.{parameter}",
         )

@@ -1,6 +1,7 @@
 """Linear stability against MODEL.md and against a 1-DOF oscillator with negative damping."""
 
 import math
+import re
 import textwrap
 
 import numpy as np
@@ -83,3 +84,18 @@ def test_oscillator_with_negative_damping_closed_form(tmp_path):
         critical_speed(model, parameter="mu", bracket=(0.01, 0.2))
     with pytest.raises(ModelError, match="unknown parameter 'V'"):
         critical_speed(model)
+
+
+def test_bracket_messages_name_the_bracket(wheelset):
+    # the wheelset's coefficients divide by V: a bracket holding V = 0 is the bracket's fault
+    with pytest.raises(ModelError, match=r"bracket \[0, 100\]: at V = 0 the model cannot be"):
+        critical_speed(wheelset, bracket=(0.0, 100.0))
+    # below the critical speed (55.6 m/s) the largest real part stays negative: the message
+    # gives it at each end of the bracket, in that order
+    with pytest.raises(ModelError) as caught:
+        critical_speed(wheelset, bracket=(10.0, 50.0))
+    message = str(caught.value)
+    at_lo, at_hi = (float(x) for x in re.findall(r"(-?[\d.e+-]+) 1/s at ", message))
+    rate = lambda v: max(np.linalg.eigvals(wheelset.system(parameters={"V": v}).A).real)  # noqa: E731
+    assert at_lo == pytest.approx(rate(10.0), rel=1e-3)
+    assert at_hi == pytest.approx(rate(50.0), rel=1e-3)
