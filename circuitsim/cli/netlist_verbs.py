@@ -136,8 +136,9 @@ def _run_simulate(args: argparse.Namespace) -> int:
             waves = waves.select(args.probe)
     stats = waves.stats
     engine = args.engine
-    if "kernel" in stats:
-        engine += f" ({stats['kernel']} kernel)"
+    if "kernel" in stats:  # "ports", or "python (why the compiled kernels do not apply)"
+        name, _, why = stats["kernel"].partition(" (")
+        engine += f" ({name} kernel: {why[:-1]})" if why else f" ({name} kernel)"
     summary = f"{args.netlist}: {engine}, {len(waves.time)} time point(s)"
     if "accepted" in stats:
         summary += (

@@ -86,3 +86,18 @@ def test_simulate_loads_no_comparison_or_sweep_code(tmp_path):
     )
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
+
+
+def test_summary_names_the_kernel_and_why_the_python_loop_ran(tmp_path, capsys):
+    from circuitsim.cli import main
+
+    netlist = tmp_path / "r.cir"
+    netlist.write_text("* r\nV1 a 0 DC 1\nR1 a 0 1k\n.tran 1u 10u\n.end\n")
+    assert main(["simulate", str(netlist)]) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    assert first.startswith(
+        f"{netlist}: builtin (python kernel: no charges, junctions or switches (nothing for the "
+        "kernel to integrate)), "
+    )
+    assert main(["simulate", str(GOLDEN / "rc.cir")]) == 0
+    assert "builtin (ports kernel), " in capsys.readouterr().out
