@@ -247,6 +247,11 @@ def _run_compare(args: argparse.Namespace) -> int:
             title=f"circuit over ODE ({label})",
             errors=True,
         )
+    written = [str(args.plot)] if args.plot else []
+    if case.netlist is not None:
+        from circuitsim.synthesis.generate import companion_paths
+
+        written[:0] = [str(case.netlist), *map(str, companion_paths(case.netlist))]
     report = case.report
     if args.json:
         data = comparison.to_json()
@@ -260,7 +265,11 @@ def _run_compare(args: argparse.Namespace) -> int:
             timings_s=case.timings,
         )
         print(json.dumps(data, indent=1))
+        if written:  # stdout holds the JSON alone
+            print(f"wrote {', '.join(written)}", file=sys.stderr)
     else:
+        if written:
+            print(f"wrote {', '.join(written)}")
         print(f"circuit ({label}) against the ODE")
         print(comparison.table())
         if report is not None:

@@ -44,3 +44,16 @@ def test_compare_bad_scenario_is_an_error_with_exit_code_2(capsys):
     code = main(["compare", "--engine", "ngspice", "--param", "nosuch=1"])
     assert code == 2
     assert "nosuch" in capsys.readouterr().err
+
+
+def test_compare_says_what_it_wrote_and_keeps_json_alone_on_stdout(capsys, tmp_path):
+    netlist, plot = tmp_path / "c.cir", tmp_path / "o.png"
+    argv = ["compare", "--tstop", "0.3", "--netlist", str(netlist), "--plot", str(plot)]
+    main(argv)
+    out = capsys.readouterr().out
+    assert f"wrote {netlist}, {tmp_path / 'c.scale.json'}, {tmp_path / 'c.bom.csv'}, {plot}" in out
+    assert netlist.exists() and plot.exists()
+    main([*argv, "--json"])
+    captured = capsys.readouterr()
+    json.loads(captured.out)  # nothing but the object
+    assert f"wrote {netlist}" in captured.err
