@@ -258,7 +258,7 @@ def read_model(path: str | Path | None = None) -> ModelSpec:
     initial_table = reader.table(document.get("initial"), "initial", False)
     initial = _row(reader, initial_table, "initial", states, kind, allow_coordinates=False)
     circuit = reader.table(document.get("circuit"), "circuit", False)
-    _circuit_hints(reader, circuit)
+    _circuit_hints(reader, circuit, states, parameters, tuple(nonlinear), tuple(forcing))
     return ModelSpec(
         file=file,
         name=name,
@@ -295,12 +295,51 @@ def _units(reader: _Reader, section: dict, key: str, count: int) -> tuple[str, .
     return tuple(value)
 
 
-def _circuit_hints(reader: _Reader, circuit: dict) -> None:
-    """Check the hints of ``[circuit]`` that are numbers; the rest is the translator's.
+def _circuit_hints(
+    reader: _Reader,
+    circuit: dict,
+    states: tuple[str, ...],
+    parameters: dict,
+    terms: tuple[str, ...],
+    forcings: tuple[str, ...],
+) -> None:
+    """Check ``[circuit]``, the translator's hints (docs/translator.md, synthesis/naming.py).
 
-    ``t_stop`` (model seconds simulated) becomes the netlist's ``.tran`` stop time: checked here
-    so that a bad one is reported against the model file, not as an unreadable netlist line.
+    Part names are keyed by what they belong to (a state, a piecewise-linear term, a forcing
+    term): a key naming nothing of the model, or a name that is not a string, would otherwise
+    be dropped or turned into a part name without a word. Other keys are the author's own
+    (notes ...) and pass unchanged. ``t_stop`` (model seconds simulated)
+    becomes the netlist's ``.tran`` stop time: checked here so that a bad one is reported
+    against the model file, not as an unreadable netlist line.
     """
+    by_state = {"integrators", "inverters", "capacitors"}
+    owners = {"switches": ("nonlinear term", terms), "sources": ("forcing term", forcings)}
+    owners.update({key: ("state", states) for key in by_state})
+    inputs = states + terms + forcings + ("constant",)
+    for key, (what, known) in owners.items():
+        _part_names(reader, circuit.get(key), f"circuit.{key}", what, known)
+    resistors = reader.table(circuit.get("resistors"), "circuit.resistors", False)
+    for state, table in resistors.items():
+        where = f"circuit.resistors.{state}"
+        if state not in states:
+            raise reader.fail(where, f"not a state of the model (states: {', '.join(states)})")
+        _part_names(reader, table, where, "state, term or forcing", inputs)
+    if "speed" in circuit:
+        speed = reader.table(circuit["speed"], "circuit.speed")
+        reader.check_keys(speed, "circuit.speed", ("parameter", "entries"))
+        name = reader.string(speed, "parameter", "circuit.speed")
+        if name not in parameters:
+            raise reader.fail(
+                "circuit.speed.parameter", f"unknown parameter {name!r} (known: "
+                f"{', '.join(parameters)})"
+            )  # fmt: skip
+        entries = speed.get("entries", [])
+        if not isinstance(entries, list) or not all(
+            isinstance(e, list) and len(e) == 2 and all(x in states for x in e) for e in entries
+        ):
+            raise reader.fail(
+                "circuit.speed.entries", "expected a list of [state, state] pairs of the model"
+            )
     if "t_stop" not in circuit:
         return
     value = circuit["t_stop"]
@@ -310,6 +349,17 @@ def _circuit_hints(reader: _Reader, circuit: dict) -> None:
         )
     if not math.isfinite(value) or value <= 0:
         raise reader.fail("circuit.t_stop", f"must be a positive number of seconds, got {value}")
+
+
+def _part_names(reader: _Reader, value, key: str, what: str, known: tuple[str, ...]) -> None:
+    """A table of part names (strings) keyed by names in ``known`` (each a ``what``)."""
+    for name, part in reader.table(value, key, False).items():
+        if name not in known:
+            raise reader.fail(
+                f"{key}.{name}", f"not a {what} of the model (known: {', '.join(known)})"
+            )
+        if not isinstance(part, str) or not part.strip():
+            raise reader.fail(f"{key}.{name}", f"expected a part name, got {_type(part)}")
 
 
 def _parameters(reader: _Reader, document: dict, states: set[str]) -> dict[str, Parameter]:
