@@ -121,9 +121,14 @@ def _run_simulate(args: argparse.Namespace) -> int:
     else:
         from circuitsim.solver import SimulationOptions, simulate
 
+        from circuitsim.solver.errors import SolverError
+
         circuit = read_netlist_reporting_warnings(args.netlist)
-        options = SimulationOptions.from_circuit(circuit, kernel=args.kernel)
-        waves = simulate(circuit, options, progress=progress_after(1.0))
+        try:
+            options = SimulationOptions.from_circuit(circuit, kernel=args.kernel)
+            waves = simulate(circuit, options, progress=progress_after(1.0))
+        except SolverError as exc:  # about the circuit ("D1: no .model ..."): say which file
+            raise type(exc)(f"{args.netlist}: {exc}") from exc
         if args.probe:
             missing = [p for p in args.probe if p not in waves]
             if missing:

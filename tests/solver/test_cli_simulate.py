@@ -101,3 +101,12 @@ def test_summary_names_the_kernel_and_why_the_python_loop_ran(tmp_path, capsys):
     )
     assert main(["simulate", str(GOLDEN / "rc.cir")]) == 0
     assert "builtin (ports kernel), " in capsys.readouterr().out
+
+
+def test_engine_errors_name_the_netlist(tmp_path, capsys):
+    from circuitsim.cli import main
+
+    netlist = tmp_path / "d.cir"
+    netlist.write_text("* d\nV1 a 0 DC 1\nD1 a 0 nom\n.op\n.end\n")
+    assert main(["simulate", str(netlist)]) == 1
+    assert f"error: {netlist}: D1: no .model 'nom'" in capsys.readouterr().err
