@@ -120,7 +120,6 @@ def _run_simulate(args: argparse.Namespace) -> int:
         waves = run_ngspice(Path(args.netlist), probes=args.probe)
     else:
         from circuitsim.solver import SimulationOptions, simulate
-
         from circuitsim.solver.errors import SolverError
 
         circuit = read_netlist_reporting_warnings(args.netlist)
