@@ -145,15 +145,16 @@ def test_sweep_cli_refuses_bad_input(argv, tmp_path, capsys):
 
 
 def test_a_tl074_sweep_warns_where_a_state_reached_the_swing():
-    """Every state node is probed for op-amps with a finite swing: a scaling that would put y
-    at about 4 x 5 V makes the TL074 circuit clip at 12.9 V (warned, with the values); the
-    sweep's own scaling does not; ideal op-amps have no swing to check."""
+    """Every state node is probed for op-amps with a finite swing: a scaling that would put
+    psi at about 4 x 5 V makes the TL074 circuit clip at 12.9 V (warned, with the values); the
+    sweep's own scaling does not; ideal op-amps have no swing to check. (psi, not y: y's scale
+    is lowered for the flange's |x| blocks, whose offsets must stay within the swing.)"""
     from circuitsim.synthesis.scaling import direct_solution
 
     systems = wheelset_systems(VALUES)
     _, x = direct_solution(systems[1], T_STOP)
     peaks = dict(zip(systems[1].states, np.max(np.abs(x), axis=1), strict=True))
-    tight = {**peaks, "y": peaks["y"] / 4}
+    tight = {**peaks, "psi": peaks["psi"] / 4}
     runs = {}
     for label, opamp, ranges in (
         ("tight", "tl074", tight),
@@ -164,9 +165,11 @@ def test_a_tl074_sweep_warns_where_a_state_reached_the_swing():
         runs[label] = run_sweep(systems, VALUES, "V", "m/s", "builtin", options, workers=2)
     (warning,) = runs["tight"].warnings
     assert warning.startswith(
-        "state y (y) reached the tl074 op-amp's output swing (about 13 V) in 3 of 3 variants "
-        "(V 50 to 61 m/s; 12.9 V at"
+        "state psi (psi) reached the tl074 op-amp's output swing (about 13 V) in 3 of 3 variants "
+        "(V 50 to 61 m/s; "
     )
+    volts = float(warning.split("m/s; ")[1].split(" V at")[0])
+    assert 0.95 * 13.0 <= volts < 15.0  # at the swing (the clip check's threshold), not beyond
     assert runs["own"].warnings == []
     assert runs["ideal"].warnings == []
 

@@ -2,6 +2,8 @@
 are predicted like the states' and checked against the op-amps' swing: an |x| block's offset
 can take it past the swing while every state is within."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -57,18 +59,36 @@ def saturated(tmp_path_factory):
     return load_model(path).system()
 
 
-def test_an_offset_past_the_swing_is_warned_of(saturated):
+def test_auto_scaling_keeps_offset_blocks_within_the_swing(saturated):
+    """5 V for u's peak of 0.2 would be 24 V per unit, and the offset of 1 alone 24 V at the
+    blocks: auto scaling lowers u's scale until they fit in 0.9 of the TL074's 13 V, and
+    says so; the circuit then follows the model (it clipped at 98 % NRMSD before)."""
+    from circuitsim.compare.case import run_case
+
     tl074 = synthesize(saturated, SynthesisOptions(opamp="tl074", t_stop=5.0))
     G = tl074.scale_map.states["u"].volts_per_unit
-    assert G * 1.0 > 13.0  # the offset alone is past the TL074's swing
+    assert G < 13.0 * 0.9 / 1.2  # the block's peak |u + 1| is about 1.2
+    assert any("state u scaled to" in w and "|x| blocks of sat" in w for w in tl074.warnings)
+    assert not any("clip" in w for w in tl074.warnings)
     for m in (1, 2):
-        assert tl074.node_peaks[f"sat_abs{m}"] > G * 1.0
-        assert any(f"|x| block {m} (sat_abs{m})" in w and "clip" in w for w in tl074.warnings)
-    # a range that leaves room for the offset: no warning
-    roomy = synthesize(
-        saturated, SynthesisOptions(opamp="tl074", t_stop=5.0, ranges={"u": 0.5, "w": 1.0})
+        assert tl074.node_peaks[f"sat_abs{m}"] <= 0.9 * 13.0
+    ideal = synthesize(saturated, SynthesisOptions(t_stop=5.0))
+    assert ideal.scale_map.states["u"].volts_per_unit == 24.0  # ideal op-amps: no limit
+    case = run_case(saturated, SynthesisOptions(opamp="tl074", t_stop=5.0, series="exact"))
+    assert case.comparison.states["w"].nrmsd_percent < 0.1
+
+
+def test_a_block_past_the_swing_is_warned_of(saturated):
+    """Unity scaling keeps 1 V per unit: an offset of 20 units is 20 V at the blocks."""
+    terms = tuple(
+        replace(t, abs_terms=tuple(replace(a, offset=20.0 * a.offset) for a in t.abs_terms))
+        for t in saturated.nonlinear
     )
-    assert not any("|x| block" in w for w in roomy.warnings)
+    far = replace(saturated, nonlinear=terms)
+    tl074 = synthesize(far, SynthesisOptions(opamp="tl074", t_stop=5.0, scaling="unity"))
+    for m in (1, 2):
+        assert tl074.node_peaks[f"sat_abs{m}"] > 13.0
+        assert any(f"|x| block {m} (sat_abs{m})" in w and "clip" in w for w in tl074.warnings)
 
 
 def test_predicted_block_peaks_match_the_simulated_circuit(saturated):
