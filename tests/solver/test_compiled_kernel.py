@@ -461,19 +461,35 @@ def test_wheelset_kernels_agree(tmp_path):
     # 2.6e-8 of its range (it sits at a switch threshold, where roundoff moves it most)
     assert_kernels_agree(python, compiled, bound=1e-6)
     assert kernel_deviation(python, compiled)["v(y)"] <= SAME_SIGNAL
-    # the ports kernel (Newton on the 4 junction voltages): measured the same 3905 steps,
-    # v(y) within 5.5e-14 of its range, worst v(flange_abs2_o1) at 2.9e-10
-    assert_kernels_agree(python, runs["ports"], bound=1e-6)
-    assert kernel_deviation(python, runs["ports"])["v(y)"] <= SAME_SIGNAL
+    # The ports kernel tests Newton's convergence on the 4 junction voltages only (the
+    # reference tests every unknown), so its iterates differ in round-off, and a step decision
+    # on a knife's edge can fall the other way: measured the same 3884 steps and 15 rejections,
+    # the same time points up to t = 0.294 s, after that shifted by up to 4.6e-7 s (0.35 % of
+    # a step). Where the time points agree, every signal agrees as for the compiled kernel;
+    # past the shift, the integrator outputs (the states) differ by the interpolation across
+    # it (v(y): 2.5e-8 of its range), while a comparator node that jumps when a diode turns
+    # over differs by its jump wherever the shift moves the jump across a time point.
+    ports = runs["ports"]
+    assert ports.time.shape == python.time.shape
+    assert ports.stats["rejected"] == python.stats["rejected"]
+    assert np.max(np.abs(ports.time - python.time)) <= 1e-5 * python.time[-1]
+    same = np.abs(ports.time - python.time) <= SAME_TIME * python.time[-1]
+    assert same[: np.argmin(same)].size > python.time.size / 2
+    for name in python.names:
+        span = max(float(np.ptp(python[name])), 1e-12)
+        assert np.max(np.abs(ports[name][same] - python[name][same])) <= 1e-6 * span, name
+    for state in ("y", "psi", "y_dot", "psi_dot"):
+        assert kernel_deviation(python, ports)[f"v({state})"] <= 1e-6
 
 
 def test_wheelset_at_tight_tolerance_survives_the_first_steps(tmp_path):
-    # Regression: at reltol 1e-6 with uic, the first step is cut (switch transition) to
-    # ~4e-14 s, where a0 is 1e5 times the factorization's; the Woodbury update then lost the
-    # digits Newton needed on the op-amp branch currents and the run failed with "time step
-    # too small" at t = 6e-16 s. A Newton failure that far from the factored a0 is now retried
-    # on a new factorization (transient.RETRY_RATIO). The first step depends on tstop only
-    # through min(tstop / 100, tstep), so 0.05 s starts exactly as the 5 s run did.
+    # Regression: at reltol 1e-6 with uic, the first step was cut (a switch transition located
+    # against the uic start) to ~4e-14 s, where a0 is 1e5 times the factorization's; the
+    # Woodbury update then lost the digits Newton needed on the op-amp branch currents and the
+    # run failed with "time step too small" at t = 6e-16 s. A Newton failure that far from the
+    # factored a0 is retried on a new factorization (transient.RETRY_RATIO), and the first step
+    # from uic no longer locates a transition. The first step depends on tstop only through
+    # min(tstop / 100, tstep), so 0.05 s starts exactly as the 5 s run does.
     from circuitsim.mechanics import load_model
     from circuitsim.synthesis.options import SynthesisOptions
     from circuitsim.synthesis.translator import synthesize

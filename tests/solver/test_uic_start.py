@@ -59,3 +59,36 @@ def test_uic_first_points_agree_with_ngspice(tmp_path):
         np.testing.assert_allclose(
             np.interp(theirs.time[early], ours.time, ours[name]), theirs[name][early], atol=1e-4
         )
+
+
+SWITCHED = """* a switch closed by a DC control from t = 0, started from uic
+V1 in 0 DC 1
+VC c 0 DC 1
+S1 in a c 0 SMOD
+.model SMOD SW(VT=0.5 VH=0 RON=1 ROFF=1e9)
+R1 a b 1k
+C1 b 0 1u IC=0
+.tran 10u 5m uic
+.end
+"""
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
+def test_first_step_from_uic_locates_no_switch_transition(kernel):
+    """The uic start holds v(c) = 0 V though VC fixes it at 1 V: no crossing happened, so the
+    first step is the nominal one, min(tstop / 100, tstep) / 100 as ngspice's (it was cut
+    towards the 'crossing' down to ~1e-14 s), and nothing is rejected there."""
+    circuit = parse_netlist(SWITCHED)
+    w = simulate(circuit, SimulationOptions.from_circuit(circuit, kernel=kernel))
+    assert w.time[0] == pytest.approx(min(5e-3 / 100, 10e-6) / 100, rel=1e-12)
+    exact = 1.0 - np.exp(-w.time / 1e-3)  # v(b): R1 C1 charged through the closed switch
+    np.testing.assert_allclose(w["v(b)"], exact, atol=2e-3)
+
+
+@requires_ngspice
+def test_first_switched_step_from_uic_is_ngspices(tmp_path):
+    path = tmp_path / "switched.cir"
+    path.write_text(SWITCHED)
+    theirs = run_ngspice(path, ["v(b)"])
+    ours = simulate(parse_netlist(SWITCHED))
+    assert ours.time[0] == pytest.approx(theirs.time[0], rel=1e-12)

@@ -236,7 +236,7 @@ def ports_start(
     max_step, min_step, breaks, x, ctx0 = start_transient(
         system, tstep, tstop, tstart, tmax, uic, stats
     )
-    plan, families = build_plan(system, breaks, tstop, max_step, min_step)
+    plan, families = build_plan(system, breaks, tstop, max_step, min_step, uic)
     return PortsStart(system, plan, families, x, ctx0.q.copy(), tstep, tstart, min_step, bool(uic))
 
 

@@ -210,9 +210,18 @@ def _dense(matrix) -> np.ndarray:
 
 
 def build_plan(
-    system: MnaSystem, breaks: np.ndarray, tstop: float, max_step: float, min_step: float
+    system: MnaSystem,
+    breaks: np.ndarray,
+    tstop: float,
+    max_step: float,
+    min_step: float,
+    uic: bool = False,
 ) -> tuple[KernelPlan, dict]:
-    """The plan, and the families' present states (for the kernel's initial state)."""
+    """The plan, and the families' present states (for the kernel's initial state).
+
+    ``uic``: the run starts from initial conditions, not a solution (``ints[4]``: the first
+    step then locates no switch transition: solver/transient.py, run_transient).
+    """
     options = system.options
     n = system.size
     parts = [f.kernel_data() for f in system.families]
@@ -317,7 +326,13 @@ def build_plan(
             ]
         ),
         ints=np.array(
-            [0 if options.method == "trap" else 1, options.maxord, options.itl4, options.max_steps],
+            [
+                0 if options.method == "trap" else 1,
+                options.maxord,
+                options.itl4,
+                options.max_steps,
+                int(uic),
+            ],
             dtype=np.int64,
         ),
     )

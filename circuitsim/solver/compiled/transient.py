@@ -315,7 +315,7 @@ def run(plan, st, t_until):
                     qdot[lin[j]] = a0 * ql[j] + hist[lin[j]]
             extend(x_new, x_ext)
             transition = False
-            if fixed == 0 and ms:
+            if fixed == 0 and ms and not (ints[4] and si[FIRST]):  # uic: solver/transient.py
                 fraction = switch_transition(x_ext, x_prev_ext, sw, state, accepted, approach)
                 if fraction < 1 - TRANSITION_OVERSHOOT and h * fraction > 10 * min_step:
                     si[REJECTED] += 1
