@@ -18,6 +18,7 @@ CFG_A0 = 4  # fs: the a0 the configuration was made for
 CFG_VERSION = 14  # ints: the factorization version it was made from (-1: none)
 CFG_STALE = 15  # ints: 1 when a switch toggled since
 CFG_COUNT = 16  # ints: configurations made (H's columns are formed lazily for the present one)
+ACTIVE_STREAK = 17  # ints: accepted steps in a row that ended with many active junctions
 
 
 class PortState(NamedTuple):
@@ -25,7 +26,7 @@ class PortState(NamedTuple):
     eliminated ports, r = md + rR, nq charge slots, nrows recorded unknowns)."""
 
     fs: np.ndarray  # (5,) t, h, saved h, last a0, configuration a0
-    ints: np.ndarray  # (17,) counters and flags (compiled/newton.py indices, CFG_*)
+    ints: np.ndarray  # (18,) counters and flags (compiled/newton.py indices, CFG_*, ...)
     ht: np.ndarray  # (4,) accepted times, newest first
     hq: np.ndarray  # (4, nq) charges there
     hi: np.ndarray  # (2, nq) their derivatives
@@ -93,7 +94,7 @@ def initial_port_state(
     rows = np.ascontiguousarray(rows, dtype=np.int64)
     out_x = np.zeros((capacity, rows.size))
     out_x[0] = x0[rows]
-    ints = start_counters(17)
+    ints = start_counters(18)
     ints[CFG_VERSION] = -1
     z = np.zeros
     return PortState(
