@@ -1,8 +1,9 @@
 """report.md and metrics.json of a reproduction run (:mod:`circuitsim.compare.reproduce`).
 
-Every number in the report comes from the run itself, except the ``MODEL.md`` columns: the
-project's independent reference values (numpy/scipy, DOP853, rtol 1e-11), printed beside ours
-so that a reader sees the agreement without opening another file.
+Every number in the report comes from the run itself, except the reference columns: the
+project's independent reference values (docs/model.md, "Reference results"; numpy/scipy,
+DOP853, rtol 1e-11), printed beside ours so that a reader sees the agreement without opening
+another file.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ import math
 import platform
 from datetime import UTC, datetime
 
-# MODEL.md's reference results for the paper coefficient set (see MODEL.md, "Reference results").
+# The reference results for the paper coefficient set (docs/model.md, "Reference results").
 MODEL_MD_CRITICAL_SPEED = 55.6455  # m/s
 MODEL_MD_HUNTING_FREQUENCY = 8.477  # Hz
 MODEL_MD_FREE = {54.0: 4.14e-6, 57.0: 1.223}  # max |y| over 9-10 s, m
@@ -84,7 +85,7 @@ def _stability(result, add) -> None:
     add(
         f"Model (paper coefficient set, no flange): critical speed **{result.critical_speed:.4f}"
         f" m/s**, hunting frequency {result.hunting_frequency:.3f} Hz "
-        f"(MODEL.md: {MODEL_MD_CRITICAL_SPEED} m/s, {MODEL_MD_HUNTING_FREQUENCY} Hz; the paper "
+        f"(reference: {MODEL_MD_CRITICAL_SPEED} m/s, {MODEL_MD_HUNTING_FREQUENCY} Hz; the paper "
         "reports 55.5 m/s)."
     )
     add("")
@@ -120,7 +121,7 @@ def _free(result, add) -> None:
     add("")
     add("y(0) = 5 mm, other states 0, no flange, no excitation, 0-10 s.")
     add("")
-    add("| V (m/s) | max abs y over 9-10 s (m) | MODEL.md |")
+    add("| V (m/s) | max abs y over 9-10 s (m) | reference |")
     add("|---|---|---|")
     for speed, peak in sorted(result.free_summary.items()):
         add(f"| {speed:g} | {peak:.4g} | {_fmt(MODEL_MD_FREE.get(speed), '.4g')} |")
@@ -135,7 +136,7 @@ def _forced(result, add) -> None:
     add("")
     add(
         "V = 55 m/s, a = 0.040 m, zero initial state, 0-5 s; direct solution with a restart at "
-        "every flange kink. MODEL.md's values in parentheses."
+        "every flange kink. The reference values (docs/model.md) in parentheses."
     )
     add("")
     add("| f (Hz) | flange | max abs y (mm) | y(5 s) (mm) | max abs y' (m/s) | kinks | figure |")

@@ -33,7 +33,7 @@ def test_ode_csv_reproduces_model_md_row(tmp_path, capsys):
         assert handle.readline().strip() == "time,y,psi,y_dot,psi_dot"
     data = np.loadtxt(out, delimiter=",", skiprows=1)
     assert data[0, 0] == 0.0 and data[-1, 0] == pytest.approx(5.0)
-    # MODEL.md: f = 3 Hz, flange on: max |y| 14.265 mm, y(5 s) +0.8557 mm, max |y'| 0.4772 m/s
+    # reference: f = 3 Hz, flange on: max |y| 14.265 mm, y(5 s) +0.8557 mm, max |y'| 0.4772 m/s
     assert np.max(np.abs(data[:, 1])) * 1e3 == pytest.approx(14.265, rel=1e-3)
     assert data[-1, 1] * 1e3 == pytest.approx(0.8557, rel=1e-3)
     assert np.max(np.abs(data[:, 3])) == pytest.approx(0.4772, rel=1e-3)
@@ -48,7 +48,7 @@ def test_ode_free_response_and_plot(tmp_path, capsys):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     out = capsys.readouterr().out
     assert "nonlinear: none" in out
-    # MODEL.md: V = 57 grows to 1.223 m (max |y| over 9-10 s, which is the max over 0-10 s)
+    # reference: V = 57 grows to 1.223 m (max |y| over 9-10 s, which is the max over 0-10 s)
     line = next(row for row in out.splitlines() if row.strip().startswith("y "))
     assert float(line.split()[3]) == pytest.approx(1.223, rel=1e-2)
 

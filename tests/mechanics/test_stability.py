@@ -1,4 +1,5 @@
-"""Linear stability against MODEL.md and against a 1-DOF oscillator with negative damping."""
+"""Linear stability against the reference results (docs/model.md) and against a 1-DOF
+oscillator with negative damping."""
 
 import math
 import re
@@ -33,7 +34,7 @@ def test_eq2_set_is_much_more_stable(wheelset):
 
 
 def test_derived_coefficients_follow_equation_4(wheelset):
-    # MODEL.md: the derived set reproduces equation (5)'s rounded numbers
+    # reference: the derived set reproduces equation (5)'s rounded numbers
     c = wheelset.system("derived", {"V": 1.0}).coefficients
     paper = wheelset.system("paper", {"V": 1.0}).coefficients
     for name in paper:

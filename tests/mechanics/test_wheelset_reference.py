@@ -1,11 +1,12 @@
-"""The wheelset against MODEL.md's reference numbers (computed independently, rtol 1e-11)."""
+"""The wheelset against the reference results of docs/model.md (computed independently,
+rtol 1e-11)."""
 
 import numpy as np
 import pytest
 
 from circuitsim.mechanics import load_model, solve
 
-# MODEL.md, "Forced response": f (Hz), flange -> max|y| (mm), y(5 s) (mm), max|y'| (m/s)
+# docs/model.md, "Reference results": f (Hz), flange -> max|y| (mm), y(5 s) (mm), max|y'| (m/s)
 FORCED = {
     (3, False): (21.339, 1.2725, 0.5526),
     (3, True): (14.265, 0.8557, 0.4772),
@@ -55,7 +56,7 @@ def test_free_response_decays_below_and_grows_above_critical_speed(wheelset, spe
 
 
 def test_plain_force_equals_track_displacement_times_k_y(wheelset):
-    # MODEL.md: F0 = k_y * a; the 'force' group written with F0 must give the same motion
+    # reference: F0 = k_y * a; the 'force' group written with F0 must give the same motion
     track = wheelset.system(parameters={"f": 5, "a": 0.01})
     force = wheelset.system(
         parameters={"f": 5, "F0": 4.81e6 * 0.01}, forcing={"track": False, "force": True}

@@ -11,7 +11,7 @@ from circuitsim.synthesis.check import check_mapping
 from circuitsim.synthesis.generate import generate
 from circuitsim.synthesis.options import SynthesisOptions
 
-MODEL_CRITICAL_SPEED = 55.6455  # MODEL.md, paper set
+MODEL_CRITICAL_SPEED = 55.6455  # reference, paper set
 
 
 def wheelset(V=55.0, flange=True):

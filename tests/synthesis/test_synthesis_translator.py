@@ -1,4 +1,5 @@
-"""The translator's circuit against hand-derived values (MODEL.md's numbers, 1/(R C) = g).
+"""The translator's circuit against hand-derived values (the reference numbers of
+docs/model.md, 1/(R C) = g).
 
 In unity scaling (1 V = 1 SI unit) the paper's equation (7) fixes every product R C:
 R1 C1 = 1 s (y' into y), R31 C3 = m / k_y, R32 C3 = m / |k_ypsi|, R33 C3 = m V / 7.24e6,
@@ -79,7 +80,7 @@ def test_generator_is_the_papers_xfg1(unity, wheelset):
 
 
 def test_op_amp_sections_follow_the_paper(unity):
-    # MODEL.md: U1A/U1B realize y1, U2A/U2B y2, U1C/U1D y3, U2C/U2D y4 (integrator, inverter)
+    # reference: U1A/U1B realize y1, U2A/U2B y2, U1C/U1D y3, U2C/U2D y4 (integrator, inverter)
     c = unity.circuit
     expected = {
         "XU1A": "y_neg", "XU1B": "y", "XU2A": "psi_neg", "XU2B": "psi",
@@ -113,7 +114,7 @@ def test_unity_scale_map_and_transient(unity):
 
 def test_auto_scaling_reaches_the_swing(wheelset):
     s = synthesize(wheelset, SynthesisOptions(swing=5.0))
-    # MODEL.md, f = 3 Hz with flange: max|y| = 14.265 mm, max|y'| = 0.4772 m/s
+    # reference, f = 3 Hz with flange: max|y| = 14.265 mm, max|y'| = 0.4772 m/s
     for state, peak in (("y", 14.265e-3), ("y_dot", 0.4772)):
         volts = s.scale_map.states[state].volts_per_unit * peak
         assert 5.0 * 0.9 <= volts <= 5.0 * 1.001
@@ -191,7 +192,7 @@ def test_element_names_are_unique(wheelset, opamp, nonlinear):
 
 
 def test_flange_signal_peak_is_predicted(wheelset):
-    # v_sig = -G_y * deadzone(y, eta): peak G_y (max|y| - eta), MODEL.md max|y| = 14.265 mm
+    # v_sig = -G_y * deadzone(y, eta): peak G_y (max|y| - eta), reference max|y| = 14.265 mm
     s = synthesize(wheelset, SynthesisOptions())
     G = s.scale_map.states["y"].volts_per_unit
     assert s.node_peaks["flange_sig"] == pytest.approx(G * (14.265e-3 - 0.009), rel=2e-3)
