@@ -27,6 +27,12 @@ if TYPE_CHECKING:
     from circuitsim.mechanics.model import Model
 
 
+TSTOP_HELP = (
+    "model seconds to simulate (> 0; default: the model file's [circuit] t_stop, else 5; "
+    "the wheelset: 5)"
+)
+
+
 def _add_generate(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "generate",
@@ -91,7 +97,10 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
         help="netlist dialect (default ngspice)",
     )
     parser.add_argument(
-        "--tstop", type=float, metavar="T", help="model seconds to simulate (default 5)"
+        "--tstop",
+        type=float,
+        metavar="T",
+        help=TSTOP_HELP,
     )
     parser.add_argument(
         "--switch-at",
@@ -172,7 +181,10 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:
         "installed)",
     )
     parser.add_argument(
-        "--tstop", type=float, metavar="T", help="model seconds to simulate (default 5)"
+        "--tstop",
+        type=float,
+        metavar="T",
+        help=TSTOP_HELP,
     )
     parser.add_argument(
         "--max-nrmsd",
@@ -383,12 +395,21 @@ def _add_sweep(sub: argparse._SubParsersAction) -> None:
         "on the grid; a STEP longer than STOP-START gives START alone), or a comma-separated "
         f"list; finite numbers, at most {MAX_VALUES:,} of them",
     )
-    parser.add_argument("--engine", choices=("builtin", "ngspice"), default="builtin")
+    parser.add_argument(
+        "--engine",
+        choices=("builtin", "ngspice"),
+        default="builtin",
+        help="builtin (default: our MNA solver, each variant in a thread) or ngspice (one "
+        "process per variant)",
+    )
     parser.add_argument(
         "--opamp", choices=("ideal", "tl074"), default="ideal", help="op-amp model (default ideal)"
     )
     parser.add_argument(
-        "--tstop", type=float, metavar="T", help="model seconds to simulate (> 0; default 5)"
+        "--tstop",
+        type=float,
+        metavar="T",
+        help=TSTOP_HELP,
     )
     parser.add_argument(
         "--window",

@@ -88,7 +88,14 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         ),
     )
     parser.add_argument("netlist", metavar="FILE.cir", help="netlist to simulate")
-    parser.add_argument("--engine", choices=("builtin", "ngspice"), default="builtin")
+    parser.add_argument(
+        "--engine",
+        choices=("builtin", "ngspice"),
+        default="builtin",
+        help="builtin (default: our MNA solver) or ngspice (the referee, if installed; its CSV "
+        "columns come in ngspice's order and include the macromodels' internal source "
+        "currents)",
+    )
     parser.add_argument(
         "--kernel",
         choices=("auto", "ports", "compiled", "python"),
