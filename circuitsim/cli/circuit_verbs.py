@@ -141,7 +141,7 @@ def _run_generate(args: argparse.Namespace) -> int:
         ranges=dict(args.range),
     )
     result = generate(system, args.output, options, args.dialect)
-    for warning in result.warnings:
+    for warning in result.synthesis.warnings:  # the check's are in its summary below
         print(f"warning: {warning}", file=sys.stderr)
     print(f"wrote {result.netlist}, {result.scale_file}, {result.bom_file}")
     print(result.report.summary())

@@ -447,7 +447,7 @@ def reproduce(
     write_text_atomic(out / "metrics.json", json.dumps(reproduction_json(result), indent=1) + "\n")
     write_text_atomic(out / "report.md", render_report(result))
     result.wall_s = time.perf_counter() - started
-    say(f"wrote {out / 'report.md'} in {result.wall_s:.1f} s")
+    say(f"report and metrics written ({result.wall_s:.1f} s)")
     return result
 
 
