@@ -1,9 +1,9 @@
 """Running ngspice in batch mode on a netlist and reading its waveforms back.
 
 The netlist (a :class:`~circuitsim.netlist.circuit.Circuit`, written in the ngspice dialect, or
-SPICE text, or a file) gets its own ``.control`` blocks replaced by one that runs the deck's
-analyses and writes the chosen analysis' vectors to a rawfile, which
-:mod:`circuitsim.interop.rawfile` parses (binary: exact doubles, and fast)::
+SPICE text, or a file) gets its own ``.control`` blocks replaced by one that runs the chosen
+analysis and writes its vectors to a rawfile, which :mod:`circuitsim.interop.rawfile` parses
+(binary: exact doubles, and fast)::
 
     .control
     set filetype=binary
@@ -16,6 +16,12 @@ An ``.include file`` (or ``.lib file section``) line of the deck that names no f
 netlist but a file of the package part library (``.include parts.lib``) is pointed at that
 library file by its absolute path, as the netlist reader finds it (ngspice knows only the first
 place). Includes inside included files are left to ngspice.
+
+Only the chosen analysis runs: the deck's other analysis cards (``.op``, ``.ac``, ``.dc``, ...,
+any case) and their ``+`` continuation lines are commented out with a leading ``*`` in the copy
+ngspice reads, since ngspice 39 aborts a ``run`` over an ``.op`` together with another analysis
+("no data saved for Transient analysis; analysis not run"). Cards in included files are left
+to ngspice.
 
 ngspice's exit status is not trusted (a failed run may still exit 0): a run counts as failed
 when the rawfile is missing or empty, or when the log holds error lines ("Error", "singular
@@ -80,8 +86,10 @@ def run_ngspice(
     timeout : float
         Seconds before ngspice is stopped and NgspiceError raised.
     analysis : {"tran", "op", "ac"}, optional
-        Which of the deck's analyses to return; by default the ``.tran`` if there is one,
-        else the ``.op``, else the ``.ac``.
+        Which of the deck's analyses to run and return; by default the ``.tran`` if there is
+        one, else the ``.op``, else the ``.ac``. The deck's other analysis cards (with their
+        ``+`` continuation lines) are commented out in the copy ngspice runs, so ngspice runs
+        exactly this one.
 
     Returns
     -------
@@ -97,7 +105,8 @@ def run_ngspice(
     ------
     NgspiceError
         ngspice is not installed, timed out, reported errors, wrote no output, the deck has
-        no ``.tran``/``.op``, or a probe is not among the results.
+        no ``.tran``/``.op``/``.ac`` (or not the one asked for), or a probe is not among the
+        results.
     """
     deck, cwd = _deck_text(netlist)
     deck = _library_includes(deck, Path(cwd) if cwd else Path(os.getcwd()))
@@ -256,18 +265,55 @@ def _chosen_analysis(deck: str, wanted: str | None = None) -> str:
     raise NgspiceError("the netlist has no .tran, .op or .ac analysis for ngspice to run")
 
 
+# The analysis cards ngspice runs on ``run``; all but the chosen one are commented out, since
+# ngspice 39 aborts a ``run`` over an ``.op`` together with another analysis ("no data saved
+# for ... analysis; analysis not run").
+_ANALYSIS_CARDS = frozenset(
+    (".ac", ".dc", ".disto", ".noise", ".op", ".pss", ".pz", ".sens", ".sp", ".tf", ".tran")
+)
+
+
 def _with_control(deck: str, analysis: str, raw: Path) -> str:
-    """``deck`` without its ``.control`` blocks and ``.end``, plus ours, plus ``.end``."""
+    """The deck ngspice is given: only the chosen analysis, and our ``.control`` block.
+
+    Parameters
+    ----------
+    deck : str
+        SPICE text; its first line is the title.
+    analysis : {"tran", "op", "ac"}
+        The analysis to run.
+    raw : Path
+        Where ngspice writes the binary rawfile.
+
+    Returns
+    -------
+    str
+        ``deck`` without its ``.control`` blocks and ``.end``, with every analysis card other
+        than ``.<analysis>`` (outside control blocks, any case) and its ``+`` continuation lines
+        commented out with a leading ``*``, then a ``.control`` block that runs and writes the
+        chosen analysis, then ``.end``.
+    """
     kept: list[str] = []
     in_control = False
+    dropping = False  # inside a commented-out card: its continuation lines go as well
     for index, line in enumerate(deck.splitlines()):
-        word = line.strip().split(maxsplit=1)[0].lower() if line.strip() and index else ""
-        if word == ".control":
-            in_control = True
-        elif word == ".endc":
-            in_control = False
-        elif not in_control and word != ".end":
+        stripped = line.strip()
+        word = stripped.split(maxsplit=1)[0].lower() if stripped and index else ""
+        if in_control or word in (".control", ".endc", ".end"):
+            if word == ".control":
+                in_control = True
+            elif word == ".endc":
+                in_control = False
+            dropping = False
+        elif dropping and stripped.startswith("+"):
+            kept.append("*" + line)
+        elif dropping and (not stripped or stripped.startswith("*")):
+            # ngspice drops blank and comment lines before joining continuations, so a "+"
+            # line after them still belongs to the commented-out card
             kept.append(line)
+        else:
+            dropping = word in _ANALYSIS_CARDS and word != f".{analysis}"
+            kept.append("*" + line if dropping else line)
     kept += [
         ".control",
         "set filetype=binary",

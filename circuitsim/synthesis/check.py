@@ -110,15 +110,18 @@ def check_mapping(
     if bom is not None and not isinstance(bom, list):
         bom = load_bom(bom)
     errors = {e.part.lower(): abs(e.error) for e in (bom or []) if not math.isnan(e.error)}
-    return _Checker(circuit, scale_map, system, errors, tolerance).run()
+    # the rounded series the resistors come from, named in advice (inverter pairs are "exact")
+    rounded = sorted({e.series for e in (bom or []) if e.unit == "ohm" and e.series != "exact"})
+    return _Checker(circuit, scale_map, system, errors, tolerance, "/".join(rounded)).run()
 
 
 class _Checker:
-    def __init__(self, circuit, scale_map, system, errors, tolerance) -> None:
+    def __init__(self, circuit, scale_map, system, errors, tolerance, series="") -> None:
         self.c = circuit
         self.sm = scale_map
         self.sys = system
         self.errors = errors
+        self.series = series  # "E96", "E24" ...; "" without a BOM or with exact values only
         self.tol = tolerance
         self.n = system.n
         self.problems: list[str] = []
@@ -515,11 +518,47 @@ class _Checker:
         report.critical_speed_realized = critical_speed(report.A_realized, entries, speed)
         vm, vr = report.critical_speed_model, report.critical_speed_realized
         if vm is not None and vr is not None and (vm - speed) * (vr - speed) < 0:
-            report.warnings.append(
-                f"rounding moves the critical speed across the simulated speed {speed:g}: "
-                f"model {vm:.4f}, realized circuit {vr:.4f} - the circuit's stability differs "
-                "from the model's (use series='exact' or E96)"
-            )
+            report.warnings.append(self.stability_warning(report, speed, vm, vr))
+
+    def stability_warning(self, report: MappingReport, speed: float, vm: float, vr: float) -> str:
+        """The warning for a simulated speed between the model's and the circuit's critical speed.
+
+        Parameters
+        ----------
+        report : MappingReport
+            With the eigenvalues of the model's and the realized linear part at ``speed``.
+        speed : float
+            The simulated speed.
+        vm, vr : float
+            The model's and the realized circuit's critical speeds.
+
+        Returns
+        -------
+        str
+            Which of the two is unstable at ``speed``, and what realizes the model's stability,
+            spelled for the command line and for the Python API alike (``circuitsim
+            generate``/``compare`` and :func:`~circuitsim.synthesis.generate.generate` users
+            read it); the finer E96 series is suggested only to users of a coarser one.
+        """
+        circuit = f"the circuit with {self.series} resistors" if self.series else "the circuit"
+        model_grows = float(np.max(report.eigenvalues_model.real)) >= 0
+        circuit_grows = float(np.max(report.eigenvalues_realized.real)) >= 0
+        if model_grows == circuit_grows:  # a crossing within float noise of the speed
+            verdict = f"the stability of {circuit} differs from the model's"
+        elif circuit_grows:
+            verdict = f"the model is stable but {circuit} is not"
+        else:
+            verdict = f"the model is unstable but {circuit} is stable"
+        advice = (
+            "exact resistor values (--series exact, or SynthesisOptions(series='exact')) "
+            "realize the model's critical speed"
+        )
+        if self.series and self.series != "E96":
+            advice += "; E96 (--series E96) rounds less"
+        return (
+            f"rounding moves the critical speed across the simulated speed {speed:g}: "
+            f"model {vm:.4f}, realized circuit {vr:.4f} - at {speed:g} {verdict}; {advice}"
+        )
 
 
 def check_files(netlist: str | os.PathLike, system: System) -> MappingReport:

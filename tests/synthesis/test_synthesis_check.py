@@ -138,3 +138,18 @@ def test_other_models_pass(tmp_path):
             result = generate(system, tmp_path / f"{name}.cir", SynthesisOptions(series=series))
             assert result.report.ok, (name, series, result.report.summary())
             assert result.report.critical_speed_model is None  # no speed parameter named
+
+
+@pytest.mark.parametrize("series", ["E96", "E24"])
+def test_critical_speed_warning_names_the_series_and_both_spellings(tmp_path, series):
+    system = load_model().system(parameters={"V": 55.5, "f": 3.0}, nonlinear={"flange": False})
+    result = generate(system, tmp_path / "w.cir", SynthesisOptions(scaling="unity", series=series))
+    (warning,) = [w for w in result.report.warnings if "critical speed" in w]
+    # independent: at 55.5 the model's linear part decays and the rounded circuit's grows
+    assert np.max(np.linalg.eigvals(result.report.A_model).real) < 0
+    assert np.max(np.linalg.eigvals(result.report.A_realized).real) > 0
+    assert f"the model is stable but the circuit with {series} resistors is not" in warning
+    assert "--series exact" in warning and "series='exact'" in warning
+    assert ("--series E96" in warning) == (series != "E96")  # no advice to use what is in use
+    exact = generate(system, tmp_path / "x.cir", SynthesisOptions(scaling="unity", series="exact"))
+    assert not any("critical speed" in w for w in exact.report.warnings)
