@@ -34,6 +34,7 @@ from circuitsim.solver.compiled.newton import (
     LAST_A0,
     NEWTON,
     NHIST,
+    REBASE_ACTIVE,
     REJECTED,
     SAME_A0,
     VERSION,
@@ -73,12 +74,6 @@ from circuitsim.solver.compiled.transient import (
     zero_charge_step,
 )
 from circuitsim.solver.transient import TRANSITION_OVERSHOOT
-
-# More active junctions than this at the end of REBASE_STEPS accepted steps in a row: refactor
-# at the present conductances. Measured on the TL074 wheelset from its uic start (every
-# junction factored at 0 V): 0.89 s keeping that factorization all run, 0.09 s with this rule
-# (3 factorizations); the ideal wheelset (4 junctions) never reaches it.
-REBASE_ACTIVE = 8
 
 
 @njit(cache=True, nogil=True)

@@ -18,6 +18,7 @@ from circuitsim.solver.compiled.devices import source_value, switch_transition, 
 from circuitsim.solver.compiled.lowrank import add_u_columns, csr_matvec
 from circuitsim.solver.compiled.newton import (
     ACCEPTED,
+    ACTIVE_JUNCTIONS,
     AT_BREAK,
     ATTEMPTS,
     BI,
@@ -27,6 +28,7 @@ from circuitsim.solver.compiled.newton import (
     NEWTON,
     NHIST,
     ORDER,
+    REBASE_ACTIVE,
     REJECTED,
     SAME_A0,
     SAVED_H,
@@ -227,6 +229,7 @@ def run(plan, st, t_until):
     lin = plan.lin_slots
     n, nq = plan.G.shape[0], st.hq.shape[1]
     fs, si = st.fs, st.ints
+    stale_streak = 0  # accepted steps in a row ending with many active junctions
     breaks = plan.breaks
     x_ext = np.empty(n + 1)
     vt = (plan.VT_ptr, plan.VT_idx, plan.VT_val)
@@ -261,8 +264,10 @@ def run(plan, st, t_until):
                 hist[j] = a1 * hq[0, j] + b1 * hi[0, j] + a2 * hq[1, j]
             ref_a0 = ref[nports] if lin.size else a0
             settled = a0 != ref_a0 and a0 == fs[LAST_A0] and si[SAME_A0] >= REBASE_STEPS
-            if lin.size and settled:
+            # or the junctions have left the factored conductances (newton.REBASE_ACTIVE)
+            if (lin.size and settled) or stale_streak >= REBASE_STEPS:
                 factor_now(plan, st, a0)
+                stale_streak = 0
             rhs0, src_values = source_rhs(
                 t + h,
                 rhs_const,
@@ -357,6 +362,7 @@ def run(plan, st, t_until):
             break
 
         # accept
+        stale_streak = stale_streak + 1 if si[ACTIVE_JUNCTIONS] > REBASE_ACTIVE else 0
         t = next_break if landing else t + h
         for i in range(n + 1):
             x_prev_ext[i] = x_ext[i]
