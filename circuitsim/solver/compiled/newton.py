@@ -222,7 +222,11 @@ def newton(plan, st, x0, a0, hist, rhs0, src_values, q, qdot):
                         applied[j] = ieq[j]
             active = active_columns(d, K)
             x_new, ok = update(y0 - yd, c0 - cd_response, d, K, ZT, active)
-            st.ints[ACTIVE_JUNCTIONS] = np.sum(active < md)
+            count = 0  # junction columns (the first md), counted without an array per iteration
+            for a in range(active.size):
+                if active[a] < md:
+                    count += 1
+            st.ints[ACTIVE_JUNCTIONS] = count
             if ok and all_finite(x_new):
                 break
             if attempt == 0:
