@@ -1,12 +1,15 @@
 """Benchmark harness: our MNA solver against ngspice, at equal accuracy, and speed sweeps.
 
-    python benchmarks/run.py [--quick] [--out DIR] [--parts wheelset golden sweep profile]
+    python benchmarks/run.py [--quick] [--out DIR] [--parts wheelset golden sweep profile scaling]
 
 Parts: ``wheelset`` (work-precision of the generated wheelset circuit, ideal and TL074 op-amps,
 against the direct ODE solution), ``golden`` (tests/solver/golden netlists: time ratio and max
 deviation against ngspice), ``sweep`` (61-variant speed sweep, builtin runs in a process pool
 against one ngspice process per variant), ``profile`` (where the time of one builtin wheelset
-run goes: the compiled kernel piece by piece, cProfile of the reference loop). Prints text
+run goes: the compiled kernel piece by piece, cProfile of the reference loop), ``scaling``
+(chains of N = 1..64 masses with a contact on each, and the wheelset: in-process and
+whole-process time against ngspice, accuracy against the direct ODE, growth exponents;
+``--sizes`` picks the chains). Prints text
 tables and writes <part>.json / <part>.md and machine.json into --out (default
 benchmarks/results). Not part of the test suite.
 """
@@ -24,6 +27,7 @@ sys.path.insert(0, str(HERE))
 import bench_common  # noqa: E402
 import bench_golden  # noqa: E402
 import bench_profile  # noqa: E402
+import bench_scaling  # noqa: E402
 import bench_sweep  # noqa: E402
 import bench_wheelset  # noqa: E402
 
@@ -32,6 +36,7 @@ PARTS = {
     "golden": bench_golden,
     "sweep": bench_sweep,
     "profile": bench_profile,
+    "scaling": bench_scaling,
 }
 
 
@@ -48,7 +53,12 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--repeat", type=int, default=1, help="wheelset/golden: best of N runs (default 1)"
     )
+    parser.add_argument(
+        "--sizes", type=int, nargs="+", help="scaling: the chains' masses (default 1 2 4 ... 64)"
+    )
     args = parser.parse_args(argv)
+    if args.sizes:
+        bench_scaling.CHAIN_SIZES = tuple(args.sizes)
     parts = ["sweep"] if args.sweep else args.parts
     bench_common.REPEAT[0] = args.repeat
     out = Path(args.out)
