@@ -20,6 +20,8 @@ import math
 import re
 from dataclasses import dataclass
 
+import numpy as np
+
 FUNCTIONS = {
     "sqrt": (math.sqrt, 1),
     "exp": (math.exp, 1),
@@ -29,9 +31,29 @@ FUNCTIONS = {
     "cos": (math.cos, 1),
     "tan": (math.tan, 1),
     "atan": (math.atan, 1),
+    "sinh": (math.sinh, 1),
+    "cosh": (math.cosh, 1),
+    "tanh": (math.tanh, 1),
     "abs": (abs, 1),
     "min": (min, 2),
     "max": (max, 2),
+}
+# the same functions on arrays (:func:`evaluate_on_grid`); min and max elementwise
+_ARRAY_FUNCTIONS = {
+    "sqrt": np.sqrt,
+    "exp": np.exp,
+    "log": np.log,
+    "log10": np.log10,
+    "sin": np.sin,
+    "cos": np.cos,
+    "tan": np.tan,
+    "atan": np.arctan,
+    "sinh": np.sinh,
+    "cosh": np.cosh,
+    "tanh": np.tanh,
+    "abs": np.abs,
+    "min": np.minimum,
+    "max": np.maximum,
 }
 CONSTANTS = {"pi": math.pi}
 RESERVED = frozenset(FUNCTIONS) | frozenset(CONSTANTS)
@@ -72,6 +94,21 @@ class Expression:
 
     def __call__(self, env: dict[str, float]) -> float:
         return evaluate(self, env)
+
+
+@dataclass(frozen=True)
+class Item:
+    """An expression together with where it came from in a model file (for error messages).
+
+    Attributes
+    ----------
+    key : str
+        Dotted key, e.g. ``"nonlinear.flange.abs[1].offset"``.
+    expression : Expression
+    """
+
+    key: str
+    expression: Expression
 
 
 def _collect(node: tuple, found: set[str]) -> None:
@@ -275,3 +312,68 @@ def _eval(node: tuple, env: dict[str, float]) -> float:
     if isinstance(result, complex):
         raise ExpressionError(f"{left} ** {right} is not real")
     return float(result)
+
+
+def evaluate_on_grid(
+    expression: Expression, env: dict[str, float], variable: str, grid: np.ndarray
+) -> np.ndarray:
+    """Values of ``expression`` of one ``variable`` at every point of ``grid`` (numpy).
+
+    Parameters
+    ----------
+    expression : Expression
+        E.g. ``"Fs * tanh(u / u0)"``.
+    env : dict of str to float
+        The other names (parameters, coefficients).
+    variable : str
+        The name that takes the grid's values (``"u"``).
+    grid : ndarray, shape (m,)
+
+    Returns
+    -------
+    ndarray, shape (m,)
+
+    Raises
+    ------
+    ExpressionError
+        An unknown name, or a value that is not a finite real number at some grid point
+        (the first such point is named).
+    """
+    grid = np.asarray(grid, dtype=float)
+    with np.errstate(all="ignore"):
+        values = np.broadcast_to(_eval_array(expression.tree, env, variable, grid), grid.shape)
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size:
+        at = grid[bad[0]]
+        raise ExpressionError(
+            f"{expression.text!r} is not a finite real number at {variable} = {at:.6g}"
+        )
+    return np.array(values, dtype=float)
+
+
+def _eval_array(node: tuple, env: dict[str, float], variable: str, grid: np.ndarray):
+    kind = node[0]
+    if kind == "num":
+        return node[1]
+    if kind == "name":
+        name = node[1]
+        if name == variable:
+            return grid
+        return _eval(node, env)
+    if kind == "neg":
+        return -_eval_array(node[1], env, variable, grid)
+    if kind == "call":
+        args = [_eval_array(arg, env, variable, grid) for arg in node[2]]
+        return _ARRAY_FUNCTIONS[node[1]](*args)
+    left = _eval_array(node[1], env, variable, grid)
+    right = _eval_array(node[2], env, variable, grid)
+    if kind == "+":
+        return np.add(left, right)
+    if kind == "-":
+        return np.subtract(left, right)
+    if kind == "*":
+        return np.multiply(left, right)
+    if kind == "/":
+        return np.divide(left, right)
+    # negative bases with fractional exponents give nan, which is refused above
+    return np.power(np.asarray(left, dtype=float), right)

@@ -15,6 +15,8 @@ import numpy as np
 from circuitsim.mechanics.errors import ModelError
 from circuitsim.mechanics.expressions import ExpressionError
 from circuitsim.mechanics.modelfile import Item, ModelSpec, Parameter, read_model
+from circuitsim.mechanics.parameters import evaluate_parameters
+from circuitsim.mechanics.shapes import ShapeError, compile_shape
 from circuitsim.mechanics.system import AbsTerm, PiecewiseLinearTerm, Sinusoid, System
 
 # A mass matrix whose condition number exceeds this is treated as singular: inverting it would
@@ -161,19 +163,21 @@ class Model:
                 "coefficients",
                 f"unknown coefficient set {set_name!r} (sets: {', '.join(self.coefficient_sets)})",
             )
-        values = dict(self.parameters)
+        given = {}
         for name, value in dict(parameters or {}).items():
-            if name not in values:
+            if name not in self.parameters:
                 known = ", ".join(self.parameters) or "none"
                 raise self._fail(f"parameters.{name}", f"unknown parameter (known: {known})")
             try:
-                values[name] = float(value)
+                given[name] = float(value)
             except (TypeError, ValueError):
                 raise self._fail(
                     f"parameters.{name}", f"expected a number, got {value!r}"
                 ) from None
-            if not np.isfinite(values[name]):
+            if not np.isfinite(given[name]):
                 raise self._fail(f"parameters.{name}", f"must be finite, got {value!r}")
+        # parameters written as expressions follow the values given (docs/model.md)
+        values = evaluate_parameters(self.spec.parameters, given, self.file)
         env = dict(values)
         coefficient_values = {}
         for name, item in self.spec.coefficient_sets[set_name]:
@@ -274,18 +278,30 @@ class Model:
         for name, group in spec.nonlinear.items():
             if not nonlinear_on[name]:
                 continue
-            abs_terms = tuple(
+            abs_terms = [
                 AbsTerm(gain=value(t.gain), row=vector(t.row, n), offset=value(t.offset))
                 for t in group.abs_terms
-            )
+            ]
+            linear, constant = vector(group.linear, n), value(group.constant)
+            fits = []
+            for shape in group.shapes:  # deadzone, saturation, table, fit: more abs terms
+                try:
+                    compiled = compile_shape(shape, value, env)
+                except ShapeError as exc:
+                    raise self._fail(exc.key, exc.message) from None
+                more = compiled.abs_terms(vector(shape.row, n), value(shape.offset))
+                linear, constant = linear + more[0], constant + more[1]
+                abs_terms += more[2]
+                fits += [compiled.fit] if compiled.fit else []
             terms.append(
                 PiecewiseLinearTerm(
                     name=name,
                     direction=nonlinear_direction(group.enters),
-                    linear=vector(group.linear, n),
-                    abs_terms=abs_terms,
-                    constant=value(group.constant),
+                    linear=linear,
+                    abs_terms=tuple(abs_terms),
+                    constant=constant,
                     t_on=None if group.t_on is None else value(group.t_on),
+                    fits=tuple(fits),
                 )
             )
         sources = []

@@ -13,7 +13,9 @@ from importlib import resources
 from pathlib import Path
 
 from circuitsim.mechanics.errors import ModelError
-from circuitsim.mechanics.expressions import RESERVED, Expression, ExpressionError, parse
+from circuitsim.mechanics.expressions import RESERVED, ExpressionError, Item, parse
+from circuitsim.mechanics.parameters import Parameter, read_parameters
+from circuitsim.mechanics.shapes import SHAPES, ShapeSpec, read_shape
 
 BUILTIN = "wheelset"
 KINDS = ("second_order", "first_order")
@@ -25,29 +27,11 @@ TOP_KEYS = {
     "options": "command-line option -> parameter",
     "coefficients": "named coefficient sets",
     "matrices": "M, C, K (second order) or A (first order)",
-    "nonlinear": "piecewise-linear terms in abs() form",
+    "nonlinear": "piecewise-linear terms: abs() form, deadzone, saturation, table, fit",
     "forcing": "sinusoidal forcing",
     "initial": "initial conditions",
     "circuit": "free-form hints for the circuit translator",
 }
-
-
-@dataclass(frozen=True)
-class Item:
-    """An expression together with where it came from (for error messages)."""
-
-    key: str
-    expression: Expression
-
-
-@dataclass(frozen=True)
-class Parameter:
-    """A named model parameter: default ``value`` in ``unit``."""
-
-    name: str
-    value: float
-    unit: str = ""
-    description: str = ""
 
 
 @dataclass(frozen=True)
@@ -72,6 +56,7 @@ class NonlinearSpec:
     constant: Item
     abs_terms: tuple[AbsSpec, ...]
     t_on: Item | None
+    shapes: tuple[ShapeSpec, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -115,6 +100,27 @@ class ModelSpec:
 def builtin_path(name: str = BUILTIN) -> Path:
     """Path of a model file shipped inside the package (``"wheelset"``)."""
     return Path(str(resources.files("circuitsim.mechanics") / "models" / f"{name}.toml"))
+
+
+def shipped_models() -> tuple[str, ...]:
+    """Names of the model files shipped inside the package (``--model NAME``)."""
+    folder = builtin_path().parent
+    return tuple(sorted(p.stem for p in folder.glob("*.toml")))
+
+
+def model_path(path: str | Path | None) -> Path:
+    """The file ``--model`` means: a file that exists, else a shipped model's name.
+
+    ``None`` is the built-in wheelset; ``"bogie"`` (no such file here) is the shipped
+    ``bogie.toml``. Anything else is returned as given (reading it reports it missing).
+    """
+    if path is None:
+        return builtin_path()
+    path = Path(path)
+    if not path.exists() and path.name == str(path) and path.stem in shipped_models():
+        if path.suffix in ("", ".toml"):
+            return builtin_path(path.stem)
+    return path
 
 
 class _Reader:
@@ -199,14 +205,15 @@ def read_model(path: str | Path | None = None) -> ModelSpec:
     ModelError
         Naming the file, the dotted key and what is wrong.
     """
-    path = builtin_path() if path is None else Path(path)
+    path = model_path(path)
     file = str(path)
     reader = _Reader(file)
     try:
         with open(path, "rb") as handle:
             document = tomllib.load(handle)
     except FileNotFoundError:
-        raise reader.fail(None, "model file not found") from None
+        shipped = ", ".join(shipped_models())
+        raise reader.fail(None, f"model file not found (shipped models: {shipped})") from None
     except tomllib.TOMLDecodeError as exc:
         raise reader.fail(None, f"not valid TOML: {exc}") from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -243,7 +250,7 @@ def read_model(path: str | Path | None = None) -> ModelSpec:
         coordinates, coordinate_units = (), ()
         equations = states
 
-    parameters = _parameters(reader, document, set(states))
+    parameters = _parameters(reader, document)
     options = _options(reader, document, parameters)
     sets, default_set = _coefficient_sets(reader, document, parameters)
     matrices = _matrices(reader, document, kind, len(equations))
@@ -362,25 +369,9 @@ def _part_names(reader: _Reader, value, key: str, what: str, known: tuple[str, .
             raise reader.fail(f"{key}.{name}", f"expected a part name, got {_type(part)}")
 
 
-def _parameters(reader: _Reader, document: dict, states: set[str]) -> dict[str, Parameter]:
+def _parameters(reader: _Reader, document: dict) -> dict[str, Parameter]:
     table = reader.table(document.get("parameters"), "parameters", False)
-    parameters = {}
-    for name, value in table.items():
-        key = f"parameters.{name}"
-        _check_identifier(reader, name, key)
-        unit, description = "", ""
-        if isinstance(value, dict):
-            reader.check_keys(value, key, ("value", "unit", "description"))
-            unit = reader.string(value, "unit", key, default="")
-            description = reader.string(value, "description", key, default="")
-            if "value" not in value:
-                raise reader.fail(f"{key}.value", "missing key")
-            value = value["value"]
-            key = f"{key}.value"
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise reader.fail(key, f"wrong type: expected a number, got {_type(value)}")
-        parameters[name] = Parameter(name, float(value), unit, description)
-    return parameters
+    return read_parameters(reader, table, _check_identifier)
 
 
 def _options(reader: _Reader, document: dict, parameters: dict) -> dict[str, str]:
@@ -511,7 +502,7 @@ def _optional(reader: _Reader, table: dict, name: str, key: str, default) -> Ite
 def _nonlinear(reader, table, key, states, equations, kind) -> NonlinearSpec:
     table = reader.table(table, key)
     allowed = ("description", "enabled", "enters", "linear", "constant", "abs", "t_on")
-    reader.check_keys(table, key, allowed)
+    reader.check_keys(table, key, allowed + tuple(SHAPES))
     if "enters" not in table:
         raise reader.fail(f"{key}.enters", "missing key")
     enters = _row(reader, table["enters"], f"{key}.enters", equations, "first_order")
@@ -537,6 +528,15 @@ def _nonlinear(reader, table, key, states, equations, kind) -> NonlinearSpec:
             )
         )
     t_on = None if "t_on" not in table else reader.expression(table["t_on"], f"{key}.t_on")
+
+    def read_row(value, where: str) -> dict[int, Item]:
+        return _row(reader, value, where, states, kind)
+
+    shapes = tuple(
+        read_shape(reader, shape, table[shape], f"{key}.{shape}", read_row)
+        for shape in SHAPES
+        if shape in table
+    )
     return NonlinearSpec(
         name=key.split(".", 1)[1],
         key=key,
@@ -547,6 +547,7 @@ def _nonlinear(reader, table, key, states, equations, kind) -> NonlinearSpec:
         constant=_optional(reader, table, "constant", key, 0.0),
         abs_terms=tuple(terms),
         t_on=t_on,
+        shapes=shapes,
     )
 
 

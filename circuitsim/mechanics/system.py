@@ -61,6 +61,10 @@ class PiecewiseLinearTerm:
         Constant part of the scalar.
     t_on : float or None
         Time (s) from which the term acts (the paper's switch S1 closing); None: always.
+    fits : tuple
+        For smooth functions the model file asked to fit (``[nonlinear.NAME.fit]``): the
+        :class:`~circuitsim.mechanics.pwlfit.PiecewiseLinearFit` each was replaced by, with
+        its breakpoints and error bound (their kinks are among ``abs_terms``).
     """
 
     name: str
@@ -69,6 +73,7 @@ class PiecewiseLinearTerm:
     abs_terms: tuple[AbsTerm, ...]
     constant: float = 0.0
     t_on: float | None = None
+    fits: tuple = ()
 
     def value(self, x: np.ndarray) -> np.ndarray | float:
         """The scalar s(x) (ignores ``t_on``); x of shape (n,) or (n, m)."""

@@ -52,7 +52,8 @@ CASES = [
     (lambda s: s + "\n[extra]\n", "extra", "unknown key"),
     (lambda s: s.replace('kind = "second_order"\n', ""), "model.kind", "missing key"),
     (lambda s: s.replace('"second_order"', '"third_order"'), "model.kind", "must be one of"),
-    (lambda s: s.replace("m = 2.0", 'm = "two"'), "parameters.m", "wrong type"),
+    (lambda s: s.replace("m = 2.0", 'm = "two"'), "parameters.m", "unknown name 'two'"),
+    (lambda s: s.replace("m = 2.0", "m = [2.0]"), "parameters.m", "wrong type"),
     (
         lambda s: s.replace("value = 50.0, unit", "value = true, unit"),
         "parameters.k.value",
