@@ -111,7 +111,23 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         help="save a figure in the format of its suffix (.png, .pdf, .svg ...)",
     )
     parser.add_argument(
-        "--probe", nargs="+", metavar="SIGNAL", help="only these signals, e.g. v(out) i(v1)"
+        "--probe",
+        nargs="+",
+        metavar="SIGNAL",
+        help="only these signals, e.g. v(out) i(v1) (the builtin engine records only these)",
+    )
+    parser.add_argument(
+        "--max-steps",
+        type=int,
+        metavar="N",
+        help="builtin engine: stop with an error after N attempted time steps (default 2000000)",
+    )
+    parser.add_argument(
+        "--max-wall-time",
+        type=float,
+        metavar="SECONDS",
+        help="builtin engine: stop with an error after this much wall time in the transient "
+        "loop (default 600)",
     )
     parser.set_defaults(func=_run_simulate)
 
@@ -130,21 +146,20 @@ def _run_simulate(args: argparse.Namespace) -> int:
         from circuitsim.solver.errors import SolverError
 
         circuit = read_netlist_reporting_warnings(args.netlist)
+        limits = {
+            key: value
+            for key, value in (
+                ("max_steps", args.max_steps),
+                ("max_wall_time", args.max_wall_time),
+            )
+            if value is not None
+        }
         try:
-            options = SimulationOptions.from_circuit(circuit, kernel=args.kernel)
-            waves = simulate(circuit, options, progress=progress_after(1.0))
+            options = SimulationOptions.from_circuit(circuit, kernel=args.kernel, **limits)
+            waves = simulate(circuit, options, progress=progress_after(1.0), probes=args.probe)
         except SolverError as exc:  # about the circuit ("D1: no .model ..."): say which file
-            raise type(exc)(f"{args.netlist}: {exc}") from exc
-        if args.probe:
-            missing = [p for p in args.probe if p not in waves]
-            if missing:
-                print(
-                    f"circuitsim simulate: error: no signal {', '.join(missing)}; "
-                    f"have {', '.join(waves.names)}",
-                    file=sys.stderr,
-                )
-                return 1
-            waves = waves.select(args.probe)
+            exc.args = (f"{args.netlist}: {exc}",)
+            raise
     stats = waves.stats
     engine = args.engine
     if "kernel" in stats:  # "ports", or "python (why the compiled kernels do not apply)"

@@ -57,18 +57,58 @@ def build_system(circuit: Circuit, options: SimulationOptions | None, **override
     return MnaSystem(flat, options)
 
 
-def _waveforms(system: MnaSystem, times: np.ndarray, solutions: np.ndarray, stats: dict):
+def probe_names(system: MnaSystem, probes: list[str] | None) -> list[str]:
+    """The signal names ``probes`` ask for (case-insensitive, ``"out"`` for ``v(out)``), in
+    their order; all signals for None.
+
+    Raises
+    ------
+    CircuitInputError
+        A probe names no signal of the circuit (before any run).
+    """
+    if probes is None:
+        return list(system.signals)
+    names, missing = [], []
+    for probe in probes:
+        key = probe.lower()
+        key = key if key in system.signals else f"v({key})"
+        if key in system.signals:
+            names.append(key)
+        else:
+            missing.append(probe)
+    if missing:
+        raise CircuitInputError(f"no signal {', '.join(missing)}; have {', '.join(system.signals)}")
+    return list(dict.fromkeys(names))
+
+
+def _waveforms(
+    system: MnaSystem,
+    times: np.ndarray,
+    solutions: np.ndarray,
+    stats: dict,
+    names: list[str] | None = None,
+    columns: dict[str, int] | None = None,
+):
+    """Waveforms of the signals ``names`` (default all); ``columns`` maps an unknown's index
+    to its column in ``solutions`` (default: the identity)."""
     signals = {}
-    for name, index in system.signals.items():
-        signals[name] = solutions[:, index] if index >= 0 else np.zeros(len(times))
+    for name in names if names is not None else system.signals:
+        index = system.signals[name]
+        if index < 0:
+            signals[name] = np.zeros(len(times))
+        else:
+            signals[name] = solutions[:, columns[index] if columns is not None else index]
     stats["factorizations"] = system.factorizations
     stats["unknowns"] = system.size
     stats["method"] = system.options.method
     return Waveforms(time=times, signals=signals, engine="builtin", stats=stats)
 
 
-def operating_point(circuit: Circuit, options: SimulationOptions | None = None) -> Waveforms:
-    """DC operating point (``.op``): one time point at t = 0.
+def operating_point(
+    circuit: Circuit, options: SimulationOptions | None = None, probes: list[str] | None = None
+) -> Waveforms:
+    """DC operating point (``.op``): one time point at t = 0, of the signals ``probes``
+    (default all).
 
     Raises
     ------
@@ -76,11 +116,12 @@ def operating_point(circuit: Circuit, options: SimulationOptions | None = None) 
     """
     started = _time.perf_counter()
     system = build_system(circuit, options)
+    names = probe_names(system, probes)
     stats: dict = {"analysis": "op", "newton_iterations": 0}
     with single_threaded_blas():
         x, _ = operating_point_solution(system, dc_op=True, clamp_ic=False, stats=stats)
     stats["wall_time_s"] = _time.perf_counter() - started
-    return _waveforms(system, np.zeros(1), x[None, :], stats)
+    return _waveforms(system, np.zeros(1), x[None, :], stats, names)
 
 
 def transient(
@@ -92,56 +133,63 @@ def transient(
     uic: bool = False,
     options: SimulationOptions | None = None,
     progress: Callable[[str], None] | None = None,
+    probes: list[str] | None = None,
 ) -> Waveforms:
     """Transient analysis (``.tran tstep tstop [tstart [tmax]] [uic]``), seconds.
 
-    Returns the solution on the solver's own accepted time points (t >= tstart).
-    ``stats``: accepted, rejected, newton_iterations, factorizations, wall_time_s.
+    Returns the solution on the solver's own accepted time points (t >= tstart), of the
+    signals ``probes`` (default: all; the compiled kernels then record only the unknowns
+    those need). ``stats``: accepted, rejected, newton_iterations, factorizations,
+    wall_time_s, kernel.
 
     Raises
     ------
     ConvergenceError, SingularMatrixError, CircuitInputError
+        CircuitInputError also for a probe that names no signal (before the run).
+    RunLimitError
+        The run passed ``options.max_steps`` or ``options.max_wall_time``.
     """
     started = _time.perf_counter()
     system = build_system(circuit, options)
+    names = probe_names(system, probes)
     stats: dict = {"analysis": "tran", "newton_iterations": 0}
     runner = _transient_runner(system, stats)
+    unknowns = sorted({system.signals[n] for n in names if system.signals[n] >= 0})
+    columns = {index: column for column, index in enumerate(unknowns)}
+    extra = {}
+    if runner is not run_transient and len(unknowns) < system.size:
+        extra["rows"] = np.array(unknowns, dtype=np.int64)
     with single_threaded_blas():
         times, solutions = runner(
-            system, tstep, tstop, tstart, tmax, uic, progress=progress, stats=stats
+            system, tstep, tstop, tstart, tmax, uic, progress=progress, stats=stats, **extra
         )
     stats["wall_time_s"] = _time.perf_counter() - started
-    return _waveforms(system, times, solutions, stats)
+    if not extra:
+        columns = None
+    return _waveforms(system, times, solutions, stats, names, columns)
 
 
 def _transient_runner(system: MnaSystem, stats: dict):
     """The compiled kernel or the reference loop, as ``system.options.kernel`` asks."""
-    choice = system.options.kernel
-    if choice == "python":
+    if system.options.kernel == "python":
         stats["kernel"] = "python"
         return run_transient
-    from circuitsim.solver.compiled import auto_kernel, kernel_unavailable, run_compiled, run_ports
+    from circuitsim.solver.compiled.runner import transient_runner
 
-    reason = kernel_unavailable(system)
-    if reason is None:
-        if choice == "auto":
-            choice = auto_kernel(system)
-        return run_ports if choice == "ports" else run_compiled
-    if choice in ("compiled", "ports"):
-        raise CircuitInputError(f"option kernel={choice}: {reason}")
-    stats["kernel"] = f"python ({reason})"
-    return run_transient
+    return transient_runner(system, stats)
 
 
 def simulate(
     circuit: Circuit,
     options: SimulationOptions | None = None,
     progress: Callable[[str], None] | None = None,
+    probes: list[str] | None = None,
 ) -> Waveforms:
     """Run the circuit's first ``.tran``, or its operating point if it has no ``.tran``
     (an ``.op`` line, or no analysis at all: a circuit built in Python).
 
-    ``options`` default to ngspice's, overridden by the circuit's ``.options``.
+    ``options`` default to ngspice's, overridden by the circuit's ``.options``. ``probes``:
+    only these signals (see :func:`transient`; default all).
 
     Raises
     ------
@@ -156,7 +204,15 @@ def simulate(
                 "the netlist asks for .ac only; this engine runs .tran and .op "
                 "(ngspice runs .ac: --engine ngspice)"
             )
-        return operating_point(circuit, options)
+        return operating_point(circuit, options, probes)
     return transient(
-        circuit, tran.tstep, tran.tstop, tran.tstart, tran.tmax, tran.uic, options, progress
+        circuit,
+        tran.tstep,
+        tran.tstop,
+        tran.tstart,
+        tran.tmax,
+        tran.uic,
+        options,
+        progress,
+        probes,
     )

@@ -49,3 +49,49 @@ class CircuitInputError(SolverError, ValueError):
 
     The message names the element, model or option and what is wrong with it.
     """
+
+
+class RunLimitError(SolverError):
+    """A transient run stopped at one of its limits (``SimulationOptions.max_steps`` or
+    ``max_wall_time``) before ``tstop``.
+
+    Parameters
+    ----------
+    limit : str
+        ``"max_steps"`` or ``"max_wall_time"``: the option that stopped the run.
+    value : float
+        The limit's value (steps, or seconds).
+    time : float
+        Simulation time reached, seconds.
+    tstop : float
+        The run's end time, seconds.
+    steps : int
+        Time steps attempted (accepted + rejected) until then.
+    """
+
+    def __init__(self, limit: str, value: float, time: float, tstop: float, steps: int):
+        self.limit, self.value, self.time, self.tstop, self.steps = limit, value, time, tstop, steps
+        what = (
+            f"more than {int(value)} time steps attempted"
+            if limit == "max_steps"
+            else f"the run took longer than {value:g} s of wall time"
+        )
+        super().__init__(
+            f"{what}: stopped at t = {time:.6g} s of {tstop:.6g} s after {steps} steps. "
+            f"Try a higher limit (option {limit}, CLI --{limit.replace('_', '-')}), a shorter "
+            "tstop, or a larger tmax/reltol if the steps are far shorter than the run needs"
+        )
+
+
+class SolverWarning(UserWarning):
+    """Something the user of the engine should know that does not stop the run."""
+
+
+class KernelCompileWarning(SolverWarning):
+    """A compiled kernel is being compiled (its machine code is not cached yet): the run
+    starts after a delay, said with an estimate."""
+
+
+class KernelFallbackWarning(SolverWarning):
+    """``kernel="auto"`` runs the slower numpy reference loop: the compiled kernels cannot run
+    this circuit (or numba is missing); the message says why."""

@@ -10,6 +10,8 @@ from circuitsim.solver.errors import CircuitInputError
 
 METHODS = ("trap", "gear")
 KERNELS = ("auto", "compiled", "ports", "python")
+# fields that are ours, not ngspice's: a netlist's .options cannot set them
+NOT_NGSPICE = ("fixed_step", "dense_limit", "max_steps", "max_wall_time", "kernel")
 
 
 @dataclass
@@ -52,8 +54,13 @@ class SimulationOptions:
     dense_limit : int
         Up to this many unknowns the engine uses dense LU (LAPACK); above it sparse LU.
     max_steps : int
-        Bound on attempted time steps (accepted + rejected); past it the run fails with a
-        ConvergenceError instead of running on.
+        Bound on attempted time steps (accepted + rejected); past it the run stops with a
+        :class:`~circuitsim.solver.errors.RunLimitError` saying where it stopped.
+    max_wall_time : float or None
+        Bound on a transient run's wall time, seconds (None: none); past it the run stops with
+        a :class:`~circuitsim.solver.errors.RunLimitError`. Checked between steps (the
+        compiled loops return to Python for that after 20,000 steps, then about every
+        second of work).
     bypass : int
         1: after the first Newton iteration of a time point, a junction whose voltage and
         linearized current are within tolerance of its last evaluation keeps that evaluation
@@ -85,6 +92,7 @@ class SimulationOptions:
     fixed_step: float | None = None
     dense_limit: int = 150
     max_steps: int = 2_000_000
+    max_wall_time: float | None = 600.0
     bypass: int = 0
     kernel: str = "auto"
 
@@ -108,6 +116,10 @@ class SimulationOptions:
             raise CircuitInputError(
                 f"option kernel={self.kernel!r}: expected one of {', '.join(KERNELS)}"
             )
+        if not self.max_steps > 0:
+            raise CircuitInputError(f"option max_steps={self.max_steps!r} must be > 0")
+        if self.max_wall_time is not None and not self.max_wall_time > 0:
+            raise CircuitInputError(f"option max_wall_time={self.max_wall_time!r} must be > 0")
         if self.fixed_step is not None and not self.fixed_step > 0:
             raise CircuitInputError(f"fixed_step={self.fixed_step!r} must be > 0")
 
@@ -118,7 +130,7 @@ class SimulationOptions:
         values: dict = {}
         for key, raw in circuit.options.items():
             key = key.lower()
-            if key not in known or key in ("fixed_step", "dense_limit", "max_steps", "kernel"):
+            if key not in known or key in NOT_NGSPICE:
                 continue
             values[key] = _option_value(key, raw, known[key].type)
         values.update(overrides)

@@ -12,6 +12,7 @@ A Newton failure divides the step by 8 and drops to order 1. The step never exce
 
 from __future__ import annotations
 
+import time as _time
 from collections.abc import Callable
 
 import numpy as np
@@ -19,7 +20,7 @@ import numpy as np
 from circuitsim.solver.context import StepContext
 from circuitsim.solver.dc import initial_condition_solution, operating_point_solution
 from circuitsim.solver.devices.base import DeviceFamily
-from circuitsim.solver.errors import CircuitInputError, ConvergenceError
+from circuitsim.solver.errors import CircuitInputError, ConvergenceError, RunLimitError
 from circuitsim.solver.integration import METHODS, truncation_step
 from circuitsim.solver.layout import with_ground
 from circuitsim.solver.newton import newton
@@ -118,6 +119,7 @@ def run_transient(
     bi = 0
     attempts = 0
     report_every, next_report = tstop / 10, tstop / 10
+    deadline = wall_deadline(options)
 
     while tstop - t > min_step:
         while bi < len(breaks) - 1 and breaks[bi] <= t + min_step:
@@ -143,9 +145,9 @@ def run_transient(
         while True:  # attempts at this time point
             attempts += 1
             if attempts > options.max_steps:
-                raise ConvergenceError(
-                    f"more than {options.max_steps} time steps attempted", time=t, step=h
-                )
+                raise RunLimitError("max_steps", options.max_steps, t, tstop, attempts - 1)
+            if deadline is not None and _time.perf_counter() > deadline:
+                raise RunLimitError("max_wall_time", options.max_wall_time, t, tstop, attempts - 1)
             h_prev = times[0] - times[1] if len(times) > 1 else h
             a0, a1, a2, b1 = method.coefficients(order, h, h_prev)
             hist = a1 * charges[0] + b1 * currents[0]
@@ -246,6 +248,12 @@ def run_transient(
     out_x = np.array(out_x)
     keep = recorded(out_t, tstart, min_step, uic)
     return out_t[keep], out_x[keep]
+
+
+def wall_deadline(options) -> float | None:
+    """The ``time.perf_counter()`` past which a run started now stops (max_wall_time)."""
+    limit = options.max_wall_time
+    return None if limit is None else _time.perf_counter() + limit
 
 
 def recorded(times: np.ndarray, tstart: float, min_step: float, uic: bool) -> np.ndarray:

@@ -434,46 +434,42 @@ def test_singular_time_loop_names_the_branch(kernel):
         run(source_loop(), kernel, 1e-6, 1e-4, uic=True)
 
 
-def _fake_kernel(folder: Path, text: str) -> None:
-    from circuitsim.solver.compiled import KERNEL_MODULES
-
-    folder.mkdir(exist_ok=True)
-    for name in KERNEL_MODULES:
-        (folder / f"{name}.py").write_text(f"# {name} {text}\n")
-
-
 def test_stale_compiled_code_is_cleared_when_any_kernel_file_changes(tmp_path):
     # numba checks only the defining file of a cached function; a change in newton.py must
     # also drop transient.py's cached machine code, which has the old newton compiled in.
     from circuitsim.solver.compiled import clear_stale_cache
 
-    _fake_kernel(tmp_path, "v1")
-    cache = tmp_path / "__pycache__"
-    assert clear_stale_cache(tmp_path) is False  # first sight: a stamp, nothing to delete
+    sources = [tmp_path / f"{name}.py" for name in ("newton", "transient")]
+    for path in sources:
+        path.write_text(f"# {path.stem} v1\n")
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    stamp = tmp_path / "stamp" / "sources.sha256"
+    assert clear_stale_cache(sources, [cache], stamp) is False  # first sight: a stamp only
     machine_code = [cache / "transient.run-120.py311.nbi", cache / "transient.run-120.py311.1.nbc"]
-    other = cache / "plan.cpython-311.pyc"
+    other = cache / "notes.txt"
     for path in [*machine_code, other]:
         path.write_bytes(b"x")
-    assert clear_stale_cache(tmp_path) is False  # sources unchanged: the cache is kept
+    assert clear_stale_cache(sources, [cache], stamp) is False  # unchanged: the cache is kept
     assert all(path.exists() for path in machine_code)
-    (tmp_path / "newton.py").write_text("# newton v2\n")
-    assert clear_stale_cache(tmp_path) is True
+    sources[0].write_text("# newton v2\n")
+    assert clear_stale_cache(sources, [cache], stamp) is True
     assert not any(path.exists() for path in machine_code)
-    assert other.exists()  # only the kernel's numba files go
-    assert clear_stale_cache(tmp_path) is False
+    assert other.exists()  # only numba's files go
+    assert clear_stale_cache(sources, [cache], stamp) is False
 
 
 def test_warm_up_runs_every_device_kind_through_the_kernels_it_names():
     from circuitsim.netlist.reader import parse_netlist
-    from circuitsim.solver.compiled import _WARM_UP_NETLIST, warm_up
+    from circuitsim.solver.compiled import WARM_UP_NETLIST, warm_up
 
     seconds = warm_up(("ports", "compiled"))
     assert seconds > 0
-    system = build_system(parse_netlist(_WARM_UP_NETLIST), None)
+    system = build_system(parse_netlist(WARM_UP_NETLIST), None)
     kinds = {type(f).__name__ for f in system.families}
     assert {"DiodeFamily", "SwitchFamily", "CapacitorFamily"} <= kinds
     assert system.options.kernel == "auto"
-    waves = simulate(parse_netlist(_WARM_UP_NETLIST))
+    waves = simulate(parse_netlist(WARM_UP_NETLIST))
     assert waves.stats["kernel"] == "ports"
     with pytest.raises(CircuitInputError, match="kernel"):
         warm_up(("no-such-kernel",))

@@ -34,6 +34,10 @@ T, H, SAVED_H, LAST_A0 = 0, 1, 2, 3
 ORDER, AT_BREAK, FIRST, BI, ATTEMPTS, ACCEPTED, REJECTED, NEWTON, FACTORIZATIONS = range(9)
 NHIST, COUNT, SAME_A0, VERSION, JUNCTION_VERSION = 9, 10, 11, 12, 13
 ACTIVE_JUNCTIONS = 14  # the compiled kernel's: junction columns active in the last update
+# the loop returns PAUSED once this many steps were attempted, so that the caller can check
+# its wall-time limit and Ctrl-C (both loops; slots 15-17 are port_state.py's)
+PAUSE_ATTEMPTS = 18
+COUNTERS = 19  # size of KernelState.ints
 
 # More active junctions than this at the end of REBASE_STEPS accepted steps in a row: refactor
 # at the present conductances (both compiled loops). Measured on the TL074 wheelset from its

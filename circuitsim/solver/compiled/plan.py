@@ -372,6 +372,7 @@ def start_counters(size: int) -> np.ndarray:
     ints[9] = 1  # one history point
     ints[10] = 1  # one output point (t = 0)
     ints[13] = -1
+    ints[18] = np.iinfo(np.int64).max  # PAUSE_ATTEMPTS: no pause until the caller sets one
     return ints
 
 
@@ -389,7 +390,7 @@ def initial_state(
     out_x[0] = x0
     return KernelState(
         fs=np.array([0.0, 0.0, 0.0, np.nan]),
-        ints=start_counters(15),
+        ints=start_counters(19),
         ht=np.zeros(4),
         hx=hx,
         hq=hq,

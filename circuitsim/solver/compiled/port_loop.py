@@ -34,6 +34,7 @@ from circuitsim.solver.compiled.newton import (
     LAST_A0,
     NEWTON,
     NHIST,
+    PAUSE_ATTEMPTS,
     REBASE_ACTIVE,
     REJECTED,
     SAME_A0,
@@ -132,7 +133,7 @@ def run(plan, st, t_until):
     negligible_v = JUNCTION_NEGLIGIBLE * vntol
     m_last = 0  # active junctions in the last Newton iteration
     while tstop - fs[T] > min_step:
-        if fs[T] >= t_until:
+        if fs[T] >= t_until or si[ATTEMPTS] >= si[PAUSE_ATTEMPTS]:
             return PAUSED
         if si[COUNT] >= out_t.size:
             return FULL

@@ -26,7 +26,7 @@ class PortState(NamedTuple):
     eliminated ports, r = md + rR, nq charge slots, nrows recorded unknowns)."""
 
     fs: np.ndarray  # (5,) t, h, saved h, last a0, configuration a0
-    ints: np.ndarray  # (18,) counters and flags (compiled/newton.py indices, CFG_*, ...)
+    ints: np.ndarray  # (19,) counters and flags (compiled/newton.py indices, CFG_*, ...)
     ht: np.ndarray  # (4,) accepted times, newest first
     hq: np.ndarray  # (4, nq) charges there
     hi: np.ndarray  # (2, nq) their derivatives
@@ -94,7 +94,7 @@ def initial_port_state(
     rows = np.ascontiguousarray(rows, dtype=np.int64)
     out_x = np.zeros((capacity, rows.size))
     out_x[0] = x0[rows]
-    ints = start_counters(18)
+    ints = start_counters(19)
     ints[CFG_VERSION] = -1
     z = np.zeros
     return PortState(

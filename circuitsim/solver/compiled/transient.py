@@ -28,6 +28,7 @@ from circuitsim.solver.compiled.newton import (
     NEWTON,
     NHIST,
     ORDER,
+    PAUSE_ATTEMPTS,
     REBASE_ACTIVE,
     REJECTED,
     SAME_A0,
@@ -246,7 +247,7 @@ def run(plan, st, t_until):
     src_rows, src_signs = plan.src_rows, plan.src_signs
     live, zeros = charge_slots(nq, plan.jslot, plan.charged, plan.has_charge)
     while tstop - fs[T] > min_step:
-        if fs[T] >= t_until:
+        if fs[T] >= t_until or si[ATTEMPTS] >= si[PAUSE_ATTEMPTS]:
             return PAUSED
         if si[COUNT] >= out_t.size:
             return FULL

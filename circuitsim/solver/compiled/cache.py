@@ -1,0 +1,198 @@
+"""Where the compiled kernels' machine code is kept, and whether a run must compile first.
+
+numba compiles the kernels on their first use and caches the machine code. By default it
+would write it beside the sources (``__pycache__`` in the installed package, often read-only)
+or in a folder of its own; here it goes to a user cache directory:
+``$CIRCUITSIM_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/circuitsim`` (``~/.cache/circuitsim``),
+with a sub-folder per source folder (numba's own naming: the folder's name and a hash of its
+path, so two checkouts never share machine code). A folder that cannot be written falls back
+to numba's own locations.
+
+numba's cache checks only the file a function is defined in, so a cached ``run`` would keep
+the old code of a changed ``newton`` compiled into it: :func:`clear_stale_cache` keeps a stamp
+of every kernel source and drops the machine code when any of them changed.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import sys
+import threading
+from pathlib import Path
+
+from circuitsim.atomic import write_text_atomic
+
+CACHE_ENV = "CIRCUITSIM_CACHE_DIR"
+# reference-engine files whose constants the kernels compile in (numba freezes globals)
+CONSTANT_SOURCES = ("port_solver.py", "transient.py")
+PACKAGE = "circuitsim."
+
+_LOCK = threading.Lock()
+_PREPARED: list[bool] = []
+
+
+def cache_root() -> Path:
+    """The user cache directory of circuitsim (not created here)."""
+    override = os.environ.get(CACHE_ENV)
+    if override:
+        return Path(override).expanduser()
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    base = Path(xdg) if xdg and os.path.isabs(xdg) else Path.home() / ".cache"
+    return base / "circuitsim"
+
+
+def numba_folder() -> Path:
+    """Where numba's index (.nbi) and machine-code (.nbc) files go."""
+    return cache_root() / "numba"
+
+
+def _locator_classes():
+    """numba's cache locator for our kernels (first), then numba's own as the fallback."""
+    from numba.core import caching
+
+    class KernelCacheLocator(caching._SourceFileBackedLocatorMixin, caching._CacheLocator):
+        """numba's user-provided-directory locator, with our directory."""
+
+        def __init__(self, py_func, py_file):
+            self._py_file = py_file
+            self._lineno = py_func.__code__.co_firstlineno
+            self._cache_path = str(numba_folder() / self.get_suitable_cache_subpath(py_file))
+
+        def get_cache_path(self):
+            return self._cache_path
+
+    return [KernelCacheLocator, *caching.CompileResultCacheImpl._locator_classes]
+
+
+def relocate_caches() -> list:
+    """Point every not yet used numba function of this package at :func:`numba_folder`.
+
+    Done per function (a cache object of its own), so numba's defaults for other packages
+    stay as they are. Returns the cache objects, one per function.
+    """
+    from numba.core import caching
+    from numba.core.registry import CPUDispatcher
+
+    class KernelCacheImpl(caching.CompileResultCacheImpl):
+        _locator_classes = _locator_classes()
+
+    class KernelFunctionCache(caching.FunctionCache):
+        _impl_class = KernelCacheImpl
+
+    caches = []
+    for name, module in list(sys.modules.items()):
+        if not name.startswith(PACKAGE) or module is None:
+            continue
+        for obj in list(vars(module).values()):
+            if not isinstance(obj, CPUDispatcher) or obj.py_func.__module__ != name:
+                continue
+            if isinstance(getattr(obj, "_cache", None), caching.FunctionCache):
+                if not isinstance(obj._cache, KernelFunctionCache) and not obj.overloads:
+                    obj._cache = KernelFunctionCache(obj.py_func)
+                caches.append(obj._cache)
+    return caches
+
+
+def clear_stale_cache(sources: list[Path], folders: list[Path], stamp: Path) -> bool:
+    """Delete the machine code in ``folders`` when any of ``sources`` changed since ``stamp``
+    was written (a digest of them all). Returns True when cache files were deleted."""
+    digest = hashlib.sha256()
+    for source in sorted(set(sources)):
+        if source.exists():
+            digest.update(str(source.name).encode())
+            digest.update(source.read_bytes())
+    try:
+        if stamp.read_text() == digest.hexdigest():
+            return False
+    except OSError:
+        pass
+    removed = False
+    try:
+        for folder in set(folders):
+            for path in [*folder.glob("*.nbi"), *folder.glob("*.nbc")]:
+                path.unlink(missing_ok=True)
+                removed = True
+        stamp.parent.mkdir(parents=True, exist_ok=True)
+        write_text_atomic(stamp, digest.hexdigest())
+    except OSError:
+        return False
+    return removed
+
+
+def check_cache() -> None:
+    """Once per process, before the first kernel call: the kernels' numba functions use the
+    user cache directory, and machine code older than any kernel source is dropped. Imports
+    the kernel modules (and numba)."""
+    with _LOCK:
+        if _PREPARED:
+            return
+        from circuitsim.solver.compiled import port_loop, transient  # noqa: F401
+
+        caches = relocate_caches()
+        sources = {Path(sys.modules[c._py_func.__module__].__file__) for c in caches}
+        folder = Path(port_loop.__file__).resolve().parent
+        sources |= {folder.parent / name for name in CONSTANT_SOURCES}
+        cache_folders = [Path(c._cache_path) for c in caches]
+        key = hashlib.sha1(str(folder).encode()).hexdigest()[:16]
+        clear_stale_cache(sorted(sources), cache_folders, numba_folder() / f"sources-{key}.sha256")
+        _PREPARED.append(True)
+
+
+def is_cold(dispatcher) -> bool:
+    """Whether calling ``dispatcher`` (a numba function) must compile: nothing compiled in
+    this process and nothing usable in its disk cache."""
+    if dispatcher.overloads:
+        return False
+    cache = getattr(dispatcher, "_cache", None)
+    cache_file = getattr(cache, "_cache_file", None)
+    if cache_file is None:
+        return True
+    try:
+        return not cache_file._load_index()
+    except Exception:  # an unreadable index: numba will recompile (and rewrite it)
+        return True
+
+
+def _timings_path() -> Path:
+    return cache_root() / "compile-seconds.json"
+
+
+def last_compile_seconds(kind: str) -> float | None:
+    """How long the last compile of kernel ``kind`` took on this machine, s (None: unknown)."""
+    try:
+        return float(json.loads(_timings_path().read_text())[kind])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def record_compile_seconds(kind: str, seconds: float) -> None:
+    """Keep ``seconds`` as the estimate of kernel ``kind``'s next compile."""
+    path = _timings_path()
+    try:
+        table = json.loads(path.read_text())
+        if not isinstance(table, dict):
+            table = {}
+    except (OSError, ValueError):
+        table = {}
+    table[kind] = round(seconds, 1)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_text_atomic(path, json.dumps(table))
+    except OSError:
+        pass
+
+
+def compile_notice(kind: str) -> str:
+    """The one-line announcement of a cold compile of kernel ``kind``, with an estimate."""
+    seconds = last_compile_seconds(kind)
+    estimate = (
+        f"the last compile on this machine took {seconds:.0f} s"
+        if seconds is not None
+        else "about a minute, longer on a loaded machine"
+    )
+    return (
+        f"compiling the {kind} kernel (its first use since it was installed or changed; "
+        f"{estimate}); the machine code is then cached in {numba_folder()}"
+    )

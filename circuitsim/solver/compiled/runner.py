@@ -1,0 +1,326 @@
+"""Running a transient on the compiled kernels: which kernel, its start, its loop in chunks.
+
+:func:`run_compiled` and :func:`run_ports` have the signature and results of
+:func:`circuitsim.solver.transient.run_transient`. The operating point is still solved by the
+reference engine (dc.py); the time loop runs compiled (transient.py or port_loop.py here). The
+loop returns to Python every tenth of the run (progress) and after a bounded number of steps
+(the wall-time limit, Ctrl-C), and when its output arrays are full.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+
+from circuitsim.solver.compiled.cache import (
+    check_cache,
+    compile_notice,
+    is_cold,
+    record_compile_seconds,
+)
+from circuitsim.solver.compiled.failures import failure, singular_row
+from circuitsim.solver.compiled.plan import KernelPlan, build_plan, initial_state, unsupported
+from circuitsim.solver.errors import (
+    CircuitInputError,
+    KernelCompileWarning,
+    KernelFallbackWarning,
+    RunLimitError,
+    SingularMatrixError,
+)
+from circuitsim.solver.system import MnaSystem
+from circuitsim.solver.transient import recorded, run_transient, start_transient, wall_deadline
+
+# ``kernel="auto"`` runs the ports kernel up to this many junctions, the compiled kernel above.
+# A ports iteration solves for the active junctions only, and H is formed column by column as
+# needed (ports.py); but the kernel keeps md x md matrices. Measured (docs/performance.md):
+# both wheelset circuits, 4 junctions / 54 unknowns and 56 junctions / 266 unknowns, run
+# faster on ports than on compiled; larger circuits were not measured.
+PORTS_MAX_JUNCTIONS = 64
+# The loop returns to Python after FIRST_PAUSE attempted steps, then after about PAUSE_SECONDS
+# of work, to check the wall-time limit. Each return restarts the loop's local caches (its
+# results then differ in round-off, not beyond its tolerances): the first chunk is long
+# enough that a run like the ideal wheelset (15,000 steps) has no extra return.
+FIRST_PAUSE = 20_000
+PAUSE_SECONDS = 1.0
+
+_ANNOUNCED: set[str] = set()
+
+
+def kernel_unavailable(system: MnaSystem) -> str | None:
+    """Why the compiled kernel cannot run ``system`` (numba missing, unsupported device,
+    too large), or None."""
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return "numba is not installed"
+    return unsupported(system)
+
+
+def auto_kernel(system: MnaSystem) -> str:
+    """``"ports"`` or ``"compiled"``: the one ``kernel="auto"`` runs for a supported system."""
+    junctions = sum(f.port_nodes[0].size for f in system.nonlinear if f.port_nodes is not None)
+    return "ports" if junctions <= PORTS_MAX_JUNCTIONS else "compiled"
+
+
+def transient_runner(system: MnaSystem, stats: dict) -> Callable:
+    """The transient loop ``system.options.kernel`` asks for: :func:`run_ports`,
+    :func:`run_compiled` or the reference ``run_transient``. ``kernel="auto"`` falling back to
+    the reference loop warns (:class:`KernelFallbackWarning`) and says why in
+    ``stats["kernel"]``.
+
+    Raises
+    ------
+    CircuitInputError
+        ``kernel`` is ``compiled`` or ``ports`` and that kernel cannot run the system.
+    """
+    choice = system.options.kernel
+    if choice == "python":
+        stats["kernel"] = "python"
+        return run_transient
+    reason = kernel_unavailable(system)
+    if reason is None:
+        if choice == "auto":
+            choice = auto_kernel(system)
+        return run_ports if choice == "ports" else run_compiled
+    if choice in ("compiled", "ports"):
+        raise CircuitInputError(f"option kernel={choice}: {reason}")
+    stats["kernel"] = f"python ({reason})"
+    if reason.startswith("no charges"):  # nothing to integrate: no loop is faster there
+        return run_transient
+    warnings.warn(
+        KernelFallbackWarning(
+            f"the compiled kernels cannot run this circuit ({reason}): the numpy reference "
+            "loop runs it, slower"
+        ),
+        stacklevel=3,
+    )
+    return run_transient
+
+
+def run_compiled(
+    system: MnaSystem,
+    tstep: float,
+    tstop: float,
+    tstart: float = 0.0,
+    tmax: float | None = None,
+    uic: bool = False,
+    progress: Callable[[str], None] | None = None,
+    stats: dict | None = None,
+    rows: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`~circuitsim.solver.transient.run_transient`, compiled; only the unknowns
+    ``rows`` (default: all) are returned (this kernel records all of them during the run).
+
+    Returns
+    -------
+    times : ndarray, shape (m,)
+        Accepted time points >= tstart (with uic, after 0: see ``recorded``), seconds.
+    solutions : ndarray, shape (m, len(rows))
+    """
+    return _run("compiled", system, tstep, tstop, tstart, tmax, uic, progress, stats, rows)
+
+
+def run_ports(
+    system: MnaSystem,
+    tstep: float,
+    tstop: float,
+    tstart: float = 0.0,
+    tmax: float | None = None,
+    uic: bool = False,
+    progress: Callable[[str], None] | None = None,
+    stats: dict | None = None,
+    rows: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`run_compiled` with Newton confined to the junction voltages (the ports kernel,
+    port_loop.py), recording only the unknowns ``rows`` (default: all).
+
+    Returns
+    -------
+    times : ndarray, shape (m,)
+        Accepted time points >= tstart (with uic, after 0: see ``recorded``), seconds.
+    solutions : ndarray, shape (m, len(rows))
+    """
+    return _run("ports", system, tstep, tstop, tstart, tmax, uic, progress, stats, rows)
+
+
+class PortsStart(NamedTuple):
+    """A compiled run up to its first step (:func:`ports_start`; the same for both kernels):
+    what runs that differ only in the constant matrix G can share."""
+
+    system: MnaSystem
+    plan: KernelPlan
+    families: dict  # build_plan's device states at t = 0
+    x: np.ndarray  # (n,) start solution
+    q0: np.ndarray  # (nq,) its charges
+    tstep: float  # s (the first step is a tenth of min(tstep, tstop / 100))
+    tstart: float  # s
+    min_step: float  # s
+    uic: bool  # the start solution does not depend on G
+
+
+def ports_start(
+    system: MnaSystem,
+    tstep: float,
+    tstop: float,
+    tstart: float = 0.0,
+    tmax: float | None = None,
+    uic: bool = False,
+    stats: dict | None = None,
+) -> PortsStart:
+    """The checks, breakpoints, start solution and plan of a ports-kernel run (what
+    :func:`run_ports` does before its first step), for :func:`run_ports_from`."""
+    stats = stats if stats is not None else {}
+    max_step, min_step, breaks, x, ctx0 = start_transient(
+        system, tstep, tstop, tstart, tmax, uic, stats
+    )
+    plan, families = build_plan(system, breaks, tstop, max_step, min_step, uic)
+    return PortsStart(system, plan, families, x, ctx0.q.copy(), tstep, tstart, min_step, bool(uic))
+
+
+def run_ports_from(
+    start: PortsStart,
+    G: np.ndarray | None = None,
+    rows: np.ndarray | None = None,
+    stats: dict | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`run_ports` from a shared start, with the constant matrix ``G`` in place of the
+    system's (a sweep variant: ``MnaSystem.conductances_with``). The start is only read, so
+    threads may share it. ``stats["factorizations"]`` counts this run's (``start.system`` is
+    not updated).
+
+    Raises
+    ------
+    ValueError
+        ``G`` given for a start that is an operating point (it depends on G; use uic).
+    """
+    if G is not None and not start.uic:
+        raise ValueError("run_ports_from: G can change only for a uic start")
+    plan = start.plan
+    if G is not None:
+        G = np.ascontiguousarray(G if isinstance(G, np.ndarray) else G.toarray(), dtype=float)
+        plan = plan._replace(G=G)
+    stats = stats if stats is not None else {}
+    stats.update(accepted=0, rejected=0, newton_iterations=stats.get("newton_iterations", 0))
+    counted: list[int] = []
+    try:
+        return _integrate("ports", start, plan, progress, stats, rows, counted)
+    finally:
+        stats["factorizations"] = sum(counted)
+
+
+def _run(kind, system, tstep, tstop, tstart, tmax, uic, progress, stats, rows):
+    stats = stats if stats is not None else {}
+    start = ports_start(system, tstep, tstop, tstart, tmax, uic, stats)  # the same for both
+    counted: list[int] = []
+    try:
+        return _integrate(kind, start, start.plan, progress, stats, rows, counted)
+    finally:
+        system.factorizations += sum(counted)
+
+
+def _loop_state(kind, start: PortsStart, plan, rows, capacity):
+    """The kernel module and its state at t = 0 (with the rows it records)."""
+    if kind == "ports":
+        from circuitsim.solver.compiled import port_loop as loop
+        from circuitsim.solver.compiled.port_state import initial_port_state
+
+        rows = np.arange(start.system.size) if rows is None else np.asarray(rows, dtype=np.int64)
+        state = initial_port_state(plan, start.families, start.x, start.q0.copy(), capacity, rows)
+        return loop, state
+    from circuitsim.solver.compiled import transient as loop
+
+    return loop, initial_state(plan, start.families, start.x, start.q0.copy(), capacity)
+
+
+def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted):
+    """The compiled loop from t = 0 on ``plan`` (``start.plan``, or it with a variant's G):
+    (times, recorded values); the run's factorizations are appended to ``counted``, also
+    when it fails."""
+    check_cache()
+    from circuitsim.solver.compiled import newton as nw
+
+    system, tstep = start.system, start.tstep
+    options = system.options
+    fixed = options.fixed_step
+    tstop, max_step = float(plan.real[10]), float(plan.real[8])
+    capacity = int(min(max(2 * (tstop / (fixed or max_step)) + 100, 1000), 5_000_000))
+    loop, st = _loop_state(kind, start, plan, rows, capacity)
+    st.fs[nw.H] = fixed if fixed else min(tstop / 100, tstep) / 10
+    st.fs[nw.SAVED_H] = tstop / 50
+    step = fixed or max_step
+    a0_start = (2.0 if options.method == "trap" else 1.5) / step
+    compiling = _announce_compile(kind, loop.run)
+    deadline = wall_deadline(options)
+    report_every = tstop / 10  # progress every tenth of the run
+    t_until = report_every
+    st.ints[nw.PAUSE_ATTEMPTS] = FIRST_PAUSE
+    began = time.perf_counter()
+    try:
+        nw.factor_now(plan, st, a0_start)
+        while True:
+            chunk_began, attempts = time.perf_counter(), int(st.ints[nw.ATTEMPTS])
+            status = loop.run(plan, st, t_until)
+            if compiling:
+                record_compile_seconds(kind, time.perf_counter() - began)
+                compiling = False
+            if status == loop.FULL:
+                st = _grown(st)
+            elif status == loop.PAUSED:
+                if st.fs[nw.T] >= t_until:
+                    if progress is not None:
+                        progress(
+                            f"transient: t = {st.fs[nw.T]:.4g} s of {tstop:.4g} s, "
+                            f"{st.ints[nw.ACCEPTED]} steps"
+                        )
+                    t_until += report_every
+                done = int(st.ints[nw.ATTEMPTS])
+                if deadline is not None and time.perf_counter() > deadline:
+                    raise RunLimitError(
+                        "max_wall_time", options.max_wall_time, float(st.fs[nw.T]), tstop, done
+                    )
+                rate = (done - attempts) / max(time.perf_counter() - chunk_began, 1e-6)
+                st.ints[nw.PAUSE_ATTEMPTS] = done + int(min(max(rate * PAUSE_SECONDS, 100), 1e7))
+            else:
+                break
+    except np.linalg.LinAlgError:
+        raise SingularMatrixError(system.describe_singular(singular_row(st.fac.B))) from None
+    finally:
+        stats["accepted"] = int(st.ints[nw.ACCEPTED])
+        stats["rejected"] = int(st.ints[nw.REJECTED])
+        stats["newton_iterations"] += int(st.ints[nw.NEWTON])
+        stats["kernel"] = kind
+        counted.append(int(st.ints[nw.FACTORIZATIONS]))
+    if status != loop.FINISHED:
+        raise failure(system, st, status, tstop)
+    count = int(st.ints[nw.COUNT])
+    out_t, out_x = st.out_t[:count], st.out_x[:count]
+    keep = recorded(out_t, start.tstart, start.min_step, start.uic)
+    if kind != "ports" and rows is not None:
+        out_x = out_x[:, np.asarray(rows, dtype=np.int64)]
+    return out_t[keep].copy(), out_x[keep].copy()
+
+
+def _announce_compile(kind: str, dispatcher) -> bool:
+    """Warn (once per process and kernel) when ``dispatcher`` must compile before it runs;
+    returns whether it must."""
+    if not is_cold(dispatcher):
+        return False
+    if kind not in _ANNOUNCED:
+        _ANNOUNCED.add(kind)
+        warnings.warn(KernelCompileWarning(compile_notice(kind)), stacklevel=4)
+    return True
+
+
+def _grown(st):
+    """The state with twice the output capacity."""
+    size = st.out_t.size
+    out_t = np.zeros(2 * size)
+    out_t[:size] = st.out_t
+    out_x = np.zeros((2 * size, st.out_x.shape[1]))
+    out_x[:size] = st.out_x
+    return st._replace(out_t=out_t, out_x=out_x)
