@@ -4,11 +4,22 @@ The verbs live in three small modules, grouped by the room they drive: ``model_v
 (stability, ode), ``netlist_verbs`` (convert, check, simulate) and ``circuit_verbs`` (generate,
 compare, reproduce, sweep); ``common`` holds the options several verbs share. Each verb is a pair
 ``_add_<verb>(subparsers)`` / ``_run_<verb>(args) -> int``. Library errors become one readable
-line on stderr and exit code 1 (or the verb's ``error_exit_code``, 2 where the input could not
-be read); a bad command line (argparse's own checks, or a :class:`~circuitsim.cli.common.
-UsageError` from a verb's checks of its option values, made before any long computation) exits
-with code 2. Warnings are printed as ``warning: <message>`` lines. Nothing in the library
+line on stderr; warnings are printed as ``warning: <message>`` lines. Nothing in the library
 imports this package.
+
+Exit codes, one convention for every verb (README.md, "Exit codes"):
+
+- 0: done;
+- 1: a finding: ``check`` found problems, ``generate``'s mapping check failed (the files are
+  written), ``compare`` is beyond a threshold;
+- 2: bad input: the command line (argparse's own checks, or a :class:`~circuitsim.cli.common.
+  UsageError` from a verb's checks of its option values, made before any long computation), a
+  file that cannot be read or written, a model file, netlist or circuit that is invalid or
+  cannot be realized (ModelError, NetlistError, CircuitInputError, SingularMatrixError: a
+  floating node or source loop, SynthesisError);
+- 3: the run failed: the engine did not converge, the ODE integration failed or reached its
+  step or time limit, ngspice failed, traces could not be compared, or memory ran out;
+- 130: interrupted (Ctrl-C); 141: standard output closed (a pipe's reader went away).
 """
 
 from __future__ import annotations
@@ -25,6 +36,10 @@ from circuitsim.cli.common import UsageError, warnings_as_lines
 COMMANDS = [*model_verbs.COMMANDS, *netlist_verbs.COMMANDS, *circuit_verbs.COMMANDS]
 
 
+EXIT_OK, EXIT_FINDING, EXIT_BAD_INPUT, EXIT_RUN_FAILED = 0, 1, 2, 3
+EXIT_INTERRUPTED, EXIT_CLOSED_OUTPUT = 130, 141
+
+
 def _library_errors() -> tuple[type[BaseException], ...]:
     """The typed errors of every room, caught at the top and printed as one line."""
     from circuitsim.compare.errors import ComparisonError
@@ -37,6 +52,23 @@ def _library_errors() -> tuple[type[BaseException], ...]:
     return (ModelError, NetlistError, SolverError, SynthesisError, NgspiceError, ComparisonError)
 
 
+def exit_code(error: BaseException) -> int:
+    """The exit code of a library error: 2 for bad input, 3 for a run that failed.
+
+    A model file, netlist or circuit that is wrong (or cannot be realized) is the user's input
+    to fix; an integration, a Newton iteration or ngspice that failed on valid input is not.
+    """
+    from circuitsim.mechanics.errors import IntegrationError, ModelError
+    from circuitsim.netlist.errors import NetlistError
+    from circuitsim.solver.errors import CircuitInputError, SingularMatrixError
+    from circuitsim.synthesis.errors import SynthesisError
+
+    if isinstance(error, IntegrationError):
+        return EXIT_RUN_FAILED
+    bad_input = (ModelError, NetlistError, CircuitInputError, SingularMatrixError, SynthesisError)
+    return EXIT_BAD_INPUT if isinstance(error, bad_input) else EXIT_RUN_FAILED
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The top-level parser with every registered verb."""
     parser = argparse.ArgumentParser(
@@ -44,6 +76,12 @@ def build_parser() -> argparse.ArgumentParser:
         description=(
             "Mechanical ODE models and their op-amp analog-computer circuits: direct solution, "
             "stability, netlist generation, circuit simulation and comparison."
+        ),
+        epilog=(
+            "exit codes (every verb): 0 done, 1 a finding (check's findings, a failed mapping "
+            "check, compare beyond a threshold), 2 bad input (command line, files, model, "
+            "netlist), 3 the run failed (no convergence, a step or time limit, ngspice), 130 "
+            "interrupted"
         ),
     )
     parser.add_argument("--version", action="version", version=f"circuitsim {__version__}")
@@ -74,15 +112,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     Returns
     -------
     int
-        0 on success; the verb's code for a finding (1); 1 or the verb's ``error_exit_code``
-        for a library error; 2 for a bad command line; 130 when interrupted. A closed standard
-        output (a pipe's reader gone) ends the run quietly with 1.
+        The exit code: 0 done, 1 a finding, 2 bad input, 3 the run failed, 130 interrupted,
+        141 standard output closed (see the module docstring).
     """
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
-        return 2
+        return EXIT_BAD_INPUT
     try:
         with warnings_as_lines():
             code = int(args.func(args) or 0)
@@ -90,16 +127,23 @@ def main(argv: Sequence[str] | None = None) -> int:
         return code
     except UsageError as exc:
         print(f"circuitsim {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     except _library_errors() as exc:
         print(f"circuitsim {args.command}: error: {exc}", file=sys.stderr)
-        return getattr(args, "error_exit_code", 1)
+        return exit_code(exc)
     except BrokenPipeError:
         _quiet_stdout()
-        return 1
+        return EXIT_CLOSED_OUTPUT
     except OSError as exc:
         print(f"circuitsim {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
+    except MemoryError:
+        print(
+            f"circuitsim {args.command}: error: out of memory: the input is too large for "
+            "this machine (fewer states, a shorter run or a larger output step)",
+            file=sys.stderr,
+        )
+        return EXIT_RUN_FAILED
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED

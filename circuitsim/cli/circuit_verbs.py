@@ -43,8 +43,8 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
             "names for the wheelset) and write FILE.cir, FILE.scale.json (how node voltages "
             "map back to states) and FILE.bom.csv (parts, rounding errors). The written "
             "netlist is read back and its coefficients checked against the model (exit code "
-            "1 if the check fails; 2 for an error, which writes no file). See "
-            "docs/translator.md."
+            "1 if the check fails; an error writes no file: 2 for bad input, 3 for a failed "
+            "run). See docs/translator.md."
         ),
     )
     add_model_options(parser)
@@ -110,8 +110,7 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
         "'inf' keeps them open (the linear circuit with the blocks in place)",
     )
     parser.add_argument("-o", "--output", required=True, metavar="FILE.cir", help="netlist file")
-    # 1 is the mapping check's failure (the files are written); an error that wrote nothing: 2
-    parser.set_defaults(func=_run_generate, error_exit_code=2)
+    parser.set_defaults(func=_run_generate)
 
 
 def _check_generate(args: argparse.Namespace) -> None:
@@ -157,8 +156,8 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:
             "the chosen engine, map node voltages back to physical states through the scale "
             "map, solve the ODE directly, and print per state: %NRMSD, max abs error, peak "
             "ratio, dominant-frequency ratio and phase lag (positive: the circuit lags). Exit "
-            "code 1 when a metric is beyond its threshold, 2 on an error. See "
-            "docs/validation.md."
+            "code 1 when a metric is beyond its threshold, 2 for bad input, 3 for a failed "
+            "run. See docs/validation.md."
         ),
     )
     add_model_options(parser)
@@ -209,7 +208,7 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:
         help="draw the circuit traces over the ODE's, in the format of the suffix (.png, .pdf, "
         ".svg ...)",
     )
-    parser.set_defaults(func=_run_compare, error_exit_code=2)
+    parser.set_defaults(func=_run_compare)
 
 
 def _check_compare(args: argparse.Namespace) -> None:
@@ -432,7 +431,7 @@ def _add_sweep(sub: argparse._SubParsersAction) -> None:
         metavar="DIR",
         help="output folder, created (and checked) before the sweep runs (default .)",
     )
-    parser.set_defaults(func=_run_sweep, error_exit_code=2)
+    parser.set_defaults(func=_run_sweep)
 
 
 class _SweepBar:
@@ -523,6 +522,7 @@ def _refuse_fixed_swept(args: argparse.Namespace, model: Model, swept: str, name
 
 
 def _run_sweep(args: argparse.Namespace) -> int:
+    from circuitsim.compare.errors import ComparisonError
     from circuitsim.compare.sweep import run_sweep, save_sweep
     from circuitsim.compare.values import parse_values
     from circuitsim.mechanics import critical_speed, load_model
@@ -535,7 +535,10 @@ def _run_sweep(args: argparse.Namespace) -> int:
     require_positive("--tstop", args.tstop)
     require_positive("--window", args.window)
     check_scenario_options(args)
-    values = parse_values(args.values)
+    try:
+        values = parse_values(args.values)
+    except ComparisonError as exc:  # a bad option value: exit code 2, not a failed run
+        raise UsageError(str(exc)) from None
     model = load_model(args.model)
     name = _swept_parameter(model, swept[0])
     _refuse_fixed_swept(args, model, swept[0], name)

@@ -10,6 +10,7 @@ from circuitsim.cli.common import (
     add_model_options,
     add_scenario_options,
     check_scenario_options,
+    require_count,
     require_figure_path,
     require_finite,
     require_fraction,
@@ -20,6 +21,9 @@ from circuitsim.cli.common import (
 
 MAX_CSV_ROWS = 10_000_000
 """Most rows ``ode --csv`` writes (``--tstop`` / ``--dt`` + 1): about a gigabyte of text."""
+
+DEFAULT_T_STOP = 5.0
+"""End time of ``ode`` when neither ``--tstop`` nor the model's ``[circuit] t_stop`` is given."""
 
 
 def _add_stability(sub: argparse._SubParsersAction) -> None:
@@ -130,7 +134,24 @@ def _add_ode(sub: argparse._SubParsersAction) -> None:
     add_model_options(parser)
     add_scenario_options(parser)
     parser.add_argument(
-        "--tstop", type=float, default=5.0, metavar="T", help="end time, s (> 0; default 5)"
+        "--tstop",
+        type=float,
+        metavar="T",
+        help="end time in the model's time unit (> 0; default: the model file's [circuit] "
+        "t_stop, else 5)",
+    )
+    # defaults: those of mechanics.limits (not imported here: it loads scipy; a test checks)
+    parser.add_argument(
+        "--max-steps",
+        type=int,
+        metavar="N",
+        help="stop with an error after N integrator steps, at least 1 (default 500,000)",
+    )
+    parser.add_argument(
+        "--max-wall-time",
+        type=float,
+        metavar="SECONDS",
+        help="stop with an error after this much wall time, > 0 (default 300 s)",
     )
     parser.add_argument(
         "--y0",
@@ -168,19 +189,25 @@ def _add_ode(sub: argparse._SubParsersAction) -> None:
 
 
 def _check_ode(args: argparse.Namespace) -> None:
-    """Refuse bad times, tolerance and figure suffix, and a CSV of more than MAX_CSV_ROWS."""
+    """Refuse bad times, tolerance, limits and figure suffix."""
     check_scenario_options(args)
     require_positive("--tstop", args.tstop)
     require_positive("--dt", args.dt)
     require_fraction("--rtol", args.rtol)
+    require_count("--max-steps", args.max_steps)
+    require_positive("--max-wall-time", args.max_wall_time)
     require_figure_path("--plot", args.plot)
-    rows = args.tstop / args.dt + 1
+    require_writable(args.csv, args.plot)
+
+
+def _check_csv_rows(args: argparse.Namespace, t_stop: float) -> None:
+    """Refuse a CSV of more than MAX_CSV_ROWS rows (``t_stop`` may come from the model)."""
+    rows = t_stop / args.dt + 1
     if args.csv and rows > MAX_CSV_ROWS:
         raise UsageError(
-            f"--dt {args.dt:g} with --tstop {args.tstop:g} gives {rows:.3g} CSV rows, more than "
+            f"--dt {args.dt:g} with --tstop {t_stop:g} gives {rows:.3g} CSV rows, more than "
             f"{MAX_CSV_ROWS:,}: use a larger --dt"
         )
-    require_writable(args.csv, args.plot)
 
 
 def _run_ode(args: argparse.Namespace) -> int:
@@ -191,12 +218,16 @@ def _run_ode(args: argparse.Namespace) -> int:
 
     _check_ode(args)
     model, system = scenario_system(args, with_model=True)
-    result = solve(system, t_span=(0.0, args.tstop), rtol=args.rtol, atol=1e-12)
+    t_stop = args.tstop or float(model.circuit.get("t_stop", DEFAULT_T_STOP))
+    _check_csv_rows(args, t_stop)
+    limits = {"max_steps": args.max_steps, "max_wall_time": args.max_wall_time}
+    limits = {name: value for name, value in limits.items() if value is not None}
+    result = solve(system, t_span=(0.0, t_stop), rtol=args.rtol, atol=1e-12, **limits)
     if args.csv:
-        samples = int(np.floor(args.tstop / args.dt + 1e-9)) + 1
+        samples = int(np.floor(t_stop / args.dt + 1e-9)) + 1
         grid = np.linspace(0.0, (samples - 1) * args.dt, samples)
-        if grid[-1] < args.tstop:
-            grid = np.append(grid, args.tstop)
+        if grid[-1] < t_stop:
+            grid = np.append(grid, t_stop)
         write_text_atomic(args.csv, result.csv_text(grid))
     if args.plot:
         from circuitsim.compare.figures import plot_response
@@ -208,11 +239,11 @@ def _run_ode(args: argparse.Namespace) -> int:
         plot_response(args.plot, result, title=title)
     terms = ", ".join(term.name for term in system.nonlinear) or "none"
     print(f"model {model.name}, coefficient set {system.coefficient_set}, nonlinear: {terms}")
-    print(f"0 to {args.tstop:g} s, {len(result.t)} steps, {len(result.kinks)} kink crossings")
-    final = result.sol(args.tstop)
+    print(f"0 to {t_stop:g} s, {len(result.t)} steps, {len(result.kinks)} kink crossings")
+    final = result.sol(t_stop)
     for i, (name, unit) in enumerate(zip(result.states, result.units, strict=True)):
         peak = result.max_abs(name)
-        print(f"  {name:10s} max |.| {peak:.6g} {unit:6s} at {args.tstop:g} s: {final[i]:+.6g}")
+        print(f"  {name:10s} max |.| {peak:.6g} {unit:6s} at {t_stop:g} s: {final[i]:+.6g}")
     if args.csv:
         print(f"wrote {args.csv}")
     if args.plot:

@@ -33,7 +33,7 @@ def _add_convert(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "-o", "--output", metavar="OUT.cir", help="file to write (default: standard output)"
     )
-    parser.set_defaults(func=_run_convert, error_exit_code=2)
+    parser.set_defaults(func=_run_convert)
 
 
 def _run_convert(args: argparse.Namespace) -> int:
@@ -57,11 +57,11 @@ def _add_check(sub: argparse._SubParsersAction) -> None:
             "nodes, nodes with no DC path to ground, current-source cut sets, loops of voltage "
             "sources and inductors, unconnected subcircuit ports, duplicate names, undefined "
             "or wrong-kind models and subcircuits. Exit code 0: clean, 1: findings, "
-            "2: the netlist could not be read."
+            "2: the netlist could not be read or is invalid."
         ),
     )
     parser.add_argument("netlist", metavar="FILE.cir", help="netlist to check")
-    parser.set_defaults(func=_run_check, error_exit_code=2)
+    parser.set_defaults(func=_run_check)
 
 
 def _run_check(args: argparse.Namespace) -> int:

@@ -28,3 +28,25 @@ class IntegrationError(ModelError):
     A ModelError so that callers (and the CLI) handling model problems handle this too; the
     message says at what time and why.
     """
+
+
+class IntegrationLimitError(IntegrationError):
+    """The direct solution reached its step-count or wall-time limit before the end.
+
+    Parameters
+    ----------
+    message : str
+        Where it stopped and what to try.
+    time : float
+        Model time reached, s.
+    steps : int
+        Step attempts taken.
+    limit : str
+        ``"steps"`` or ``"time"``.
+    """
+
+    def __init__(self, message: str, time: float, steps: int, limit: str):
+        super().__init__(message)
+        self.time = time
+        self.steps = steps
+        self.limit = limit

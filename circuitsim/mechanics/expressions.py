@@ -58,6 +58,17 @@ _ARRAY_FUNCTIONS = {
 CONSTANTS = {"pi": math.pi}
 RESERVED = frozenset(FUNCTIONS) | frozenset(CONSTANTS)
 
+MAX_NESTING = 100
+"""Most levels of parentheses, signs, powers and calls inside one another: the parser is
+recursive, and a deeper text (a probe's 1,200 parentheses) would end in Python's RecursionError
+instead of a message."""
+
+MAX_DEPTH = 300
+"""Most operations in a chain (``a + b + c ...`` is one level per term): evaluation walks the
+tree recursively. A coefficient longer than this is better split into named parameters."""
+
+_SHOWN = 60  # characters of an expression quoted in a message: the rest is "..."
+
 _TOKEN = re.compile(
     r"\s*(?:(?P<number>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)"
     r"|(?P<name>[A-Za-z_][A-Za-z_0-9]*)"
@@ -67,6 +78,14 @@ _TOKEN = re.compile(
 
 class ExpressionError(ValueError):
     """The text is not a valid expression, or cannot be evaluated (message says why)."""
+
+
+def _quote(text: str) -> str:
+    """``text`` quoted for a message, cut to its first ``_SHOWN`` characters (a hostile file's
+    expression can be megabytes long)."""
+    if len(text) <= _SHOWN:
+        return repr(text)
+    return f"{text[:_SHOWN]!r}... ({len(text):,} characters)"
 
 
 @dataclass(frozen=True)
@@ -135,7 +154,7 @@ def _tokenize(text: str) -> list[tuple[str, str]]:
         if match is None or match.end() == pos:
             bad = stripped[pos:].lstrip()[:1]
             hint = " (use ** for powers)" if bad == "^" else ""
-            raise ExpressionError(f"unexpected character {bad!r} in {text!r}{hint}")
+            raise ExpressionError(f"unexpected character {bad!r} in {_quote(text)}{hint}")
         kind = match.lastgroup
         tokens.append((kind, match.group(kind)))
         pos = match.end()
@@ -148,6 +167,16 @@ class _Parser:
         self.text = text
         self.tokens = _tokenize(text)
         self.pos = 0
+        self.nesting = 0  # levels of (, signs, ** and calls open: see MAX_NESTING
+
+    def enter(self) -> None:
+        """One level deeper (a parenthesis, sign, power or call): refuse past MAX_NESTING."""
+        self.nesting += 1
+        if self.nesting > MAX_NESTING:
+            raise ExpressionError(
+                f"nested too deeply: more than {MAX_NESTING} levels of parentheses, signs, "
+                f"powers or calls in {_quote(self.text)}"
+            )
 
     def peek(self) -> tuple[str, str]:
         return self.tokens[self.pos]
@@ -161,7 +190,9 @@ class _Parser:
         kind, value = self.take()
         if (kind, value) != ("op", op):
             found = value or "end of text"
-            raise ExpressionError(f"expected {op!r} but found {found!r} in {self.text!r}")
+            raise ExpressionError(
+                f"expected {op!r} but found {_quote(found)} in {_quote(self.text)}"
+            )
 
     def expr(self) -> tuple:
         node = self.term()
@@ -178,19 +209,21 @@ class _Parser:
         return node
 
     def unary(self) -> tuple:
-        if self.peek() == ("op", "-"):
-            self.take()
-            return ("neg", self.unary())
-        if self.peek() == ("op", "+"):
-            self.take()
-            return self.unary()
+        if self.peek() in (("op", "-"), ("op", "+")):
+            sign = self.take()[1]
+            self.enter()
+            operand = self.unary()
+            self.nesting -= 1
+            return ("neg", operand) if sign == "-" else operand
         return self.power()
 
     def power(self) -> tuple:
         node = self.atom()
         if self.peek() == ("op", "**"):
             self.take()
+            self.enter()
             node = ("**", node, self.unary())
+            self.nesting -= 1
         return node
 
     def atom(self) -> tuple:
@@ -201,31 +234,40 @@ class _Parser:
             if self.peek() == ("op", "("):
                 return self.call(value)
             if value in FUNCTIONS:
-                raise ExpressionError(f"function {value!r} needs arguments in {self.text!r}")
+                raise ExpressionError(
+                    f"function {_quote(value)} needs arguments in {_quote(self.text)}"
+                )
             return ("name", value)
         if (kind, value) == ("op", "("):
+            self.enter()
             node = self.expr()
             self.expect(")")
+            self.nesting -= 1
             return node
         found = value or "end of text"
         raise ExpressionError(
-            f"expected a number, name or '(' but found {found!r} in {self.text!r}"
+            f"expected a number, name or '(' but found {_quote(found)} in {_quote(self.text)}"
         )
 
     def call(self, name: str) -> tuple:
         if name not in FUNCTIONS:
             known = ", ".join(sorted(FUNCTIONS))
-            raise ExpressionError(f"unknown function {name!r} in {self.text!r} (known: {known})")
+            raise ExpressionError(
+                f"unknown function {_quote(name)} in {_quote(self.text)} (known: {known})"
+            )
         self.expect("(")
+        self.enter()
         args = [self.expr()]
         while self.peek() == ("op", ","):
             self.take()
             args.append(self.expr())
         self.expect(")")
+        self.nesting -= 1
         arity = FUNCTIONS[name][1]
         if len(args) != arity:
             raise ExpressionError(
-                f"function {name!r} takes {arity} argument(s), got {len(args)} in {self.text!r}"
+                f"function {name!r} takes {arity} argument(s), got {len(args)} in "
+                f"{_quote(self.text)}"
             )
         return ("call", name, tuple(args))
 
@@ -246,7 +288,12 @@ def parse(source: str | int | float) -> Expression:
     if isinstance(source, bool):
         raise ExpressionError(f"expected a number or an expression string, got {source!r}")
     if isinstance(source, int | float):
-        return Expression(repr(source), ("num", float(source)))
+        try:
+            return Expression(repr(source), ("num", float(source)))
+        except OverflowError:  # an integer of hundreds of digits
+            raise ExpressionError(
+                f"number too large: an integer of {len(str(abs(source))):,} digits"
+            ) from None
     if not isinstance(source, str):
         raise ExpressionError(
             f"expected a number or an expression string, got {type(source).__name__}"
@@ -257,8 +304,30 @@ def parse(source: str | int | float) -> Expression:
     tree = parser.expr()
     kind, value = parser.peek()
     if kind != "end":
-        raise ExpressionError(f"unexpected {value!r} after a complete expression in {source!r}")
+        raise ExpressionError(
+            f"unexpected {_quote(value)} after a complete expression in {_quote(source)}"
+        )
+    if _depth(tree) > MAX_DEPTH:
+        raise ExpressionError(
+            f"too long: more than {MAX_DEPTH} operations in a chain in {_quote(source)}; "
+            "split it into named parameters"
+        )
     return Expression(source, tree)
+
+
+def _depth(tree: tuple) -> int:
+    """Levels of the tree, counted without recursion (the tree may be thousands deep)."""
+    deepest, stack = 0, [(tree, 1)]
+    while stack:
+        node, level = stack.pop()
+        deepest = max(deepest, level)
+        if node[0] == "neg":
+            stack.append((node[1], level + 1))
+        elif node[0] == "call":
+            stack.extend((arg, level + 1) for arg in node[2])
+        elif node[0] not in ("num", "name"):
+            stack.extend(((node[1], level + 1), (node[2], level + 1)))
+    return deepest
 
 
 def evaluate(expression: Expression, env: dict[str, float]) -> float:
@@ -272,13 +341,13 @@ def evaluate(expression: Expression, env: dict[str, float]) -> float:
     try:
         value = _eval(expression.tree, env)
     except ZeroDivisionError:
-        raise ExpressionError(f"division by zero in {expression.text!r}") from None
+        raise ExpressionError(f"division by zero in {_quote(expression.text)}") from None
     except (OverflowError, ValueError) as exc:
         if isinstance(exc, ExpressionError):
             raise
-        raise ExpressionError(f"cannot evaluate {expression.text!r}: {exc}") from None
+        raise ExpressionError(f"cannot evaluate {_quote(expression.text)}: {exc}") from None
     if not math.isfinite(value):
-        raise ExpressionError(f"{expression.text!r} evaluates to {value}")
+        raise ExpressionError(f"{_quote(expression.text)} evaluates to {value}")
     return value
 
 
@@ -292,7 +361,7 @@ def _eval(node: tuple, env: dict[str, float]) -> float:
             return float(env[name])
         if name in CONSTANTS:
             return CONSTANTS[name]
-        raise ExpressionError(f"unknown name {name!r}")
+        raise ExpressionError(f"unknown name {_quote(name)}")
     if kind == "neg":
         return -_eval(node[1], env)
     if kind == "call":

@@ -245,8 +245,9 @@ class Model:
             inverse = np.linalg.inv(mass)
             A = np.zeros((n, n))
             A[:size, size:] = np.eye(size)
-            A[size:, :size] = -inverse @ matrix("K", size)
-            A[size:, size:] = -inverse @ matrix("C", size)
+            with np.errstate(over="ignore", invalid="ignore"):  # _check_finite names it
+                A[size:, :size] = -inverse @ matrix("K", size)
+                A[size:, size:] = -inverse @ matrix("C", size)
             b0 = np.zeros(n)
             if "F" in spec.matrices:
                 b0[size:] = inverse @ np.array([value(item) for item in spec.matrices["F"]])
@@ -318,6 +319,7 @@ class Model:
                     name=name,
                 )
             )
+        self._check_finite(A, b0, terms, sources, set_name)
         return System(
             name=self.name,
             states=self.states,
@@ -332,6 +334,30 @@ class Model:
             coefficients=coefficient_values,
             coefficient_set=set_name,
         )
+
+    def _check_finite(self, A, b0, terms, sources, set_name: str) -> None:
+        """Refuse a System with an infinite or NaN number in it.
+
+        Every expression evaluates to a finite value, but their products need not: M = 1e-300
+        and K = 1e300 give inv(M) K = inf, which would end later in a LinAlgError or an
+        integration that cannot take a step.
+        """
+        parts = [("matrices", "the state matrix", A), ("matrices", "the constant term", b0)]
+        for term in terms:
+            key = f"nonlinear.{term.name}"
+            parts.append((key, "its direction", term.direction))
+            parts.append((key, "its linear part", term.linear))
+            for piece in term.abs_terms:
+                parts.append((key, "an abs term", [piece.gain, piece.offset, *piece.row]))
+        for source in sources:
+            parts.append((f"forcing.{source.name}", "its direction", source.direction))
+        for key, what, values in parts:
+            if not np.all(np.isfinite(np.asarray(values, dtype=float))):
+                raise self._fail(
+                    key,
+                    f"{what} is not finite with coefficient set {set_name!r} (a product of "
+                    "coefficients overflows, e.g. inv(M) K with a tiny mass): rescale the units",
+                )
 
     def _initial(self, x0, value) -> np.ndarray:
         n = self.n

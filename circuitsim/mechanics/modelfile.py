@@ -7,6 +7,8 @@ file, the dotted key and what is wrong. The format is documented in docs/model.m
 from __future__ import annotations
 
 import math
+import os
+import re
 import tomllib
 from dataclasses import dataclass
 from importlib import resources
@@ -32,6 +34,10 @@ TOP_KEYS = {
     "initial": "initial conditions",
     "circuit": "free-form hints for the circuit translator",
 }
+
+MAX_FILE_BYTES = 16 * 2**20
+"""Largest model file read (16 MiB; a dense 1,000-state model is about 10 MiB): a bigger one is
+refused before it is read, not turned into a MemoryError halfway through."""
 
 
 @dataclass(frozen=True)
@@ -208,16 +214,7 @@ def read_model(path: str | Path | None = None) -> ModelSpec:
     path = model_path(path)
     file = str(path)
     reader = _Reader(file)
-    try:
-        with open(path, "rb") as handle:
-            document = tomllib.load(handle)
-    except FileNotFoundError:
-        shipped = ", ".join(shipped_models())
-        raise reader.fail(None, f"model file not found (shipped models: {shipped})") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise reader.fail(None, f"not valid TOML: {exc}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise reader.fail(None, f"cannot read: {exc}") from None
+    document = _load_toml(path, reader)
     reader.check_keys(document, "", tuple(TOP_KEYS))
 
     model = reader.table(document.get("model"), "model")
@@ -287,6 +284,51 @@ def read_model(path: str | Path | None = None) -> ModelSpec:
     )
 
 
+def _load_toml(path: Path, reader: _Reader) -> dict:
+    """The TOML document of ``path``; every way reading it can fail is a ModelError."""
+    try:
+        with open(path, "rb") as handle:
+            size = os.fstat(handle.fileno()).st_size
+            if size > MAX_FILE_BYTES:
+                raise reader.fail(
+                    None, f"too large: {size:,} bytes (a model file is at most "
+                    f"{MAX_FILE_BYTES:,} bytes)"
+                )  # fmt: skip
+            return tomllib.load(handle)
+    except ModelError:  # the size check's
+        raise
+    except FileNotFoundError:
+        shipped = ", ".join(shipped_models())
+        raise reader.fail(None, f"model file not found (shipped models: {shipped})") from None
+    except IsADirectoryError:
+        raise reader.fail(None, "is a folder, not a model file") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise reader.fail(None, f"not valid TOML: {exc}") from None
+    except ValueError as exc:  # tomllib's own: an integer past Python's 4,300-digit limit
+        if "digits" not in str(exc):
+            raise reader.fail(None, f"not valid TOML: {exc}") from None
+        line = _line_of_long_integer(path)
+        raise reader.fail(
+            None, f"not valid TOML: an integer of more than 4,300 digits{line}"
+        ) from None
+    except RecursionError:  # tomllib parses nested arrays and inline tables recursively
+        raise reader.fail(None, "not valid TOML: arrays or tables nested too deeply") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise reader.fail(None, f"cannot read: {exc}") from None
+
+
+def _line_of_long_integer(path: Path) -> str:
+    """`` (line N)`` of the first run of more than 4,300 digits in ``path``, for the message
+    (tomllib's own error has no position); empty if not found."""
+    with open(path, "rb") as handle:
+        data = handle.read(MAX_FILE_BYTES + 1)
+    match = re.search(rb"\d{4301,}", data)
+    if match is None:
+        return ""
+    line = data.count(b"\n", 0, match.start()) + 1
+    return f" (line {line})"
+
+
 def _rate(unit: str) -> str:
     return "1/s" if unit in ("", "1") else f"{unit}/s"
 
@@ -315,9 +357,10 @@ def _circuit_hints(
     Part names are keyed by what they belong to (a state, a piecewise-linear term, a forcing
     term): a key naming nothing of the model, or a name that is not a string, would otherwise
     be dropped or turned into a part name without a word. Other keys are the author's own
-    (notes ...) and pass unchanged. ``t_stop`` (model seconds simulated)
-    becomes the netlist's ``.tran`` stop time: checked here so that a bad one is reported
-    against the model file, not as an unreadable netlist line.
+    (notes ...) and pass unchanged. ``t_stop`` (model seconds simulated) becomes the
+    netlist's ``.tran`` stop time and ``ode``'s end time, ``time_scale`` (K: one model second
+    takes 1/K circuit seconds) the translator's default time scale: both checked here so that
+    a bad one is reported against the model file, not as an unreadable netlist line.
     """
     by_state = {"integrators", "inverters", "capacitors"}
     owners = {"switches": ("nonlinear term", terms), "sources": ("forcing term", forcings)}
@@ -347,15 +390,25 @@ def _circuit_hints(
             raise reader.fail(
                 "circuit.speed.entries", "expected a list of [state, state] pairs of the model"
             )
-    if "t_stop" not in circuit:
-        return
-    value = circuit["t_stop"]
+    for name, what in (("t_stop", "a number of seconds"), ("time_scale", "a number")):
+        if name in circuit:
+            value = _float(reader, circuit[name], f"circuit.{name}", what)
+            if not (math.isfinite(value) and value > 0):
+                raise reader.fail(
+                    f"circuit.{name}", f"must be a positive {what[2:]}, got {circuit[name]}"
+                )
+
+
+def _float(reader: _Reader, value, key: str, what: str) -> float:
+    """``value`` as a float; a boolean, a string or an integer beyond the float range is
+    refused naming ``key``; ``what`` names what is expected ("a number")."""
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise reader.fail(
-            "circuit.t_stop", f"wrong type: expected a number of seconds, got {_type(value)}"
-        )
-    if not math.isfinite(value) or value <= 0:
-        raise reader.fail("circuit.t_stop", f"must be a positive number of seconds, got {value}")
+        raise reader.fail(key, f"wrong type: expected {what}, got {_type(value)}")
+    try:
+        return float(value)
+    except OverflowError:  # an integer of hundreds of digits
+        digits = len(str(abs(value)))
+        raise reader.fail(key, f"number too large: an integer of {digits:,} digits") from None
 
 
 def _part_names(reader: _Reader, value, key: str, what: str, known: tuple[str, ...]) -> None:

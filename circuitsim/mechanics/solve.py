@@ -21,6 +21,15 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from circuitsim.mechanics.errors import IntegrationError
+from circuitsim.mechanics.limits import (
+    MAX_STEPS,
+    MAX_WALL_TIME,
+    Budget,
+    BudgetExhausted,
+    guarded_method,
+    limit_error,
+    refuse_unresolvable_forcing,
+)
 from circuitsim.mechanics.system import System
 
 # A restart that has not moved time forward more than this many times in a row means events
@@ -232,6 +241,8 @@ def solve(
     method: str = "DOP853",
     max_step: float | None = None,
     x0: np.ndarray | None = None,
+    max_steps: int | None = MAX_STEPS,
+    max_wall_time: float | None = MAX_WALL_TIME,
 ) -> OdeResult:
     """Integrate ``system`` over ``t_span`` with a restart at every kink crossing.
 
@@ -249,6 +260,10 @@ def solve(
         Largest step, s (default unbounded).
     x0 : array_like, shape (n,), optional
         Initial state (default ``system.x0``, or zeros).
+    max_steps : int or None
+        Most step attempts, all restarts together (default 500,000; None: no limit).
+    max_wall_time : float or None
+        Most seconds of wall time (default 300; None: no limit).
 
     Returns
     -------
@@ -256,6 +271,9 @@ def solve(
 
     Raises
     ------
+    IntegrationLimitError
+        A limit was reached: the message says at what model time and what to try. Also
+        raised before the start when a forcing alone needs more than ``max_steps`` steps.
     IntegrationError
         The integrator failed, or events kept firing without time advancing.
     """
@@ -270,7 +288,10 @@ def solve(
     switches = sorted({term.t_on for term in system.nonlinear if term.t_on is not None})
     switches = [s for s in switches if t0 < s < t1]
     atol_vector = np.broadcast_to(np.asarray(atol, dtype=float), (n,))
-    options = {"rtol": rtol, "atol": atol, "method": method, "dense_output": True}
+    refuse_unresolvable_forcing(system, (t0, t1), float(np.min(atol_vector)), max_steps)
+    budget = Budget(max_steps, max_wall_time)
+    options = {"rtol": rtol, "atol": atol, "dense_output": True}
+    options["method"] = guarded_method(method, budget)
     if max_step is not None:
         options["max_step"] = max_step
 
@@ -283,7 +304,10 @@ def solve(
         events = phase.events
         if first_step is not None:
             options["first_step"] = min(first_step, t_end - t)
-        sol = solve_ivp(phase.rhs, (t, t_end), x, events=events or None, **options)
+        try:
+            sol = solve_ivp(phase.rhs, (t, t_end), x, events=events or None, **options)
+        except BudgetExhausted as exhausted:
+            raise limit_error(exhausted, budget, t1) from None
         nfev += sol.nfev
         if sol.status == -1:
             raise IntegrationError(f"integration failed at t = {sol.t[-1]:.6g} s: {sol.message}")

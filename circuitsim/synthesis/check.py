@@ -432,6 +432,8 @@ class _Checker:
             for i in np.flatnonzero(d):
                 t_on_model[int(i)] = term.t_on
                 for piece in term.abs_terms:
+                    if piece.gain == 0:  # adds nothing; the translator builds no block for it
+                        continue
                     pieces_model.append(
                         (int(i), d[i] * piece.gain, np.asarray(piece.row, float), piece.offset)
                     )

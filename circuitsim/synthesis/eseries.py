@@ -63,18 +63,49 @@ def round_to_series(value: float, series: str) -> float:
         )
     if not (value > 0 and math.isfinite(value)):
         raise SynthesisError(f"cannot round a non-positive or infinite value {value!r}")
-    decade = math.floor(math.log10(value))
-    mantissa = value / 10.0**decade
+    decade, mantissa = _decade(value)
     # candidates include the next decade's 1.0 so 9.9 can round up to 10
     candidates = [*SERIES[key], 10.0]
     best = min(candidates, key=lambda m: abs(math.log(m / mantissa)))
     # round away binary noise (e.g. 3.16 * 1e3 = 3160.0000000000005)
-    return float(f"{best * 10.0**decade:.6g}")
+    return _standard(best, decade, value)
 
 
 def floor_to_series(value: float, series: str = "E24") -> float:
-    """The largest member of ``series`` not above ``value`` (for readable volts-per-unit)."""
-    decade = math.floor(math.log10(value))
-    mantissa = value / 10.0**decade
+    """The largest member of ``series`` not above ``value`` (for readable volts-per-unit).
+
+    Raises
+    ------
+    SynthesisError
+        ``value`` is not a positive finite number, or its standard value is not one.
+    """
+    if not (value > 0 and math.isfinite(value)):
+        raise SynthesisError(f"no standard value for a non-positive or infinite {value!r}")
+    decade, mantissa = _decade(value)
     members = [m for m in SERIES[series] if m <= mantissa * (1 + 1e-12)]
-    return float(f"{members[-1] * 10.0**decade:.6g}")
+    return _standard(members[-1], decade, value)
+
+
+def _decade(value: float) -> tuple[int, float]:
+    """``value`` (positive, finite) as (decade, mantissa in [1, 10)).
+
+    Near the ends of the float range (1e-320, 1e308) the power of ten is itself out of range
+    or denormal: there the mantissa comes from the logarithm.
+    """
+    exponent = math.log10(value)
+    decade = math.floor(exponent)
+    if abs(decade) < 300:
+        return decade, value / 10.0**decade
+    return decade, min(max(10.0 ** (exponent - decade), 1.0), 10.0)
+
+
+def _standard(member: float, decade: int, value: float) -> float:
+    """``member * 10**decade`` with 6 significant digits (binary noise rounded away); a
+    result beyond the float range is a SynthesisError naming ``value``."""
+    try:
+        result = float(f"{member * 10.0**decade:.6g}")
+    except OverflowError:
+        result = math.inf
+    if not (math.isfinite(result) and result > 0):
+        raise SynthesisError(f"no standard value for {value!r}: beyond the float range")
+    return result

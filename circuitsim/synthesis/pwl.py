@@ -190,10 +190,12 @@ class TermBuilder:
             # |s_in alpha row.x + v_off| = alpha |row.x + offset|  for v_off = s_in alpha offset
             plan.append((m, piece, node, alpha, s_in * alpha * piece.offset))
         used = np.flatnonzero(linear)
+        # an abs term of gain 0 adds nothing (and gets no block below): it sets no scale
+        abs_scales = [alpha / abs(p.gain) for _, p, _, alpha, _ in plan if p.gain]
         if used.size:
             beta = float(min(self.G[j] / abs(linear[j]) for j in used))
-        elif plan:
-            beta = float(min(alpha / abs(p.gain) for _, p, _, alpha, _ in plan if p.gain))
+        elif abs_scales:
+            beta = float(min(abs_scales))
         else:
             beta = 1.0 / abs(term.constant) if term.constant else 1.0
         inputs = []

@@ -56,11 +56,7 @@ def direct_solution(system: System, t_stop: float) -> tuple[np.ndarray, np.ndarr
         States.
     """
     x0 = np.zeros(system.n) if system.x0 is None else np.asarray(system.x0, dtype=float)
-    fastest = max(
-        [abs(f.frequency) for f in system.forcing]
-        + [float(np.max(np.abs(np.linalg.eigvals(system.A)))) / (2 * np.pi)]
-        + [1.0 / t_stop]
-    )
+    fastest = _fastest_frequency(system, t_stop)
     # peaks only: modest tolerances, but sampled densely enough (40 points per fastest period)
     # that a peak between samples is missed by less than 0.3 %
     samples = int(min(200_000, max(2_000, 40 * fastest * t_stop)))
@@ -77,6 +73,43 @@ def direct_solution(system: System, t_stop: float) -> tuple[np.ndarray, np.ndarr
     if not result.success:
         raise SynthesisError(f"direct solution for the scaling failed: {result.message}")
     return result.t, result.y
+
+
+MAX_SCALING_STEPS = 200_000
+"""Most steps the scaling's direct solution may need (8 per period of the fastest frequency,
+over the run): the wheelset's default run needs about 600. A forcing of 1e300 Hz would
+otherwise keep it busy for ever."""
+
+
+def _fastest_frequency(system: System, t_stop: float) -> float:
+    """The fastest frequency (Hz) the scaling's solution must resolve; refuses a run that
+    would take more than MAX_SCALING_STEPS steps.
+
+    A forcing of amplitude 0 (or entering no state) moves nothing and does not count.
+
+    Raises
+    ------
+    SynthesisError
+        Naming the frequency, its source and what to do instead.
+    """
+    sources = [
+        (abs(f.frequency), f"the forcing {f.name or ''} at {abs(f.frequency):.3g} Hz")
+        for f in system.forcing
+        if f.amplitude != 0 and np.any(np.asarray(f.direction) != 0)
+    ]
+    eigen = np.linalg.eigvals(system.A) if system.n else np.zeros(0)
+    if eigen.size:
+        rate = float(np.max(np.abs(eigen))) / (2 * np.pi)
+        sources.append((rate, f"an eigenvalue of the linear part at {rate:.3g} Hz"))
+    fastest, source = max(sources + [(1.0 / t_stop, "the run's length")], key=lambda s: s[0])
+    steps = 8.0 * fastest * t_stop
+    if not steps <= MAX_SCALING_STEPS:
+        raise SynthesisError(
+            f"the direct solution that sets the scales would need about {steps:.3g} steps over "
+            f"{t_stop:g} s ({source}; at most {MAX_SCALING_STEPS:,}): give every state's "
+            "range (--range STATE=PEAK) or --scaling unity, or a shorter --tstop"
+        )
+    return fastest
 
 
 def choose_scaling(
@@ -111,10 +144,16 @@ def choose_scaling(
                 peaks[i] = options.ranges[name]
     gains = np.empty(system.n)
     for i, name in enumerate(system.states):
-        if not peaks[i] > 0:
+        if not math.isfinite(peaks[i]):
+            raise SynthesisError(
+                f"state {name} grows without bound in the direct solution over {t_stop:g} s "
+                f"(peak {peaks[i]}): give its range (--range {name}=PEAK), or a shorter --tstop"
+            )
+        if not (peaks[i] > 0 and math.isfinite(options.swing / float(peaks[i]))):
+            # a peak of 1e-320 is zero for every purpose: swing / peak is infinite
             warnings.append(
-                f"state {name} stays at zero over the run; scaled 1 V per unit "
-                "(give its range to choose another scale)"
+                f"state {name} stays at zero over the run (peak {peaks[i]:.3g}); scaled 1 V "
+                "per unit (give its range to choose another scale)"
             )
             gains[i] = 1.0
             continue

@@ -368,18 +368,41 @@ def _add_nonlinear(system, builder, names, nodes, inputs, G, K, options) -> list
 
 
 def _choose_capacitor(gains: list[float], options: SynthesisOptions) -> float:
-    """The decade capacitor that keeps R = 1/(gain C) inside [r_min, r_max] best."""
-    mid = math.sqrt(options.r_min * options.r_max)
+    """The decade capacitor that keeps R = 1/(gain C) inside [r_min, r_max] best.
+
+    Worked in decades (log10 R = -log10 gain - log10 C): a gain of 1e-320 1/s has a resistor
+    beyond the float range, which must still get a cost, not a math domain error.
+    """
+    low, high = math.log10(options.r_min), math.log10(options.r_max)
+    mid = (low + high) / 2
 
     def cost(c: float) -> tuple[float, float]:
         outside = inside = 0.0
         for g in gains:
-            r = 1.0 / (g * c)
-            outside += max(0.0, math.log10(options.r_min / r), math.log10(r / options.r_max))
-            inside += math.log10(r / mid) ** 2
+            r = -math.log10(g) - math.log10(c)
+            outside += max(0.0, low - r, r - high)
+            inside += (r - mid) ** 2
         return (round(outside, 9), inside)
 
     return min(CAPACITOR_DECADES, key=cost)
+
+
+def _check_gains(state: str, inputs: list[_Input]) -> None:
+    """Refuse an input whose resistor 1/(gain C) is no number for any capacitor decade.
+
+    A coefficient such as 1e-320 (or one that the time and amplitude scales push past the
+    float range) would otherwise end as a division by zero or an infinite resistance.
+    """
+    for inp in inputs:
+        gain = float(inp.gain)
+        smallest = gain * min(CAPACITOR_DECADES)  # 0 when it underflows
+        if not (math.isfinite(gain) and smallest > 0 and math.isfinite(1.0 / smallest)):
+            raise SynthesisError(
+                f"{inp.role}: the coefficient {inp.target:.3g} becomes {inp.gain:.3g} 1/s of "
+                f"circuit time with the scales, which no resistor into the integrator of {state} "
+                "can realize; set so small a coefficient to 0, or change the scaling "
+                "(--range, --time-scale)"
+            )
 
 
 def _add_integrator(builder, names, state, state_nodes, state_inputs, options, warnings) -> None:
@@ -389,6 +412,7 @@ def _add_integrator(builder, names, state, state_nodes, state_inputs, options, w
     junction, inv_junction = plus + "_sum", plus + "_inv"
     if not state_inputs:
         warnings.append(f"state {state} has no inputs: its integrator only holds x0")
+    _check_gains(state, state_inputs)
     capacitance = _choose_capacitor([inp.gain for inp in state_inputs] or [1.0], options)
     cap = names.capacitor(state)
     circuit.add(Capacitor(cap, minus, junction, capacitance))

@@ -67,11 +67,11 @@ def test_help_explains_units_and_defaults(capsys):
 
 
 def test_bad_parameter_and_bad_model_file(tmp_path, capsys):
-    assert main(["ode", "--param", "zeta=1", "--tstop", "0.1"]) == 1
+    assert main(["ode", "--param", "zeta=1", "--tstop", "0.1"]) == 2
     assert "parameters.zeta: unknown parameter" in capsys.readouterr().err
     bad = tmp_path / "bad.toml"
     bad.write_text('[model]\nname = "x"\nkind = "first_order"\n[states]\nnames = ["x"]\n')
-    assert main(["stability", "--model", str(bad)]) == 1
+    assert main(["stability", "--model", str(bad)]) == 2
     err = capsys.readouterr().err
     assert str(bad) in err and "matrices: missing table" in err
     with pytest.raises(SystemExit):
@@ -116,7 +116,7 @@ def test_user_model_through_the_cli(tmp_path, capsys):
     spring = 0.1 + (0.2 / 5) * np.sin(5 * (contact[:, 0] - 0.5))
     assert np.allclose(contact[:, 1], spring, rtol=0, atol=1e-9)
     capsys.readouterr()
-    assert main(["ode", "--model", str(path), "--speed", "3"]) == 1
+    assert main(["ode", "--model", str(path), "--speed", "3"]) == 2
     assert "no parameter for --speed" in capsys.readouterr().err
     # no [options] y0 in this file: --y0 sets the first state
     argv = ["ode", "--model", str(path), "--y0", "0.05", "--param", "v0=0", "--tstop", "1"]
@@ -138,5 +138,5 @@ def test_stability_of_a_user_model_in_another_parameter(tmp_path, capsys):
     report = json.loads(capsys.readouterr().out)
     assert report["critical_speed"] == pytest.approx(0.3, rel=1e-9)
     assert report["hunting_frequency"] == pytest.approx(4 / (2 * np.pi), rel=1e-9)
-    assert main(["stability", "--model", str(path)]) == 1
+    assert main(["stability", "--model", str(path)]) == 2
     assert "no parameter for --speed" in capsys.readouterr().err

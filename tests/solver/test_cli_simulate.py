@@ -48,14 +48,14 @@ def test_probe_and_plot(tmp_path):
 
 
 def test_unknown_probe_fails(capsys):
-    assert main(["simulate", str(GOLDEN / "rc.cir"), "--probe", "v(nowhere)"]) == 1
+    assert main(["simulate", str(GOLDEN / "rc.cir"), "--probe", "v(nowhere)"]) == 2
     assert "v(nowhere)" in capsys.readouterr().err
 
 
-def test_singular_circuit_is_one_line_and_exit_1(tmp_path, capsys):
+def test_singular_circuit_is_one_line_and_exit_2(tmp_path, capsys):
     bad = tmp_path / "bad.cir"
     bad.write_text("floating\nV1 a 0 1\nR1 a 0 1k\nC1 a b 1n\nC2 b 0 1n\n.op\n.end\n")
-    assert main(["simulate", str(bad)]) == 1
+    assert main(["simulate", str(bad)]) == 2
     err = capsys.readouterr().err
     assert "singular" in err and "v(b)" in err
 
@@ -108,5 +108,5 @@ def test_engine_errors_name_the_netlist(tmp_path, capsys):
 
     netlist = tmp_path / "d.cir"
     netlist.write_text("* d\nV1 a 0 DC 1\nD1 a 0 nom\n.op\n.end\n")
-    assert main(["simulate", str(netlist)]) == 1
+    assert main(["simulate", str(netlist)]) == 2
     assert f"error: {netlist}: D1: no .model 'nom'" in capsys.readouterr().err
