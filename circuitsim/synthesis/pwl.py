@@ -184,9 +184,15 @@ class TermBuilder:
     ) -> tuple[str, float]:
         linear = np.asarray(term.linear, dtype=float)
         plan = []
+        # |x| blocks of one row share its argument summer (a fitted function has one row and
+        # many breakpoints: one summer instead of one per breakpoint)
+        arguments: dict[bytes, tuple[str, float, int]] = {}
         for m, piece in enumerate(term.abs_terms, start=1):
             row = np.asarray(piece.row, dtype=float)
-            node, alpha, s_in = self._argument(row, f"{prefix}_ARG{m}", f"{n}_arg{m}", +1)
+            key = row.tobytes()
+            if key not in arguments:
+                arguments[key] = self._argument(row, f"{prefix}_ARG{m}", f"{n}_arg{m}", +1)
+            node, alpha, s_in = arguments[key]
             # |s_in alpha row.x + v_off| = alpha |row.x + offset|  for v_off = s_in alpha offset
             plan.append((m, piece, node, alpha, s_in * alpha * piece.offset))
         used = np.flatnonzero(linear)

@@ -72,3 +72,16 @@ def test_every_shorthand_through_generate_builtin_simulate_and_compare(tmp_path)
     # every piece was visited: past the stop, the saturation and the rebound stop
     x = result.reference["x"][1]
     assert x.max() > 0.02 and x.min() < -0.02
+
+
+def test_the_blocks_of_a_fitted_function_share_one_argument_summer():
+    # the creep correction: one row (y'/V - psi), ten breakpoints, one summer for all ten
+    from circuitsim.synthesis.translator import synthesize
+
+    system = load_model("wheelset_creep").system()
+    (fit,) = system.nonlinear[0].fits
+    names = [e.name for e in synthesize(system, peaks=False).circuit.elements]
+    assert sum(name.startswith("XCREEP_ABS") and name.endswith("A") for name in names) == (
+        fit.segments - 1
+    )
+    assert [name for name in names if name.startswith("XCREEP_ARG")] == ["XCREEP_ARG1"]
