@@ -30,7 +30,7 @@ import sys
 from collections.abc import Sequence
 
 from circuitsim import __version__
-from circuitsim.cli import circuit_verbs, model_verbs, netlist_verbs
+from circuitsim.cli import circuit_verbs, common, model_verbs, netlist_verbs
 from circuitsim.cli.common import UsageError, warnings_as_lines
 
 COMMANDS = [*model_verbs.COMMANDS, *netlist_verbs.COMMANDS, *circuit_verbs.COMMANDS]
@@ -101,6 +101,28 @@ def _quiet_stdout() -> None:
         pass
 
 
+def _model_for_help(argv: list[str]):
+    """The model of ``--model FILE`` when help is asked for (``-h``/``--help``), so that the
+    help texts name its parameters and units; None otherwise, or when it does not load (the
+    run itself then reports why)."""
+    if not {"-h", "--help"} & set(argv):
+        return None
+    path = None
+    for i, arg in enumerate(argv):
+        if arg == "--model" and i + 1 < len(argv):
+            path = argv[i + 1]
+        elif arg.startswith("--model="):
+            path = arg.partition("=")[2]
+    if path is None:
+        return None
+    from circuitsim.mechanics import ModelError, load_model
+
+    try:
+        return load_model(path)
+    except ModelError:
+        return None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the process exit code.
 
@@ -115,7 +137,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         The exit code: 0 done, 1 a finding, 2 bad input, 3 the run failed, 130 interrupted,
         141 standard output closed (see the module docstring).
     """
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    common.HELP_MODEL = _model_for_help(argv)
+    try:
+        parser = build_parser()
+    finally:
+        common.HELP_MODEL = None
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()

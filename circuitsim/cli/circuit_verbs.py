@@ -77,13 +77,7 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
         metavar="STATE=PEAK",
         help="expected peak of a state in SI units, instead of the direct solution's (repeatable)",
     )
-    parser.add_argument(
-        "--time-scale",
-        type=float,
-        default=1.0,
-        metavar="K",
-        help="one model second takes 1/K circuit seconds (K > 0; default 1, real time)",
-    )
+    _add_time_scale(parser)
     parser.add_argument(
         "--series",
         choices=("E96", "E24", "exact"),
@@ -113,6 +107,23 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=_run_generate)
 
 
+def _add_time_scale(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--time-scale",
+        type=float,
+        metavar="K",
+        help="one model second takes 1/K circuit seconds (K > 0; default: the model file's "
+        "[circuit] time_scale, else 1, real time)",
+    )
+
+
+def _print_warnings(synthesis) -> None:
+    """The translator's warnings as ``warning:`` lines (the mapping check's are in its
+    summary)."""
+    for warning in synthesis.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+
+
 def _check_generate(args: argparse.Namespace) -> None:
     """Refuse non-positive or non-finite --swing, --time-scale, --tstop and a bad --switch-at."""
     check_scenario_options(args)
@@ -140,8 +151,7 @@ def _run_generate(args: argparse.Namespace) -> int:
         ranges=dict(args.range),
     )
     result = generate(system, args.output, options, args.dialect)
-    for warning in result.synthesis.warnings:  # the check's are in its summary below
-        print(f"warning: {warning}", file=sys.stderr)
+    _print_warnings(result.synthesis)
     print(f"wrote {result.netlist}, {result.scale_file}, {result.bom_file}")
     print(result.report.summary())
     return 0 if result.report.ok else 1
@@ -185,6 +195,7 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:
         metavar="T",
         help=TSTOP_HELP,
     )
+    _add_time_scale(parser)
     parser.add_argument(
         "--max-nrmsd",
         type=float,
@@ -215,6 +226,7 @@ def _check_compare(args: argparse.Namespace) -> None:
     """Refuse bad times, thresholds (NaN would pass everything) and figure suffix."""
     check_scenario_options(args)
     require_positive("--tstop", args.tstop)
+    require_positive("--time-scale", args.time_scale)
     require_positive("--max-nrmsd", args.max_nrmsd)
     require_positive("--tolerance", args.tolerance)
     require_figure_path("--plot", args.plot)
@@ -241,11 +253,14 @@ def _run_compare(args: argparse.Namespace) -> int:
     )
     if args.max_nrmsd is not None:
         thresholds = replace(thresholds, nrmsd_percent=args.max_nrmsd)
-    options = SynthesisOptions(opamp=args.opamp, series=args.series, t_stop=args.tstop)
+    options = SynthesisOptions(
+        opamp=args.opamp, series=args.series, t_stop=args.tstop, time_scale=args.time_scale
+    )
     label = f"{args.engine}, {args.opamp}, {args.series}"
     case = run_case(
         scenario_system(args), options, args.engine, thresholds, args.netlist, label=label
     )
+    _print_warnings(case.synthesis)
     comparison = case.comparison
     if args.plot:
         from circuitsim.compare.plots import plot_overlay

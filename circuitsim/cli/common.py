@@ -17,6 +17,12 @@ if TYPE_CHECKING:
     from circuitsim.mechanics.model import Model
 
 
+HELP_MODEL: Model | None = None
+"""The model whose names and units the help texts use: set by :func:`circuitsim.cli.main`
+for ``--model FILE --help``; None (the default) gives texts for any model, with the built-in
+wheelset as the example."""
+
+
 class UsageError(Exception):
     """A bad command line found after parsing (a value out of range, options that conflict).
 
@@ -183,6 +189,20 @@ def progress_after(delay: float = 1.0) -> Callable[[str], None]:
     return report
 
 
+def _coefficients_help() -> str:
+    """Help of --coeffs: the sets of the model asked about, or the wheelset's."""
+    model = HELP_MODEL
+    if model is None:
+        return (
+            "coefficient set of the model; wheelset: paper (default, the paper's eq. 5), "
+            "derived (Table 1 via eq. 4) or eq2 (eq. 2, with suspension damping)"
+        )
+    return (
+        f"coefficient set of {model.name}: {', '.join(model.coefficient_sets)} (default "
+        f"{model.default_coefficients})"
+    )
+
+
 def add_model_options(parser: argparse.ArgumentParser) -> None:
     """--model and --coeffs, shared by the ODE-side verbs."""
     parser.add_argument(
@@ -193,8 +213,7 @@ def add_model_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--coeffs",
         metavar="SET",
-        help="coefficient set of the model; wheelset: paper (default, the paper's eq. 5), "
-        "derived (Table 1 via eq. 4) or eq2 (eq. 2, with suspension damping)",
+        help=_coefficients_help(),
     )
 
 
@@ -217,29 +236,78 @@ def parameter_assignment(text: str) -> tuple[str, float]:
         ) from None
 
 
+_SCENARIO_WHEELSET = {
+    "speed": "forward speed V, m/s; default 55",
+    "freq": "excitation frequency f, Hz; default 3",
+    "amplitude": "lateral track displacement a, m; default 0.040; 0 gives the free response",
+    "y0": "initial lateral displacement y0, m; default 0",
+}
+
+
+def scenario_help(option: str) -> str:
+    """Help text of a scenario option (``speed``, ``freq``, ``amplitude``, ``y0``).
+
+    With :data:`HELP_MODEL` set: the parameter the model's ``[options]`` table maps the option
+    to, its description, unit and default. Without: what the option does for any model, the
+    wheelset's meaning as the example.
+    """
+    model = HELP_MODEL
+    if model is None:
+        first = "else the first state, " if option == "y0" else ""
+        return (
+            f"sets the parameter the model's [options] table maps {option!r} to, in its unit "
+            f"({first}the built-in wheelset: {_SCENARIO_WHEELSET[option]})"
+        )
+    if option in model.options:
+        info = model.parameter_info[model.options[option]]
+        about = ", ".join(part for part in (info.description, info.unit) if part)
+        about = f"{about}; " if about else ""
+        return f"sets {info.name} of {model.name} ({about}default {info.value:g})"
+    if option == "y0":
+        unit = model.units[0] or "1"
+        return f"initial value of {model.states[0]}, {unit} (default: the model's [initial])"
+    mapped = ", ".join(model.options) or "none"
+    return f"not used by {model.name} (its [options] maps: {mapped}); use --param NAME=VALUE"
+
+
+def _switch_help() -> str:
+    """Help of --flange/--no-flange: the model's piecewise-linear terms by name."""
+    model = HELP_MODEL
+    if model is None:
+        return (
+            "switch all the model's piecewise-linear terms on or off; default: as the model "
+            "file says (the built-in wheelset: its flange force F_t, switch S1, on)"
+        )
+    terms = ", ".join(
+        f"{name} ({'on' if on else 'off'})" for name, on in model.nonlinear_terms.items()
+    )
+    return (
+        f"switch all the piecewise-linear terms of {model.name} on or off; default as the "
+        f"file says: {terms or 'it has none'}"
+    )
+
+
+def _parameter_help() -> str:
+    """Help of --param: the parameters of the model asked about, with units, when there is one."""
+    model = HELP_MODEL
+    if model is None:
+        return "set any model parameter in its unit (repeatable), e.g. --param eta=0.01"
+    known = ", ".join(
+        f"{p.name} ({p.unit})" if p.unit else p.name for p in model.parameter_info.values()
+    )
+    return f"set a parameter of {model.name} in its unit (repeatable): {known or 'none'}"
+
+
 def add_scenario_options(parser: argparse.ArgumentParser) -> None:
     """--speed, --freq, --amplitude, --flange/--no-flange and --param: the run's scenario.
 
     Shared by the verbs that build a System from a model file (see ``scenario_system``).
     """
-    parser.add_argument("--speed", type=float, metavar="V", help="forward speed, m/s (default 55)")
+    parser.add_argument("--speed", type=float, metavar="V", help=scenario_help("speed"))
+    parser.add_argument("--freq", type=float, metavar="F", help=scenario_help("freq"))
+    parser.add_argument("--amplitude", type=float, metavar="A", help=scenario_help("amplitude"))
     parser.add_argument(
-        "--freq", type=float, metavar="F", help="excitation frequency, Hz (default 3)"
-    )
-    parser.add_argument(
-        "--amplitude",
-        type=float,
-        metavar="A",
-        help="excitation amplitude as a lateral track displacement, m (force k_y*A; default "
-        "0.040; 0 gives the free response)",
-    )
-    parser.add_argument(
-        "--flange",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="switch the piecewise-linear terms (the wheelset: flange force F_t, switch S1) on "
-        "or off; default: as the model file says, which for the wheelset is ON (the paper's "
-        "Fig. 4/6 are about the flange)",
+        "--flange", action=argparse.BooleanOptionalAction, default=None, help=_switch_help()
     )
     parser.add_argument(
         "--param",
@@ -247,7 +315,7 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
         action="append",
         default=[],
         metavar="NAME=VALUE",
-        help="set any model parameter in its SI unit (repeatable), e.g. --param eta=0.01",
+        help=_parameter_help(),
     )
 
 

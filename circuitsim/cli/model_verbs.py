@@ -10,12 +10,14 @@ from circuitsim.cli.common import (
     add_model_options,
     add_scenario_options,
     check_scenario_options,
+    parameter_assignment,
     require_count,
     require_figure_path,
     require_finite,
     require_fraction,
     require_positive,
     require_writable,
+    scenario_help,
     scenario_system,
 )
 
@@ -61,10 +63,27 @@ def _add_stability(sub: argparse._SubParsersAction) -> None:
         "are then in its unit); default: the model's [options] speed (wheelset: V)",
     )
     parser.add_argument(
+        "--eigenvalues",
+        action="store_true",
+        help="only list the linear part's eigenvalues (1/s) with damping ratio and natural "
+        "and damped frequencies (Hz) at the parameters given (--param, --speed); any model, "
+        "no speed parameter or critical-value search needed",
+    )
+    parser.add_argument(
+        "--param",
+        type=parameter_assignment,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="set a model parameter in its unit (repeatable)",
+    )
+    parser.add_argument(
         "--json",
         action="store_true",
         help="print one JSON object: critical_speed (m/s), hunting_frequency (Hz), speed "
-        "(m/s), eigenvalues ([re, im] pairs, 1/s), coefficients (the set's name)",
+        "(m/s), eigenvalues ([re, im] pairs, 1/s), coefficients (the set's name); with "
+        "--eigenvalues: parameters and modes (eigenvalue [re, im], damping_ratio, "
+        "natural_frequency and damped_frequency in Hz)",
     )
     parser.set_defaults(func=_run_stability)
 
@@ -84,6 +103,8 @@ def _run_stability(args: argparse.Namespace) -> int:
 
     _check_stability(args)
     model = load_model(args.model)
+    if args.eigenvalues:
+        return _print_modes(args, model)
     if args.parameter:
         speed_parameter = args.parameter
         if speed_parameter not in model.parameters:
@@ -93,10 +114,12 @@ def _run_stability(args: argparse.Namespace) -> int:
         speed_parameter = model.option_parameters({"speed": 0.0}).popitem()[0]
     speed = model.parameters[speed_parameter] if args.speed is None else args.speed
     coefficients = args.coeffs or model.default_coefficients
+    fixed = dict(args.param) or None
     value, frequency = critical_speed(
-        model, coefficients, parameter=speed_parameter, bracket=tuple(args.bracket)
-    )
-    lam = eigenvalues(model, speed_parameter, [speed], coefficients)[0]
+        model, coefficients, parameter=speed_parameter, bracket=tuple(args.bracket),
+        parameters=fixed,
+    )  # fmt: skip
+    lam = eigenvalues(model, speed_parameter, [speed], coefficients, fixed)[0]
     if args.json:
         report = {
             "model": model.name,
@@ -116,6 +139,51 @@ def _run_stability(args: argparse.Namespace) -> int:
     print(f"eigenvalues at {speed_parameter} = {speed:g} {unit} (1/s):")
     for v in lam:
         print(f"  {v.real:+.6g} {v.imag:+.6g}j")
+    return 0
+
+
+def _print_modes(args: argparse.Namespace, model) -> int:
+    """``stability --eigenvalues``: the modes at the parameters given, as a table or JSON."""
+    import json
+
+    from circuitsim.mechanics.stability import modes
+
+    parameters = dict(args.param)
+    if args.speed is not None:
+        parameters.update(model.option_parameters({"speed": args.speed}))
+    coefficients = args.coeffs or model.default_coefficients
+    found = modes(model, coefficients, parameters)
+    values = model.environment(coefficients, parameters)[1]
+    time_unit = getattr(model, "time_unit", "s")
+    rate = f"1/{time_unit}" if time_unit else "per unit time"
+    if args.json:
+        report = {
+            "model": model.name,
+            "coefficients": coefficients,
+            "parameters": values,
+            "modes": [
+                {
+                    "eigenvalue": [m.eigenvalue.real, m.eigenvalue.imag],
+                    "damping_ratio": None if math.isnan(m.damping_ratio) else m.damping_ratio,
+                    "natural_frequency": m.natural_frequency,
+                    "damped_frequency": m.damped_frequency,
+                }
+                for m in found
+            ],
+        }
+        print(json.dumps(report))
+        return 0
+    given = ", ".join(f"{k}={v:g}" for k, v in parameters.items()) or "the model's defaults"
+    hertz = "Hz" if time_unit == "s" else f"cycles per {rate[2:]}" if time_unit else "cycles"
+    print(f"model {model.name}, coefficient set {coefficients}, at {given}")
+    print(f"{'eigenvalue (' + rate + ')':>32s}  {'damping':>9s}  {'natural':>11s}  "
+          f"{'damped':>11s}  ({hertz})")  # fmt: skip
+    for m in found:
+        value = f"{m.eigenvalue.real:+.6g} {m.eigenvalue.imag:+.6g}j"
+        print(
+            f"{value:>32s}  {m.damping_ratio:9.4g}  {m.natural_frequency:11.5g}  "
+            f"{m.damped_frequency:11.5g}{'' if m.stable else '  unstable'}"
+        )
     return 0
 
 
@@ -157,7 +225,7 @@ def _add_ode(sub: argparse._SubParsersAction) -> None:
         "--y0",
         type=float,
         metavar="Y",
-        help="initial lateral displacement, m (default 0; other states start at 0)",
+        help=scenario_help("y0"),
     )
     parser.add_argument(
         "--rtol",
@@ -170,22 +238,32 @@ def _add_ode(sub: argparse._SubParsersAction) -> None:
         "--dt",
         type=float,
         default=5e-4,
-        help="sample step of the CSV, s (> 0, at most 10 million rows; default 0.0005; dense "
-        "output, exact to the tolerance)",
+        help="sample step of the CSV in the model's time unit (> 0, at most 10 million rows; "
+        "default 0.0005; dense output, exact to the tolerance)",
     )
-    parser.add_argument(
-        "--csv",
-        metavar="FILE",
-        help="write time and every state (header time,y,psi,y_dot,psi_dot for the wheelset; "
-        "SI units: s, m, rad, m/s, rad/s)",
-    )
+    parser.add_argument("--csv", metavar="FILE", help=_csv_help())
     parser.add_argument(
         "--plot",
         metavar="FILE",
-        help="write a figure in the format of its suffix (.png, .pdf, .svg ...): displacement, "
-        "velocity and phase portrait (paper Fig. 4 style)",
+        help="write a figure in the format of its suffix (.png, .pdf, .svg ...): every state "
+        "against time, one panel per unit, and the phase portrait of the first coordinate of "
+        "a second-order model",
     )
     parser.set_defaults(func=_run_ode)
+
+
+def _csv_help() -> str:
+    """Help of ``ode --csv``: the header and units of the model asked about, or the wheelset's."""
+    from circuitsim.cli import common
+
+    model = common.HELP_MODEL
+    if model is None:
+        return (
+            "write time and every state in the model's units (the wheelset: header "
+            "time,y,psi,y_dot,psi_dot; s, m, rad, m/s, rad/s)"
+        )
+    units = ", ".join([model.time_unit or "1"] + [u or "1" for u in model.units])
+    return f"write time and every state: header time,{','.join(model.states)}; units {units}"
 
 
 def _check_ode(args: argparse.Namespace) -> None:
@@ -230,20 +308,21 @@ def _run_ode(args: argparse.Namespace) -> int:
             grid = np.append(grid, t_stop)
         write_text_atomic(args.csv, result.csv_text(grid))
     if args.plot:
-        from circuitsim.compare.figures import plot_response
+        from circuitsim.compare.figures import plot_states
 
         shown = {name: system.parameters[name] for name in model.options.values()}
         shown.update(dict(args.param))
         settings = ", ".join([system.coefficient_set] + [f"{k}={v:g}" for k, v in shown.items()])
         title = f"{model.name} ({settings})"
-        plot_response(args.plot, result, title=title)
+        plot_states(args.plot, result, title=title, time_unit=model.time_unit)
     terms = ", ".join(term.name for term in system.nonlinear) or "none"
     print(f"model {model.name}, coefficient set {system.coefficient_set}, nonlinear: {terms}")
-    print(f"0 to {t_stop:g} s, {len(result.t)} steps, {len(result.kinks)} kink crossings")
+    when = f"{t_stop:g} {model.time_unit}".rstrip()  # a dimensionless time has no unit
+    print(f"0 to {when}, {len(result.t)} steps, {len(result.kinks)} kink crossings")
     final = result.sol(t_stop)
     for i, (name, unit) in enumerate(zip(result.states, result.units, strict=True)):
         peak = result.max_abs(name)
-        print(f"  {name:10s} max |.| {peak:.6g} {unit:6s} at {t_stop:g} s: {final[i]:+.6g}")
+        print(f"  {name:10s} max |.| {peak:.6g} {unit:6s} at {when}: {final[i]:+.6g}")
     if args.csv:
         print(f"wrote {args.csv}")
     if args.plot:

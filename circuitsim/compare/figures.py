@@ -1,4 +1,5 @@
-"""Figures of a direct ODE solution: displacement, velocity and phase portrait (paper Fig. 4).
+"""Figures of a direct ODE solution: displacement, velocity and phase portrait (paper Fig. 4),
+and every state of any model against time (``ode --plot``).
 
 Written atomically as PNG; small enough on disk to commit.
 """
@@ -91,3 +92,83 @@ def plot_response(
         figure.suptitle(title, fontsize=10)
     figure.tight_layout()
     save_figure(figure, path, dpi)
+
+
+LEGEND_ENTRIES = 12  # states named in one panel's legend; more would hide the traces
+
+
+def plot_states(
+    path: str | os.PathLike,
+    result: OdeResult,
+    title: str = "",
+    time_unit: str = "s",
+    samples: int = 20001,
+    dpi: int = 90,
+) -> Figure:
+    """Draw every state against time, one panel per unit, and save to ``path``.
+
+    States sharing a unit share a panel (the wheelset: m, rad, m/s, rad/s), so a model of
+    any size gives a figure of a few panels. When the first state has a rate ``<q>_dot``
+    (a second-order model) a phase portrait of that pair ends the figure, with the kinks
+    marked.
+
+    Parameters
+    ----------
+    path : path-like
+        Figure file to write, in the format of its suffix (PNG, PDF, SVG ...).
+    result : OdeResult
+        From :func:`circuitsim.mechanics.solve`.
+    title : str
+        Figure title (e.g. the parameters of the run).
+    time_unit : str
+        The model's time unit (``"s"``; ``""`` for a dimensionless time).
+    samples : int
+        Dense-output samples over the span.
+    dpi : int
+        Resolution.
+
+    Returns
+    -------
+    Figure
+        The figure written (its axes carry the labels).
+    """
+    t = np.linspace(result.t[0], result.t[-1], samples)
+    x = result.sol(t)
+    groups: dict[str, list[int]] = {}
+    for index, unit in enumerate(result.units):
+        groups.setdefault(unit, []).append(index)
+    first, rate = result.states[0], f"{result.states[0]}_dot"
+    phase = rate in result.states
+    panels = len(groups) + phase
+    figure = Figure(figsize=(9, 1.2 + 2.2 * panels))
+    axes = np.atleast_1d(figure.subplots(panels, 1))
+    time_label = f"time ({time_unit})" if time_unit else "time (dimensionless)"
+    for axis, (unit, members) in zip(axes, groups.items(), strict=False):
+        for index in members:
+            label = result.states[index] if members.index(index) < LEGEND_ENTRIES else None
+            axis.plot(t, x[index], linewidth=0.8, label=label)
+        names = ", ".join(result.states[i] for i in members[:3])
+        more = f" (+{len(members) - 3})" if len(members) > 3 else ""
+        axis.set(xlabel=time_label, ylabel=f"{names}{more} ({unit or '1'})")
+        if len(members) > 1:
+            axis.legend(loc="upper right", fontsize=7, ncol=min(4, len(members)))
+    if phase:
+        axis = axes[-1]
+        d, v = result.states.index(first), result.states.index(rate)
+        axis.plot(x[d], x[v], color="tab:green", linewidth=0.6)
+        if len(result.kinks):
+            k = result.sol(result.kinks)
+            axis.plot(k[d], k[v], ".", color="black", markersize=2, label="kinks")
+            axis.legend(loc="upper right", fontsize=7)
+        axis.set(
+            xlabel=f"{first} ({result.units[d] or '1'})",
+            ylabel=f"{rate} ({result.units[v] or '1'})",
+            title="phase portrait",
+        )
+    for axis in axes:
+        axis.grid(True, linewidth=0.3)
+    if title:
+        figure.suptitle(title, fontsize=10)
+    figure.tight_layout()
+    save_figure(figure, path, dpi)
+    return figure

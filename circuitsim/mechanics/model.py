@@ -70,6 +70,8 @@ class Model:
         Names of the switchable groups and whether each is on by default.
     circuit : dict
         The free-form ``[circuit]`` table.
+    time_unit : str
+        The unit of the model's time (``"s"``; ``""`` when the time is dimensionless).
     """
 
     def __init__(self, spec: ModelSpec):
@@ -89,6 +91,7 @@ class Model:
         self.nonlinear_terms = {name: g.enabled for name, g in spec.nonlinear.items()}
         self.forcing_terms = {name: g.enabled for name, g in spec.forcing.items()}
         self.circuit = spec.circuit
+        self.time_unit = spec.time_unit
 
     def __repr__(self) -> str:
         return f"Model({self.name!r}, kind={self.kind!r}, states={self.states}, file={self.file!r})"

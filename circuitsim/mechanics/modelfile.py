@@ -101,6 +101,7 @@ class ModelSpec:
     forcing: dict[str, ForcingSpec]
     initial: dict[int, Item]
     circuit: dict
+    time_unit: str = "s"
 
 
 def builtin_path(name: str = BUILTIN) -> Path:
@@ -218,9 +219,12 @@ def read_model(path: str | Path | None = None) -> ModelSpec:
     reader.check_keys(document, "", tuple(TOP_KEYS))
 
     model = reader.table(document.get("model"), "model")
-    reader.check_keys(model, "model", ("name", "description", "kind"))
+    reader.check_keys(model, "model", ("name", "description", "kind", "time_unit"))
     name = reader.string(model, "name", "model")
     description = reader.string(model, "description", "model", default="")
+    # "s" by default; "" or "1" for a dimensionless time (rates are then per unit time)
+    time_unit = reader.string(model, "time_unit", "model", default="s").strip()
+    time_unit = "" if time_unit == "1" else time_unit
     kind = reader.string(model, "kind", "model")
     if kind not in KINDS:
         raise reader.fail("model.kind", f"must be one of {', '.join(KINDS)}, got {kind!r}")
@@ -233,7 +237,7 @@ def read_model(path: str | Path | None = None) -> ModelSpec:
         coordinates = reader.names(section, "names", "coordinates")
         coordinate_units = _units(reader, section, "coordinates", len(coordinates))
         states = coordinates + tuple(f"{q}_dot" for q in coordinates)
-        units = coordinate_units + tuple(_rate(u) for u in coordinate_units)
+        units = coordinate_units + tuple(_rate(u, time_unit) for u in coordinate_units)
         equations = coordinates
     else:
         if "coordinates" in document:
@@ -281,6 +285,7 @@ def read_model(path: str | Path | None = None) -> ModelSpec:
         forcing=forcing,
         initial=initial,
         circuit=dict(circuit),
+        time_unit=time_unit,
     )
 
 
@@ -329,8 +334,11 @@ def _line_of_long_integer(path: Path) -> str:
     return f" (line {line})"
 
 
-def _rate(unit: str) -> str:
-    return "1/s" if unit in ("", "1") else f"{unit}/s"
+def _rate(unit: str, time_unit: str = "s") -> str:
+    """The unit of a coordinate's rate: ``m/s``; with a dimensionless time, the unit itself."""
+    if not time_unit:
+        return unit or "1"
+    return f"1/{time_unit}" if unit in ("", "1") else f"{unit}/{time_unit}"
 
 
 def _units(reader: _Reader, section: dict, key: str, count: int) -> tuple[str, ...]:

@@ -7,7 +7,9 @@ the eigenvalues crosses zero; the hunting frequency is the imaginary part there 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import brentq
@@ -144,6 +146,64 @@ def critical_speed(
     value = brentq(rate, grid[i], grid[i + 1], xtol=1e-12 * abs(grid[i + 1]), rtol=1e-13)
     lam = eigenvalues(model, parameter, [value], coefficients, parameters)[0, 0]
     return float(value), float(abs(lam.imag) / (2.0 * np.pi))
+
+
+@dataclass(frozen=True)
+class Mode:
+    """One eigenvalue of the linear part and what it means for a vibration.
+
+    Attributes
+    ----------
+    eigenvalue : complex
+        lambda, 1/s (per unit of the model's time).
+    damping_ratio : float
+        zeta = -Re(lambda) / |lambda| (negative: the mode grows); NaN for lambda = 0.
+    natural_frequency : float
+        |lambda| / (2 pi), Hz.
+    damped_frequency : float
+        |Im(lambda)| / (2 pi), Hz (0 for a real eigenvalue).
+    """
+
+    eigenvalue: complex
+    damping_ratio: float
+    natural_frequency: float
+    damped_frequency: float
+
+    @property
+    def stable(self) -> bool:
+        """True when the mode decays (Re(lambda) < 0)."""
+        return self.eigenvalue.real < 0
+
+
+def modes(
+    model: Model,
+    coefficients: str | None = None,
+    parameters: Mapping[str, float] | None = None,
+) -> list[Mode]:
+    """The modes of the linear part at the given parameters, any model (no speed needed).
+
+    Parameters
+    ----------
+    model : Model
+    coefficients : str, optional
+        Coefficient set (default: the model's default).
+    parameters : dict, optional
+        Parameter overrides, in their units.
+
+    Returns
+    -------
+    list of Mode
+        One per eigenvalue, by decreasing real part (then decreasing imaginary part).
+    """
+    A = state_matrix(model, coefficients, parameters)
+    lam = np.linalg.eigvals(A) if A.size else np.zeros(0, dtype=complex)
+    out = []
+    for value in lam[np.lexsort((-lam.imag, -lam.real))]:
+        size = abs(value)
+        zeta = -value.real / size if size > 0 else math.nan
+        out.append(Mode(complex(value), float(zeta), size / (2 * math.pi),
+                        abs(value.imag) / (2 * math.pi)))  # fmt: skip
+    return out
 
 
 def _check_parameter(model: Model, parameter: str) -> None:

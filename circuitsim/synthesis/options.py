@@ -27,8 +27,9 @@ class SynthesisOptions:
         ``"unity"``: 1 V per SI unit for every state (the paper's mapping).
     swing : float
         Target peak voltage of every state signal in ``auto`` scaling (V).
-    time_scale : float
-        K: one model second takes 1/K circuit seconds (1 = real time).
+    time_scale : float or None
+        K: one model second takes 1/K circuit seconds (1 = real time); None (default): the
+        model file's ``[circuit] time_scale``, else 1.
     series : str
         Resistor rounding: ``"E96"``, ``"E24"`` or ``"exact"``.
     t_stop : float or None
@@ -49,7 +50,7 @@ class SynthesisOptions:
     nonlinear: str = "abs"
     scaling: str = "auto"
     swing: float = 5.0
-    time_scale: float = 1.0
+    time_scale: float | None = None
     series: str = "E96"
     t_stop: float | None = None
     ranges: dict[str, float] = field(default_factory=dict)
@@ -77,6 +78,8 @@ class SynthesisOptions:
         positive = ("swing", "time_scale", "r_min", "r_max", "r_unit", "switch_ron")
         for key in positive:
             value = getattr(self, key)
+            if key == "time_scale" and value is None:  # the model's, else 1
+                continue
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise SynthesisError(f"option {key}={value!r}: must be a positive number")
         if self.t_stop is not None and not (math.isfinite(self.t_stop) and self.t_stop > 0):

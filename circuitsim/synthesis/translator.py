@@ -22,7 +22,7 @@ described in docs/translator.md.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -132,6 +132,8 @@ def synthesize(
     options = (options or SynthesisOptions()).validated()
     hints = system.circuit_hints or {}
     t_stop = float(options.t_stop or hints.get("t_stop", 5.0))
+    if options.time_scale is None:  # the model file's [circuit] time_scale, else real time
+        options = replace(options, time_scale=float(hints.get("time_scale", 1.0)))
     K = options.time_scale
     unknown = sorted(set(options.ranges) - set(system.states))
     if unknown:
