@@ -18,6 +18,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Union
 
+from circuitsim.netlist.names import fold
+
 
 @dataclass(frozen=True)
 class Expression:
@@ -332,9 +334,9 @@ class Circuit:
 
     def element(self, name: str) -> Element:
         """The top-level element called ``name`` (case-insensitive); KeyError if none."""
-        key = name.lower()
+        key = fold(name)
         for element in self.elements:
-            if element.name.lower() == key:
+            if fold(element.name) == key:
                 return element
         raise KeyError(name)
 

@@ -26,9 +26,18 @@ import math
 import re
 from collections.abc import Callable, Mapping
 
+from circuitsim.netlist.names import fold
 from circuitsim.netlist.values import parse_value
 
-__all__ = ["evaluate", "check_syntax", "FUNCTIONS", "names_in", "UndefinedParameterError"]
+__all__ = [
+    "evaluate",
+    "check_syntax",
+    "check_parameter_name",
+    "FUNCTIONS",
+    "NGSPICE_FUNCTIONS",
+    "names_in",
+    "UndefinedParameterError",
+]
 
 _MAX_DEPTH = 100
 
@@ -97,11 +106,30 @@ FUNCTIONS: dict[str, tuple[Callable[..., float], int, int]] = {
     "tan": (math.tan, 1, 1),
     "atan": (math.atan, 1, 1),
     "abs": (abs, 1, 1),
-    "min": (min, 1, 64),
-    "max": (max, 1, 64),
+    # min(x) and max(x) of one argument are x, as in ngspice (Python's min(x) would iterate x)
+    "min": (lambda *args: min(args), 1, 64),
+    "max": (lambda *args: max(args), 1, 64),
     "pow": (_pow, 2, 2),
     "pi": (lambda: math.pi, 0, 0),
 }
+
+# ngspice's function names (numparam's list): a parameter named like one of them is fatal or
+# silently wrong there ({sqrt} is an error, {sqrt+1} evaluates to 1), so the reader refuses it.
+NGSPICE_FUNCTIONS = frozenset(
+    "sqr sqrt sin cos exp ln arctan abs pow pwr max min int log log10 sinh cosh tanh "
+    "ternary_fcn agauss sgn gauss unif aunif limit ceil floor asin acos atan asinh acosh "
+    "atanh tan nint".split()
+)
+
+
+def check_parameter_name(name: str) -> None:
+    """Raise ValueError if ``name`` cannot name a parameter because it names a function."""
+    if fold(name) in NGSPICE_FUNCTIONS:
+        raise ValueError(
+            f"parameter name {name!r} is the name of a function; ngspice cannot use it as a "
+            "parameter (an expression using it fails or evaluates wrongly): rename it"
+        )
+
 
 _TOKEN = re.compile(
     r"""
@@ -110,7 +138,7 @@ _TOKEN = re.compile(
   | (?P<name>[a-zA-Z_][a-zA-Z0-9_.]*)
   | (?P<op>\*\*|[-+*/^(),])
     """,
-    re.VERBOSE,
+    re.VERBOSE | re.ASCII,  # digits and blanks as ngspice reads them: '１０' is no number
 )
 
 
@@ -138,7 +166,7 @@ class _Parser:
         self.tokens = _tokenize(text)
         self.index = 0
         self.depth = 0
-        self.params = {str(k).lower(): v for k, v in params.items()}
+        self.params = {fold(str(k)): v for k, v in params.items()}
 
     # --- helpers ---
     def peek(self) -> tuple[str, str, int]:
@@ -229,7 +257,7 @@ class _Parser:
             except ValueError as exc:
                 raise ValueError(f"bad number {text!r} in {self.text!r}: {exc}") from None
         if kind == "name":
-            key = text.lower()
+            key = fold(text)
             if self.peek()[:2] == ("op", "("):
                 return self.call(key, text)
             if self.dry:
@@ -326,8 +354,8 @@ def names_in(text: str) -> list[str]:
         if kind != "name":
             continue
         following = tokens[i + 1]
-        if following[:2] == ("op", "(") and token.lower() in FUNCTIONS:
+        if following[:2] == ("op", "(") and fold(token) in FUNCTIONS:
             continue
-        if token.lower() not in names:
-            names.append(token.lower())
+        if fold(token) not in names:
+            names.append(fold(token))
     return names

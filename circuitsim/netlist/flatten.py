@@ -57,6 +57,7 @@ from circuitsim.netlist.circuit import (
 )
 from circuitsim.netlist.errors import NetlistError
 from circuitsim.netlist.expressions import evaluate, names_in
+from circuitsim.netlist.names import fold
 
 __all__ = ["flatten", "evaluate_value", "ValueProblem", "MAX_ELEMENTS", "MAX_DEPTH"]
 
@@ -137,14 +138,14 @@ class _Flattener:
     ) -> _Scope:
         params = dict(defining.params) if defining else {}
         for name, default in own_params.items():
-            key = name.lower()
+            key = fold(name)
             if key in overrides:
                 params[key] = overrides[key]
             else:
                 params[key] = self.value(default, params, f"{where}parameter {name}")
         visible_models = dict(defining.models) if defining else {}
         for name, model in models.items():
-            flat_key = f"{path}.{name.lower()}" if path else name.lower()
+            flat_key = f"{path}.{fold(name)}" if path else fold(name)
             if flat_key in self.models:
                 raise self.error(f"{where}model {name!r} defined twice")
             self.models[flat_key] = Model(
@@ -155,10 +156,10 @@ class _Flattener:
                     for k, v in model.params.items()
                 },
             )
-            visible_models[name.lower()] = flat_key
+            visible_models[fold(name)] = flat_key
         scope = _Scope(params, visible_models, dict(defining.subcircuits) if defining else {})
         for name, sub in subcircuits.items():
-            scope.subcircuits[name.lower()] = (sub, scope)
+            scope.subcircuits[fold(name)] = (sub, scope)
         return scope
 
     # --- expansion ---
@@ -171,11 +172,11 @@ class _Flattener:
         stack: list[Subcircuit],
     ) -> None:
         prefix = ".".join(path)
-        node_prefix = prefix.lower()
+        node_prefix = fold(prefix)
         where = f"in {prefix}: " if path else ""
 
         def node(name: str) -> str:
-            key = name.lower()
+            key = fold(name)
             if key == "0":
                 return "0"
             if key in nodes:
@@ -185,7 +186,7 @@ class _Flattener:
         def element_name(name: str) -> str:
             return f"{name[:1].upper()}.{prefix}.{name}" if path else name
 
-        local = {e.name.lower(): element_name(e.name) for e in elements}
+        local = {fold(e.name): element_name(e.name) for e in elements}
         for element in elements:
             if isinstance(element, SubcircuitCall):
                 self.call(element, scope, path, node, stack, where)
@@ -213,7 +214,7 @@ class _Flattener:
         where: str,
     ) -> None:
         self.count(where)
-        key = call.subcircuit.lower()
+        key = fold(call.subcircuit)
         found = scope.subcircuits.get(key)
         if found is None:
             raise self.error(f"{where}{call.name}: unknown subcircuit {call.subcircuit!r}")
@@ -228,17 +229,17 @@ class _Flattener:
                 f"{where}{call.name}: subcircuit {sub.name} has {len(sub.ports)} port(s) "
                 f"({' '.join(sub.ports)}), got {len(call.connections)} connection(s)"
             )
-        declared = {k.lower() for k in sub.params}
+        declared = {fold(k) for k in sub.params}
         overrides: dict[str, float] = {}
         self.owner = f"X.{'.'.join(path)}.{call.name}" if path else call.name
         for name, value in call.params.items():
-            if name.lower() not in declared:
+            if fold(name) not in declared:
                 known = ", ".join(sorted(declared)) or "none"
                 raise self.error(
                     f"{where}{call.name}: subcircuit {sub.name} has no parameter {name!r} "
                     f"(its parameters: {known})"
                 )
-            overrides[name.lower()] = self.value(
+            overrides[fold(name)] = self.value(
                 value, scope.params, f"{where}{call.name} parameter {name}"
             )
         self.owner = None
@@ -250,11 +251,11 @@ class _Flattener:
             overrides,
             sub.models,
             sub.subcircuits,
-            ".".join(inner_path).lower(),
+            fold(".".join(inner_path)),
             inner_where,
         )
         mapping = {
-            port.lower(): node(conn) for port, conn in zip(sub.ports, call.connections, strict=True)
+            fold(port): node(conn) for port, conn in zip(sub.ports, call.connections, strict=True)
         }
         self.expand(sub.elements, inner, inner_path, mapping, [*stack, sub])
 
@@ -277,9 +278,9 @@ class _Flattener:
             elif f.name in _NODE_FIELDS:
                 kwargs[f.name] = node(value)
             elif f.name == "model":
-                kwargs[f.name] = scope.models.get(value.lower(), value.lower())
+                kwargs[f.name] = scope.models.get(fold(value), fold(value))
             elif f.name == "control":
-                kwargs[f.name] = local.get(value.lower(), value)
+                kwargs[f.name] = local.get(fold(value), value)
             elif f.name == "initial":
                 kwargs[f.name] = value
             else:
@@ -318,7 +319,7 @@ def _uses_failed(value: object, params: Mapping[str, float]) -> bool:
         names = names_in(value.text)
     except ValueError:
         return False
-    lowered = {str(k).lower(): v for k, v in params.items()}
+    lowered = {fold(str(k)): v for k, v in params.items()}
     return any(math.isnan(lowered.get(name, 0.0)) for name in names)
 
 

@@ -25,6 +25,7 @@ from pathlib import Path
 
 from circuitsim.netlist.circuit import Model, Subcircuit
 from circuitsim.netlist.errors import NetlistError
+from circuitsim.netlist.names import fold
 
 LIBRARY_PATH = Path(__file__).with_name("library") / "parts.lib"
 """Where ``parts.lib`` lives (inside the installed package)."""
@@ -75,7 +76,7 @@ def subcircuit(name: str) -> Subcircuit:
         If the library has no such subcircuit (the message lists what it has).
     """
     subcircuits, _ = _parsed()
-    key = name.lower()
+    key = fold(name)
     if key not in subcircuits:
         raise NetlistError(
             f"no subcircuit {name!r} in the part library; it has {', '.join(subcircuits)}",
@@ -93,7 +94,7 @@ def model(name: str) -> Model:
         If the library has no such model (the message lists what it has).
     """
     _, models = _parsed()
-    key = name.lower()
+    key = fold(name)
     if key not in models:
         raise NetlistError(
             f"no model {name!r} in the part library; it has {', '.join(models)}",

@@ -41,6 +41,7 @@ its included files, or one ``.subckt`` body; names compared ignoring case). Line
 from __future__ import annotations
 
 import os
+import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -58,6 +59,7 @@ from circuitsim.netlist.circuit import (
 )
 from circuitsim.netlist.errors import NetlistError
 from circuitsim.netlist.expressions import evaluate
+from circuitsim.netlist.names import fold
 from circuitsim.netlist.reader_elements import (
     Cursor,
     Line,
@@ -75,6 +77,7 @@ from circuitsim.netlist.reader_lines import (
     select_sections,
 )
 from circuitsim.netlist.reader_params import split_assignments
+from circuitsim.netlist.values import looks_numeric
 
 __all__ = ["parse_netlist", "read_netlist", "NetlistWarning", "LIBRARY_DIR"]
 
@@ -82,6 +85,7 @@ LIBRARY_DIR = Path(__file__).resolve().parent / "library"
 
 _IGNORED = (".save", ".print", ".plot", ".probe", ".meas", ".measure", ".four")
 _MAX_INCLUDE_DEPTH = 32
+_KEYWORD = re.compile(r"([^ \t\r\n\f\v]*)[ \t\r\n\f\v]*(.*)", re.DOTALL)
 
 
 class NetlistWarning(UserWarning):
@@ -148,7 +152,7 @@ class _Reader:
         """
         element = parse_element(line)
         scope = self.scopes[-1]
-        key = element.name.lower()
+        key = fold(element.name)
         first = scope.names.get(key)
         if first is not None:
             where = f"{first.file}:{first.number}"
@@ -159,8 +163,9 @@ class _Reader:
 
     # --- directives ---
     def directive(self, line: Line, base_dir: Path) -> None:
-        word, _, rest = line.text.partition(" ")
-        keyword = word.lower()
+        # any blank ends the keyword (".tran\t1u 1m" is read by ngspice): ASCII blanks only
+        word, rest = _KEYWORD.match(line.text).groups()
+        keyword = fold(word)
         handler = _DIRECTIVES.get(keyword)
         if handler is not None:
             handler(self, line, rest, base_dir)
@@ -188,7 +193,7 @@ class _Reader:
             raise line.error(f"{what} is not allowed inside a .subckt")
 
     def include(self, line: Line, rest: str, base_dir: Path) -> None:
-        what = line.text.split()[0].lower()
+        what = fold(line.text.split()[0])
         what = ".include" if what.startswith(".inc") else ".lib"
         path_text, section = include_target(line, rest, what)
         path = _resolve(line, path_text, base_dir)
@@ -221,7 +226,7 @@ class _Reader:
         words = rest.split()
         if len(words) > 1:
             raise line.error(f"unexpected {words[1]!r} after .ends name")
-        if words and words[0].lower() != scope.subcircuit.name.lower():
+        if words and fold(words[0]) != fold(scope.subcircuit.name):
             raise line.error(
                 f".ends {words[0]} does not match the open .subckt {scope.subcircuit.name}"
             )
@@ -239,10 +244,10 @@ class _Reader:
         if "0" in ports:
             raise c.error("ground (0) cannot be a subcircuit port")
         scope = self.scopes[-1]
-        if name.lower() in scope.subcircuits:
+        if fold(name) in scope.subcircuits:
             raise line.error(f"subcircuit {name!r} defined twice")
         sub = Subcircuit(name, ports, params=params)
-        scope.subcircuits[name.lower()] = sub
+        scope.subcircuits[fold(name)] = sub
         self.scopes.append(_Scope(line, sub.elements, sub.models, sub.subcircuits, sub.params, sub))
 
     def model(self, line: Line, rest: str, base_dir: Path) -> None:
@@ -261,9 +266,9 @@ class _Reader:
         else:
             params = c.assignments("model parameter")
         scope = self.scopes[-1]
-        if name.lower() in scope.models:
+        if fold(name) in scope.models:
             raise line.error(f"model {name!r} defined twice")
-        scope.models[name.lower()] = Model(name, kind, params)
+        scope.models[fold(name)] = Model(name, kind, params)
 
     def param(self, line: Line, rest: str, base_dir: Path) -> None:
         pairs = split_assignments(line, rest)
@@ -300,7 +305,7 @@ class _Reader:
         while not c.at_end():
             token = c.peek()
             assert token is not None
-            if token.kind == "word" and token.text.lower() == "uic":
+            if token.kind == "word" and fold(token.text) == "uic":
                 c.take("uic")
                 uic = True
                 c.finish()
@@ -331,7 +336,7 @@ class _Reader:
         self.top_only(line, ".ac")
         c = Cursor(tokenize(line), line, ".ac dec|oct|lin points fstart fstop")
         c.pos = 1
-        variation = c.word("dec, oct or lin").lower()
+        variation = fold(c.word("dec, oct or lin"))
         if variation not in ("dec", "oct", "lin"):
             raise c.error(f"expected dec, oct or lin, found {variation!r}")
         points = self.number(c, "number of points")
@@ -352,7 +357,7 @@ class _Reader:
             raise c.error("missing v(node)=value")
         while not c.at_end():
             v = c.word("v(node)")
-            if v.lower() != "v":
+            if fold(v) != "v":
                 raise c.error(f"expected v(node), found {v!r}")
             c.expect("(", "'(' after v")
             node = c.node("node name")
@@ -365,17 +370,16 @@ class _Reader:
         c = Cursor(tokenize(line), line, ".options name=value ... flag ...")
         c.pos = 1
         while not c.at_end():
-            name = c.word("option name").lower()
+            name = fold(c.word("option name"))
             token = c.peek()
             if token is not None and token.kind == "=":
                 c.take("=")
                 value_token = c.take(f"value of option {name}")
                 if (
                     value_token.kind == "word"
-                    and not value_token.text[:1].isdigit()
-                    and not (value_token.text[:1] in "+-." and value_token.text[1:2].isdigit())
+                    and not looks_numeric(value_token.text)
                 ):
-                    self.circuit.options[name] = value_token.text.lower()
+                    self.circuit.options[name] = fold(value_token.text)
                 else:
                     self.circuit.options[name] = to_value(value_token, line, f"option {name}")
             else:

@@ -33,7 +33,8 @@ from circuitsim.netlist.circuit import (
     Waveform,
 )
 from circuitsim.netlist.errors import NetlistError
-from circuitsim.netlist.expressions import check_syntax
+from circuitsim.netlist.expressions import check_parameter_name, check_syntax
+from circuitsim.netlist.names import fold
 from circuitsim.netlist.values import looks_numeric, parse_value
 
 __all__ = ["Line", "Token", "Cursor", "tokenize", "parse_element", "ELEMENT_PARSERS"]
@@ -114,7 +115,7 @@ def tokenize(line: Line) -> list[Token]:
 
 def node_name(text: str) -> str:
     """Node names are case-insensitive; ``gnd`` is ground, as ngspice 39 reads it."""
-    key = text.lower()
+    key = fold(text)
     return "0" if key == "gnd" else key
 
 
@@ -161,7 +162,7 @@ class Cursor:
             return False
         if token.kind == "expr":
             return True
-        return token.kind == "word" and token.text.lower() not in keywords
+        return token.kind == "word" and fold(token.text) not in keywords
 
     def expect(self, kind: str, what: str) -> None:
         token = self.take(what)
@@ -180,7 +181,7 @@ class Cursor:
             if not _IDENTIFIER.fullmatch(name):
                 raise self.error(f"bad {what} name {name!r}")
             self.expect("=", f"'=' after {name}")
-            out[name.lower()] = self.value(f"value of {name}")
+            out[fold(name)] = self.value(f"value of {name}")
         return out
 
 
@@ -289,7 +290,7 @@ def _source(cls: type, usage: str) -> Callable[[Cursor, str], Element]:
         while not c.at_end():
             token = c.peek()
             assert token is not None
-            key = token.text.lower() if token.kind == "word" else ""
+            key = fold(token.text) if token.kind == "word" else ""
             if key == "dc":
                 c.take("DC")
                 _once(c, fields, "dc", c.value("DC value"))
@@ -333,7 +334,7 @@ def _voltage_controlled(cls: type, usage: str, value_name: str) -> Callable[...,
         if (
             token is not None
             and token.kind == "word"
-            and token.text.lower() in _NONLINEAR
+            and fold(token.text) in _NONLINEAR
             and following is not None
             and following.kind in ("(", "=")
         ):
@@ -352,7 +353,7 @@ def _current_controlled(cls: type, usage: str, value_name: str) -> Callable[...,
         positive = c.node("node n+")
         negative = c.node("node n-")
         control = c.word("controlling voltage source name")
-        if control.lower() == "poly" or not control[:1].isalpha():
+        if fold(control) == "poly" or not control[:1].isalpha():
             raise c.error(f"expected the name of a voltage source, found {control!r}")
         gain = c.value(value_name)
         c.finish()
@@ -365,7 +366,7 @@ def _current_controlled(cls: type, usage: str, value_name: str) -> Callable[...,
 def _diode(c: Cursor, name: str) -> Element:
     anode = c.node("anode node")
     cathode = c.node("cathode node")
-    model = c.word("model name").lower()
+    model = fold(c.word("model name"))
     area: Value = 1.0
     if not c.at_end():
         following = c.tokens[c.pos + 1] if c.pos + 1 < len(c.tokens) else None
@@ -385,10 +386,10 @@ _diode.usage = "Dname anode cathode model [area]"  # type: ignore[attr-defined]
 
 def _switch(c: Cursor, name: str) -> Element:
     nodes = [c.node(w) for w in ("node n+", "node n-", "node nc+", "node nc-")]
-    model = c.word("model name").lower()
+    model = fold(c.word("model name"))
     initial = None
     if not c.at_end():
-        flag = c.word("ON or OFF").lower()
+        flag = fold(c.word("ON or OFF"))
         if flag not in ("on", "off"):
             raise c.error(f"expected ON or OFF, found {flag!r}")
         initial = flag
@@ -406,13 +407,18 @@ def split_header(c: Cursor, what: str) -> tuple[list[str], dict[str, Value]]:
         token = c.peek()
         assert token is not None
         following = c.tokens[c.pos + 1] if c.pos + 1 < len(c.tokens) else None
-        if token.kind == "word" and token.text.lower() == "params:":
+        if token.kind == "word" and fold(token.text) == "params:":
             c.take("params:")
             break
         if token.kind == "word" and following is not None and following.kind == "=":
             break
         words.append(c.word(what))
     params = c.assignments("parameter")
+    for name in params:
+        try:
+            check_parameter_name(name)
+        except ValueError as exc:
+            raise c.error(str(exc)) from None
     return words, params
 
 
@@ -421,7 +427,7 @@ def _call(c: Cursor, name: str) -> Element:
     if not words:
         raise c.error("missing subcircuit name")
     connections = tuple(node_name(w) for w in words[:-1])
-    return SubcircuitCall(name, connections, words[-1].lower(), params)
+    return SubcircuitCall(name, connections, fold(words[-1]), params)
 
 
 _call.usage = "Xname node ... subckt [params: name=value ...]"  # type: ignore[attr-defined]

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from circuitsim.netlist.errors import NetlistError
+from circuitsim.netlist.names import fold
 from circuitsim.netlist.reader_elements import Line
 
 __all__ = [
@@ -79,10 +80,10 @@ def logical_lines(text: str, file: str, has_title: bool) -> tuple[str, list[Line
         body = strip_comment(stripped).strip()
         if not body:
             continue
-        keyword = body.split()[0].lower()
+        keyword = fold(body.split()[0])
         if keyword == ".control":
             block: list[str] = []
-            while i < len(physical) and physical[i].strip().lower().split()[:1] != [".endc"]:
+            while i < len(physical) and fold(physical[i].strip()).split()[:1] != [".endc"]:
                 block.append(physical[i].rstrip())
                 i += 1
             if i >= len(physical):
@@ -91,11 +92,33 @@ def logical_lines(text: str, file: str, has_title: bool) -> tuple[str, list[Line
             out.append(Control(Line(file, number, body), "\n".join(block)))
             continue
         if keyword == ".end":
+            _nothing_after_end(physical, i, file)
             break
         current = (number, body)
     if current is not None:
         out.append(Line(file, current[0], current[1].strip()))
     return title, out
+
+
+def _nothing_after_end(physical: list[str], start: int, file: str) -> None:
+    """Refuse cards after ``.end`` (from 0-based line ``start`` on): tools disagree on them.
+
+    ngspice 39 turns ``.end`` into a comment and reads every line after it (measured: a
+    resistor after ``.end`` changed v(b) from 0.5 to 0.001), while SPICE3 and LTspice stop
+    at ``.end``. Blank lines, comments and further ``.end`` lines are allowed.
+    """
+    for index in range(start, len(physical)):
+        body = strip_comment(physical[index].strip()).strip()
+        if not body or body.startswith("*") or fold(body.split()[0]) == ".end":
+            continue
+        raise NetlistError(
+            "a card after .end: ngspice reads the lines after .end while other SPICE "
+            "simulators ignore them, so the netlist is ambiguous; move the card before .end "
+            "or delete it",
+            file=file,
+            line=index + 1,
+            text=physical[index],
+        )
 
 
 # --- include handling ---------------------------------------------------------------------
@@ -118,7 +141,7 @@ def include_target(line: Line, rest: str, what: str) -> tuple[str, str | None]:
         raise line.error(f"{what} needs a file name")
     if len(tail) > 1 or (tail and what == ".include"):
         raise line.error(f"unexpected {' '.join(tail)!r} after the file name of {what}")
-    return path, (tail[0].lower() if tail else None)
+    return path, (fold(tail[0]) if tail else None)
 
 
 def read_file(line: Line | None, path: Path, file: str) -> str:
@@ -138,7 +161,7 @@ def select_sections(
     def lib_words(entry: Line | Control) -> list[str] | None:
         if isinstance(entry, Line):
             words = entry.text.split()
-            if words[0].lower() == ".lib" and len(words) == 2:
+            if fold(words[0]) == ".lib" and len(words) == 2:
                 return words
         return None
 
@@ -146,7 +169,7 @@ def select_sections(
     endl_after = [False] * (len(lines) + 1)
     for index in range(len(lines) - 1, -1, -1):
         entry = lines[index]
-        is_endl = isinstance(entry, Line) and entry.text.split()[0].lower() == ".endl"
+        is_endl = isinstance(entry, Line) and fold(entry.text.split()[0]) == ".endl"
         endl_after[index] = endl_after[index + 1] or is_endl
     kept: list[Line | Control] = []
     inside: str | None = None
@@ -154,10 +177,10 @@ def select_sections(
     for index, entry in enumerate(lines):
         words = lib_words(entry)
         if inside is None and words is not None and endl_after[index + 1]:
-            inside = words[1].lower()
+            inside = fold(words[1])
             found = found or inside == section
             continue
-        if isinstance(entry, Line) and entry.text.split()[0].lower() == ".endl":
+        if isinstance(entry, Line) and fold(entry.text.split()[0]) == ".endl":
             if inside is None:
                 raise entry.error(".endl without a .lib section before it")
             inside = None

@@ -9,7 +9,8 @@ from __future__ import annotations
 import re
 
 from circuitsim.netlist.circuit import Expression, Value
-from circuitsim.netlist.expressions import check_syntax
+from circuitsim.netlist.expressions import check_parameter_name, check_syntax
+from circuitsim.netlist.names import fold
 from circuitsim.netlist.reader_elements import Line
 from circuitsim.netlist.values import looks_numeric, parse_value
 
@@ -84,8 +85,12 @@ def split_assignments(line: Line, rest: str) -> dict[str, Value]:
             found = rest[pos:].strip().split()[0] if rest[pos:].strip() else rest[pos:]
             raise line.error(f"expected name=value, found {found!r} (expected: .param name=value)")
         name = match.group(1)
+        try:
+            check_parameter_name(name)
+        except ValueError as exc:
+            raise line.error(str(exc)) from None
         end = _value_end(rest, match.end(), line)
-        out[name.lower()] = param_value(rest[match.end() : end], line, name)
+        out[fold(name)] = param_value(rest[match.end() : end], line, name)
         pos = end
         if not rest[pos:].strip(" \t,"):
             break

@@ -83,6 +83,7 @@ from circuitsim.netlist.circuit import (
 )
 from circuitsim.netlist.errors import NetlistError
 from circuitsim.netlist.flatten import ValueProblem, flatten
+from circuitsim.netlist.names import fold
 
 GROUND = "0"
 
@@ -199,7 +200,7 @@ def _check_scope(
     scope = f" in .subckt {where}" if where else ""
     seen: dict[str, str] = {}
     for element in elements:
-        key = element.name.lower()
+        key = fold(element.name)
         if key in seen:
             findings.append(
                 Finding(
@@ -216,8 +217,8 @@ def _check_scope(
         elif isinstance(element, SubcircuitCall):
             _check_call(element, subcircuits, scope, findings)
         elif isinstance(element, CurrentControlled):
-            key = element.control.lower()
-            control = next((e for e in [*elements, *top] if e.name.lower() == key), None)
+            key = fold(element.control)
+            control = next((e for e in [*elements, *top] if fold(e.name) == key), None)
             if not isinstance(control, VoltageSource):
                 what = "no voltage source" if control is None else f"{control.name}, not a V source"
                 findings.append(
@@ -261,10 +262,10 @@ def _check_subcircuit(
 
 
 def _lookup(name: str, tables: list[dict]) -> object | None:
-    key = name.lower()
+    key = fold(name)
     for table in tables:
         for candidate, value in table.items():
-            if candidate.lower() == key:
+            if fold(candidate) == key:
                 return value
     return None
 

@@ -31,7 +31,7 @@ _NUMBER = re.compile(
     (?:[eE](?P<exponent>[+-]?\d+))?
     (?P<rest>.*)
     """,
-    re.VERBOSE | re.DOTALL,
+    re.VERBOSE | re.DOTALL | re.ASCII,  # ngspice reads ASCII digits only: not '１０' or '١٠'
 )
 
 # Decimal exponents of the scale suffixes; ``mil`` is handled apart (25.4e-6 is not a power).
@@ -76,7 +76,7 @@ def parse_value(text: str) -> float:
         # 4k7 means 4000 to ngspice and 4700 to LTspice: refuse rather than guess
         hint = (
             f"; write {match['mantissa']}.{rest[1:]}{rest[0]}, not {stripped}"
-            if re.fullmatch(r"[a-zA-Z]\d+", rest) and rest[0].lower() in _POWERS
+            if re.fullmatch(r"[a-zA-Z][0-9]+", rest) and rest[0].lower() in _POWERS
             else ""
         )
         raise ValueError(

@@ -51,6 +51,7 @@ from circuitsim.netlist.dialects import (
     rewrite_expression,
 )
 from circuitsim.netlist.errors import NetlistError
+from circuitsim.netlist.names import fold
 from circuitsim.netlist.values import format_value
 
 NOTE = "* circuitsim: "
@@ -302,7 +303,7 @@ class _Writer:
         if isinstance(analysis, AcSweep):
             return [
                 ".ac",
-                analysis.variation.lower(),
+                fold(analysis.variation),
                 str(int(analysis.points)),
                 v(analysis.fstart),
                 v(analysis.fstop),
@@ -341,7 +342,7 @@ def _trimmed(fields: list[Value]) -> list[Value]:
 def _control_lines(block: str) -> list[str]:
     """A ``.control`` block as lines, wrapped in ``.control``/``.endc`` unless it already is."""
     lines = block.strip("\n").splitlines()
-    first = lines[0].strip().lower() if lines else ""
+    first = fold(lines[0].strip()) if lines else ""
     if first.startswith(".control"):
         return lines
     return [".control", *lines, ".endc"]
@@ -364,16 +365,16 @@ def _node_renames(circuit: Circuit, dialect: Dialect) -> dict[str, str]:
     """Nodes whose names ``dialect`` cannot take, mapped to new names no other node has."""
     pattern = re.compile(dialect.node_pattern)
     names = _all_nodes(circuit)
-    taken = {n.lower() for n in names}
+    taken = {fold(n) for n in names}
     renames: dict[str, str] = {}
     for name in sorted(names):
         if pattern.fullmatch(name):
             continue
         base = re.sub(r"[^A-Za-z0-9_]", "_", name) or "n"
         new, count = base, 1
-        while new.lower() in taken:
+        while fold(new) in taken:
             count += 1
             new = f"{base}_{count}"
-        taken.add(new.lower())
+        taken.add(fold(new))
         renames[name] = new
     return renames
