@@ -20,13 +20,13 @@ import numpy as np
 from circuitsim.solver.context import StepContext
 from circuitsim.solver.dc import initial_condition_solution, operating_point_solution
 from circuitsim.solver.devices.base import DeviceFamily
+from circuitsim.solver.devices.switch import transition_retry
 from circuitsim.solver.errors import CircuitInputError, ConvergenceError, RunLimitError
 from circuitsim.solver.integration import METHODS, truncation_step
 from circuitsim.solver.layout import with_ground
 from circuitsim.solver.newton import newton
 from circuitsim.solver.system import MnaSystem
 
-TRANSITION_OVERSHOOT = 0.02  # fraction of a step a switch transition may land past its crossing
 HISTORY = 4  # accepted points kept: order 2 truncation needs t_n+1 and three before
 
 
@@ -175,15 +175,16 @@ def run_transient(
             x_ext = with_ground(x_new)
             transition = False
             if not fixed and system.discrete and not (first and uic):
-                # A switch toggled inside the step: cut the step to just past the crossing,
-                # so the transition lands near where the control crosses its threshold. Not on
+                # A switch toggled inside the step: cut the step to end short of the crossing,
+                # then take it in a short step (devices/switch.py, transition_retry). Not on
                 # the first step from uic: its start is no solution (a control node driven by a
                 # source reads 0 V there), so there is no crossing to locate; cutting towards
                 # one took every such run down to steps of 1e-14 s (ngspice cuts none).
                 fraction = min(f.transition_fraction(x_ext, x_prev_ext) for f in system.discrete)
-                if fraction < 1 - TRANSITION_OVERSHOOT and h * fraction > 10 * min_step:
+                retry = transition_retry(fraction, h, h_prev, min_step)
+                if retry:
                     stats["rejected"] += 1
-                    h *= fraction + TRANSITION_OVERSHOOT
+                    h = retry
                     landing = False
                     continue
                 # A step that ends just past a transition is a breakpoint: its truncation
@@ -230,7 +231,11 @@ def run_transient(
         xs.insert(0, x_new)
         charges.insert(0, ctx.q)  # a fresh context per attempt: no copies needed
         currents.insert(0, ctx.qdot)
-        del times[HISTORY:], xs[HISTORY:], charges[HISTORY:], currents[HISTORY:]
+        # After a switch toggled, the history ends at the toggle: points before it would make
+        # the next steps' truncation error span the jump in dq/dt that the toggle made (the
+        # step that toggles is short, so that jump over it cascaded to "time step too small").
+        keep = 1 if any(toggled) else HISTORY
+        del times[keep:], xs[keep:], charges[keep:], currents[keep:]
         out_t.append(t)
         out_x.append(x_new)
         stats["accepted"] += 1

@@ -13,6 +13,8 @@ import math
 import numpy as np
 from numba import njit
 
+from circuitsim.solver.devices import switch as switch_rules
+
 # source kinds (plan.SOURCE_KINDS)
 DC, SIN, PULSE, PWL = 0, 1, 2, 3
 
@@ -132,3 +134,7 @@ def switch_transition(x_ext, x_prev_ext, sw, state, accepted, approach) -> float
             f = min(max(f, 0.0), 1.0) if math.isfinite(f) else 1.0
         fraction = min(fraction, f)
     return fraction
+
+
+# the switch family's rule (devices/switch.py), compiled: written once, there
+transition_retry = njit(cache=True)(switch_rules.transition_retry)

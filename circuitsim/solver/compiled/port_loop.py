@@ -24,6 +24,7 @@ from circuitsim.solver.compiled.devices import (
     source_value,
     switch_transition,
     switch_truncate,
+    transition_retry,
 )
 from circuitsim.solver.compiled.lowrank import NEGLIGIBLE
 from circuitsim.solver.compiled.newton import (
@@ -74,7 +75,6 @@ from circuitsim.solver.compiled.transient import (
     truncation_step,
     zero_charge_step,
 )
-from circuitsim.solver.transient import TRANSITION_OVERSHOOT
 
 
 @njit(cache=True, nogil=True)
@@ -431,9 +431,10 @@ def run(plan, st, t_until):
             transition = False
             if fixed == 0 and ms and not (ints[4] and si[FIRST]):  # uic: solver/transient.py
                 fraction = switch_transition(x_ext, x_prev_ext, sw, state, accepted, approach)
-                if fraction < 1 - TRANSITION_OVERSHOOT and h * fraction > 10 * min_step:
+                retry = transition_retry(fraction, h, ht[0] - ht[1] if nh > 1 else h, min_step)
+                if retry > 0:  # cut short of the crossing, then just past it (devices/switch.py)
                     si[REJECTED] += 1
-                    h *= fraction + TRANSITION_OVERSHOOT
+                    h = retry
                     landing = False
                     continue
                 transition = fraction < 1.0

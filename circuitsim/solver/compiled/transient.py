@@ -14,7 +14,12 @@ import math
 import numpy as np
 from numba import njit
 
-from circuitsim.solver.compiled.devices import source_value, switch_transition, switch_truncate
+from circuitsim.solver.compiled.devices import (
+    source_value,
+    switch_transition,
+    switch_truncate,
+    transition_retry,
+)
 from circuitsim.solver.compiled.lowrank import add_u_columns, csr_matvec
 from circuitsim.solver.compiled.newton import (
     ACCEPTED,
@@ -39,7 +44,6 @@ from circuitsim.solver.compiled.newton import (
     factor_now,
     newton,
 )
-from circuitsim.solver.transient import TRANSITION_OVERSHOOT
 
 REBASE_STEPS = 8  # refactor when this many accepted steps in a row used one new a0
 # A Newton failure at an a0 this far from the factorization's is retried once on a
@@ -201,7 +205,9 @@ def next_step(real, maxord, npoints, order, h, transition, charges, charges2, sw
 def finish_step(fs, si, t, new_h, a0, order, landing, toggled, fixed, maxord, nh):
     """The counters and scalars of an accepted step: history length, output row, the a0
     streak (for refactoring at a settled step size), order, next breakpoint handling."""
-    si[NHIST] = min(nh + 1, 4)
+    # a switch toggled: the charges' history before it does not extend past the jump in
+    # their derivatives (solver/transient.py)
+    si[NHIST] = 1 if toggled else min(nh + 1, 4)
     si[COUNT] += 1
     si[ACCEPTED] += 1
     if a0 == fs[LAST_A0]:
@@ -323,9 +329,10 @@ def run(plan, st, t_until):
             transition = False
             if fixed == 0 and ms and not (ints[4] and si[FIRST]):  # uic: solver/transient.py
                 fraction = switch_transition(x_ext, x_prev_ext, sw, state, accepted, approach)
-                if fraction < 1 - TRANSITION_OVERSHOOT and h * fraction > 10 * min_step:
+                retry = transition_retry(fraction, h, ht[0] - ht[1] if nh > 1 else h, min_step)
+                if retry > 0:  # cut short of the crossing, then just past it (devices/switch.py)
                     si[REJECTED] += 1
-                    h *= fraction + TRANSITION_OVERSHOOT
+                    h = retry
                     landing = False
                     continue
                 transition = fraction < 1.0  # a breakpoint: no truncation-error rejection

@@ -23,6 +23,34 @@ from circuitsim.solver.layout import conductance_values, two_terminal_pattern
 # (volts) so that the step does not shrink without bound right at the threshold.
 APPROACH_FRACTION = 0.75
 APPROACH_FLOOR = 0.05
+# Locating a switch transition (transition_retry): a step that crosses a threshold well inside
+# is cut to end this fraction of the way short of the crossing, the switch unchanged; a
+# crossing within NEAR_START of the last accepted step from the step's start is then taken in
+# a step of twice that lead, so the switch's new state acts over little more than after the
+# crossing (implicit integration applies it over the whole step).
+SHORT_OF_CROSSING = 1e-3
+NEAR_START = 0.01
+
+
+def transition_retry(fraction: float, h: float, h_last: float, min_step: float) -> float:
+    """The step (s) to retry a time point with when a switch toggled at ``fraction`` (0..1)
+    of the step ``h`` (s), or 0.0 to accept the step (with its transition, if fraction < 1).
+
+    ngspice only bounds the step by how fast the control nears its threshold (SWtrunc: our
+    :meth:`SwitchFamily.truncate`) and turns the switch on for the whole step that crosses;
+    here the step that crosses is cut in two, before and just past the crossing.
+    ``h_last``: the last accepted step (s), ``min_step``: the run's smallest step (s). Plain
+    arithmetic: the compiled loops run this function compiled.
+    """
+    if fraction >= 1.0:
+        return 0.0
+    lead = fraction * h  # from the step's start to the crossing, s
+    if lead > max(NEAR_START * h_last, 10.0 * min_step):
+        return lead * (1.0 - SHORT_OF_CROSSING)
+    past = 2.0 * max(lead, 10.0 * min_step)
+    if h > past * (1.0 + 1e-9):
+        return past
+    return 0.0
 
 
 class SwitchFamily(DeviceFamily):
