@@ -150,7 +150,9 @@ class MnaSystem:
         r, c, v = stamps.triplets()
         n = self.size
         if self.dense:
-            flat = np.bincount(r * n + c, weights=v, minlength=n * n)
+            # float even without a stamp (bincount of no weights is int64: a circuit without
+            # conductances then made numba compile the kernels anew, silently)
+            flat = np.bincount(r * n + c, weights=v, minlength=n * n).astype(float, copy=False)
             return flat.reshape(n, n)
         return sp.csc_matrix((v, (r, c)), shape=(n, n))
 

@@ -206,7 +206,8 @@ def _unit_columns(n: int, rows: list[np.ndarray], signs: list[np.ndarray]) -> np
 
 
 def _dense(matrix) -> np.ndarray:
-    return np.ascontiguousarray(matrix if isinstance(matrix, np.ndarray) else matrix.toarray())
+    dense = matrix if isinstance(matrix, np.ndarray) else matrix.toarray()
+    return np.ascontiguousarray(dense, dtype=float)  # one dtype: one compiled kernel
 
 
 def build_plan(
