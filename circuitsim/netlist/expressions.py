@@ -166,9 +166,21 @@ class _Parser:
         self.tokens = _tokenize(text)
         self.index = 0
         self.depth = 0
-        self.params = {fold(str(k)): v for k, v in params.items()}
+        # Looked up as written first (the reader and flatten hand over folded names); a folded
+        # copy is made only on a miss, not per call: a chain of n .param lines stays O(n).
+        self.params = params
+        self.folded: dict[str, float] | None = None
 
     # --- helpers ---
+    def lookup(self, key: str) -> float | None:
+        """The value of parameter ``key`` (folded), or None."""
+        value = self.params.get(key)
+        if value is None:
+            if self.folded is None:
+                self.folded = {fold(str(k)): v for k, v in self.params.items()}
+            value = self.folded.get(key)
+        return value
+
     def peek(self) -> tuple[str, str, int]:
         return self.tokens[self.index]
 
@@ -262,8 +274,9 @@ class _Parser:
                 return self.call(key, text)
             if self.dry:
                 return 1.0
-            if key in self.params:
-                return float(self.params[key])
+            value = self.lookup(key)
+            if value is not None:
+                return float(value)
             if key == "pi":
                 return math.pi
             if key in FUNCTIONS:

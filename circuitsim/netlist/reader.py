@@ -435,7 +435,12 @@ def parse_netlist(text: str, source: str = "<string>", base_dir: str | None = No
     circuit = Circuit(title=title, source=source)
     top = _Scope(None, circuit.elements, circuit.models, circuit.subcircuits, circuit.params)
     reader = _Reader(circuit, [top])
-    reader.run(lines, folder)
+    try:
+        reader.run(lines, folder)
+    except NetlistError as error:
+        if error.file not in (None, source) and error.text:
+            raise error.without_source_text() from None
+        raise
     if len(reader.scopes) > 1:
         opened = reader.scopes[-1].opened
         assert opened is not None

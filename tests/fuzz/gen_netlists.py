@@ -30,7 +30,7 @@ from collections.abc import Callable, Iterator
 from functools import cache
 from pathlib import Path
 
-from tests.fuzz.harness import Case
+from tests.fuzz.harness import MAX_MESSAGE_CHARS, Case
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED_FOLDERS = (ROOT / "netlist" / "corpus", ROOT / "solver" / "golden")
@@ -392,6 +392,26 @@ DOMAINS: dict[str, Callable[[str], object]] = {
 }
 
 
+class LeakyMessage(AssertionError):
+    """A named error whose message shows the secret file's content or is too long."""
+
+
+def guarded(call: Callable[[str], object]) -> Callable[[str], object]:
+    """``call`` with the check that a NetlistError's message is short and keeps the secret."""
+    from circuitsim.netlist.errors import NetlistError
+
+    def run(text: str) -> object:
+        try:
+            return call(text)
+        except NetlistError as error:
+            message = str(error)
+            if "fuzz-secret-line" in message or len(message) > MAX_MESSAGE_CHARS:
+                raise LeakyMessage(f"{len(message)} characters: {message[:300]}") from error
+            raise
+
+    return run
+
+
 def mutated_texts(seed: int, count: int) -> Iterator[tuple[str, str]]:
     """``count`` mutated netlists ``(name, text)`` for ``seed`` (the same on every run)."""
     rng = random.Random(seed)
@@ -404,6 +424,7 @@ def mutated_texts(seed: int, count: int) -> Iterator[tuple[str, str]]:
 
 def cases(seed: int, count: int) -> Iterator[Case]:
     """``count`` cases (a third of them per domain) from ``count // 3`` mutated netlists."""
+    calls = {domain: guarded(call) for domain, call in DOMAINS.items()}
     for name, text in mutated_texts(seed, max(1, count // len(DOMAINS))):
-        for domain, call in DOMAINS.items():
+        for domain, call in calls.items():
             yield Case(domain, name, text, lambda call=call, text=text: call(text))
