@@ -124,6 +124,14 @@ def _print_warnings(synthesis) -> None:
         print(f"warning: {warning}", file=sys.stderr)
 
 
+def _print_fits(system, stream=None) -> None:
+    """The fitted functions of the model: pieces, error, allowed error (docs/model.md)."""
+    from circuitsim.mechanics.shapes import fit_summaries
+
+    for line in fit_summaries(system):
+        print(line, file=stream or sys.stdout)
+
+
 def _check_generate(args: argparse.Namespace) -> None:
     """Refuse non-positive or non-finite --swing, --time-scale, --tstop and a bad --switch-at."""
     check_scenario_options(args)
@@ -153,6 +161,7 @@ def _run_generate(args: argparse.Namespace) -> int:
     result = generate(system, args.output, options, args.dialect)
     _print_warnings(result.synthesis)
     print(f"wrote {result.netlist}, {result.scale_file}, {result.bom_file}")
+    _print_fits(system)
     print(result.report.summary())
     return 0 if result.report.ok else 1
 
@@ -257,10 +266,10 @@ def _run_compare(args: argparse.Namespace) -> int:
         opamp=args.opamp, series=args.series, t_stop=args.tstop, time_scale=args.time_scale
     )
     label = f"{args.engine}, {args.opamp}, {args.series}"
-    case = run_case(
-        scenario_system(args), options, args.engine, thresholds, args.netlist, label=label
-    )
+    system = scenario_system(args)
+    case = run_case(system, options, args.engine, thresholds, args.netlist, label=label)
     _print_warnings(case.synthesis)
+    _print_fits(system, sys.stderr if args.json else sys.stdout)
     comparison = case.comparison
     if args.plot:
         from circuitsim.compare.plots import plot_overlay

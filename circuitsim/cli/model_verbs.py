@@ -293,6 +293,7 @@ def _run_ode(args: argparse.Namespace) -> int:
 
     from circuitsim.atomic import write_text_atomic
     from circuitsim.mechanics import solve
+    from circuitsim.mechanics.shapes import fit_summaries
 
     _check_ode(args)
     model, system = scenario_system(args, with_model=True)
@@ -317,6 +318,8 @@ def _run_ode(args: argparse.Namespace) -> int:
         plot_states(args.plot, result, title=title, time_unit=model.time_unit)
     terms = ", ".join(term.name for term in system.nonlinear) or "none"
     print(f"model {model.name}, coefficient set {system.coefficient_set}, nonlinear: {terms}")
+    for line in fit_summaries(system):
+        print(line)
     when = f"{t_stop:g} {model.time_unit}".rstrip()  # a dimensionless time has no unit
     print(f"0 to {when}, {len(result.t)} steps, {len(result.kinks)} kink crossings")
     final = result.sol(t_stop)

@@ -55,6 +55,8 @@ class PiecewiseLinearFit:
         The error that was asked for.
     check_points : int
         Points of the check grid.
+    function : str
+        What was fitted, for reports (the model file's expression; may be empty).
     """
 
     knots: np.ndarray
@@ -62,6 +64,15 @@ class PiecewiseLinearFit:
     max_error: float
     bound: float
     check_points: int
+    function: str = ""
+
+    def summary(self) -> str:
+        """One line: what, over which range, how many pieces, the error and its bound."""
+        what = f"{self.function!r} " if self.function else ""
+        return (
+            f"{what}over [{self.knots[0]:.6g}, {self.knots[-1]:.6g}]: {self.segments} pieces, "
+            f"max error {self.max_error:.3g} (allowed {self.bound:.3g})"
+        )
 
     @property
     def segments(self) -> int:

@@ -19,7 +19,7 @@ For slopes ``s_0 .. s_N`` between breakpoints ``b_1 < .. < b_N``: ``a = (s_0 + s
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -223,6 +223,7 @@ def _fitted(shape: ShapeSpec, value: Callable[[Item], float], env: Mapping) -> C
         fit = fit_piecewise_linear(f, lower, upper, bound, shape.max_segments)
     except FitError as exc:
         raise ShapeError(key, str(exc)) from None
+    fit = replace(fit, function=function.expression.text)
     compiled = piecewise_linear(
         fit.breakpoints, fit.slopes, at=fit.knots[0], value=fit.values[0], fit=fit
     )
@@ -247,3 +248,8 @@ class ShapeError(ValueError):
 def _require(condition: bool, key: str, message: str) -> None:
     if not condition:
         raise ShapeError(key, message)
+
+
+def fit_summaries(system) -> list[str]:
+    """One line per fitted function of ``system``'s terms (``fit TERM: ...``), for reports."""
+    return [f"fit {term.name}: {fit.summary()}" for term in system.nonlinear for fit in term.fits]

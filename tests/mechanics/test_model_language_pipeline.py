@@ -85,3 +85,18 @@ def test_the_blocks_of_a_fitted_function_share_one_argument_summer():
         fit.segments - 1
     )
     assert [name for name in names if name.startswith("XCREEP_ARG")] == ["XCREEP_ARG1"]
+
+
+def test_ode_and_generate_report_the_fit(tmp_path):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    for verb in (["ode", "--tstop", "0.05"], ["generate", "-o", str(tmp_path / "c.cir")]):
+        run = subprocess.run(
+            [sys.executable, "-m", "circuitsim", *verb, "--model", "wheelset_creep"],
+            cwd=root, capture_output=True, text=True, check=True,
+        )  # fmt: skip
+        line = next(x for x in run.stdout.splitlines() if x.startswith("fit creep: "))
+        assert "11 pieces, max error 265 (allowed 300)" in line, line
