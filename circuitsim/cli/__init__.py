@@ -19,14 +19,18 @@ Exit codes, one convention for every verb (README.md, "Exit codes"):
   floating node or source loop, SynthesisError);
 - 3: the run failed: the engine did not converge, the ODE integration failed or reached its
   step or time limit, ngspice failed, traces could not be compared, or memory ran out;
-- 130: interrupted (Ctrl-C); 141: standard output closed (a pipe's reader went away).
+- 130: interrupted (Ctrl-C); 141: standard output closed (a pipe's reader went away); 143:
+  terminated (SIGTERM, turned into an exception so that temporary folders are removed and
+  child processes stopped before the exit).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 
 from circuitsim import __version__
@@ -37,7 +41,7 @@ COMMANDS = [*model_verbs.COMMANDS, *netlist_verbs.COMMANDS, *circuit_verbs.COMMA
 
 
 EXIT_OK, EXIT_FINDING, EXIT_BAD_INPUT, EXIT_RUN_FAILED = 0, 1, 2, 3
-EXIT_INTERRUPTED, EXIT_CLOSED_OUTPUT = 130, 141
+EXIT_INTERRUPTED, EXIT_CLOSED_OUTPUT, EXIT_TERMINATED = 130, 141, 143
 
 
 def _library_errors() -> tuple[type[BaseException], ...]:
@@ -123,6 +127,22 @@ def _model_for_help(argv: list[str]):
         return None
 
 
+class _Terminated(SystemExit):
+    """SIGTERM as an exception: ``finally`` blocks (temporary folders, child processes) run."""
+
+
+def _on_sigterm(signum: int, frame: object) -> None:
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a second SIGTERM ends the process at once
+    raise _Terminated(EXIT_TERMINATED)
+
+
+def _catch_sigterm() -> object:
+    """Turn SIGTERM into :class:`_Terminated`; return the handler to restore (None: none)."""
+    if threading.current_thread() is not threading.main_thread():
+        return None  # only the main thread may set handlers (main() called from a thread)
+    return signal.signal(signal.SIGTERM, _on_sigterm)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the process exit code.
 
@@ -135,7 +155,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     -------
     int
         The exit code: 0 done, 1 a finding, 2 bad input, 3 the run failed, 130 interrupted,
-        141 standard output closed (see the module docstring).
+        141 standard output closed, 143 terminated (SIGTERM; temporary files removed and child
+        processes stopped first); see the module docstring.
     """
     argv = sys.argv[1:] if argv is None else list(argv)
     common.HELP_MODEL = _model_for_help(argv)
@@ -147,6 +168,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_BAD_INPUT
+    previous = _catch_sigterm()
     try:
         with warnings_as_lines():
             code = int(args.func(args) or 0)
@@ -174,3 +196,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except _Terminated:
+        print("terminated", file=sys.stderr)
+        return EXIT_TERMINATED
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)

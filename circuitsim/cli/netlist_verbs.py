@@ -9,6 +9,7 @@ from circuitsim.cli.common import (
     progress_after,
     read_netlist_reporting_warnings,
     require_figure_path,
+    require_positive,
     require_writable,
 )
 
@@ -104,6 +105,13 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         "voltages), compiled (numba, every unknown), python (the reference), or auto (ports up "
         "to 64 junctions, compiled above, where the circuit allows; default)",
     )
+    parser.add_argument(
+        "--ngspice-timeout",
+        type=float,
+        default=300.0,
+        metavar="SECONDS",
+        help="stop ngspice after this long and report it (default 300)",
+    )
     parser.add_argument("--csv", metavar="FILE", help="write time,v(node),...,i(vsource),...")
     parser.add_argument(
         "--plot",
@@ -136,11 +144,12 @@ def _run_simulate(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     require_figure_path("--plot", args.plot)
+    require_positive("--ngspice-timeout", args.ngspice_timeout)
     require_writable(args.csv, args.plot)
     if args.engine == "ngspice":
         from circuitsim.interop.ngspice import run_ngspice
 
-        waves = run_ngspice(Path(args.netlist), probes=args.probe)
+        waves = run_ngspice(Path(args.netlist), probes=args.probe, timeout=args.ngspice_timeout)
     else:
         from circuitsim.solver import SimulationOptions, simulate
         from circuitsim.solver.errors import SolverError

@@ -15,3 +15,24 @@ class NgspiceError(RuntimeError):
     def __init__(self, message: str, log: str = ""):
         self.log = log
         super().__init__(f"{message}\n{log}" if log else message)
+
+
+class NgspiceTimeout(NgspiceError):
+    """ngspice ran past its time limit and was stopped.
+
+    Parameters
+    ----------
+    seconds : float
+        The limit that passed.
+    log : str, optional
+        The last lines ngspice printed.
+    """
+
+    def __init__(self, seconds: float, log: str = ""):
+        self.seconds = seconds
+        super().__init__(
+            f"ngspice did not finish within {seconds:g} s and was stopped; a longer .tran step "
+            "or TMAX (fewer time points), a shorter TSTOP, or a longer limit (run_ngspice's "
+            "timeout=..., circuitsim simulate --ngspice-timeout SECONDS) may help",
+            log,
+        )

@@ -1,27 +1,31 @@
 """Running ngspice in batch mode on a netlist and reading its waveforms back.
 
-The netlist (a :class:`~circuitsim.netlist.circuit.Circuit`, written in the ngspice dialect, or
-SPICE text, or a file) gets its own ``.control`` blocks replaced by one that runs the chosen
-analysis and writes its vectors to a rawfile, which :mod:`circuitsim.interop.rawfile` parses
-(binary: exact doubles, and fast)::
+ngspice is given only what the simulation needs (its input can otherwise run shell commands;
+docs/netlists.md, "Running ngspice", says what was checked and why):
+
+* a deck made by :mod:`circuitsim.interop.ngspice_deck`: the netlist with its includes spliced
+  in by us (relative files beside the including file, then in the package part library, as
+  the netlist reader finds them), without any ``.control`` block, comment line, ``.title`` or
+  anything after ``.end``, under a fixed title;
+* of the deck's analysis cards (``.op``, ``.ac``, ``.dc``, ..., any case, in any file) only the
+  chosen one, since ngspice 39 aborts a ``run`` over an ``.op`` together with another analysis
+  ("no data saved for Transient analysis; analysis not run");
+* then our own block, which runs the analysis and writes its vectors to a binary rawfile that
+  :mod:`circuitsim.interop.rawfile` parses (exact doubles, and fast)::
 
     .control
     set filetype=binary
     run
     setplot tran1
-    write <tmp>/out.raw
+    write out.raw
     .endc
+    .end
 
-An ``.include file`` (or ``.lib file section``) line of the deck that names no file beside the
-netlist but a file of the package part library (``.include parts.lib``) is pointed at that
-library file by its absolute path, as the netlist reader finds it (ngspice knows only the first
-place). Includes inside included files are left to ngspice.
-
-Only the chosen analysis runs: the deck's other analysis cards (``.op``, ``.ac``, ``.dc``, ...,
-any case) and their ``+`` continuation lines are commented out with a leading ``*`` in the copy
-ngspice reads, since ngspice 39 aborts a ``run`` over an ``.op`` together with another analysis
-("no data saved for Transient analysis; analysis not run"). Cards in included files are left
-to ngspice.
+ngspice runs as ``ngspice -b -n deck.cir`` (``-n``: no ``.spiceinit`` from ``$SPICE_USERINIT_DIR``,
+the working folder or ``$HOME``) in a private temporary folder as its working folder, with a
+bare environment (``HOME`` is that folder; no ``SPICE_*``/``NGSPICE_*`` variable, which could
+move the system ``spinit`` or the input path) and a time limit; the folder goes away when the
+run ends, however it ends (:mod:`circuitsim.interop.sandbox`).
 
 ngspice's exit status is not trusted (a failed run may still exit 0): a run counts as failed
 when the rawfile is missing or empty, or when the log holds error lines ("Error", "singular
@@ -40,18 +44,31 @@ import dataclasses
 import os
 import re
 import shutil
-import subprocess
-import tempfile
 import time
 from pathlib import Path
 
-from circuitsim.interop.errors import NgspiceError
+from circuitsim.interop.errors import NgspiceError, NgspiceTimeout
+from circuitsim.interop.ngspice_deck import TITLE, check_inert, decode, flatten_deck
 from circuitsim.interop.rawfile import parse_ascii_raw, parse_rawfile
+from circuitsim.interop.sandbox import (
+    TimeLimitExceeded,
+    bare_environment,
+    private_folder,
+    run_with_limit,
+)
 
-__all__ = ["ngspice_available", "run_ngspice", "parse_rawfile", "parse_ascii_raw"]
+__all__ = [
+    "DEFAULT_TIMEOUT",
+    "ngspice_available",
+    "run_ngspice",
+    "parse_rawfile",
+    "parse_ascii_raw",
+]
 from circuitsim.netlist.circuit import Circuit
 from circuitsim.solver.waveforms import Waveforms
 
+DEFAULT_TIMEOUT = 300.0  # seconds; the paper's slowest case takes a few seconds
+FOLDER_PREFIX = "circuitsim-ngspice-"
 _ERROR_LINE = re.compile(
     r"\berror\b|singular matrix|timestep too small|doanalyses|simulations? aborted"
     r"|unknown subckt|could not find|unable to find definition|no such vector|not found",
@@ -70,26 +87,26 @@ def ngspice_available() -> bool:
 def run_ngspice(
     netlist: Circuit | str | os.PathLike,
     probes: list[str] | None = None,
-    timeout: float = 300.0,
+    timeout: float = DEFAULT_TIMEOUT,
     analysis: str | None = None,
 ) -> Waveforms:
-    """Run ``ngspice -b`` on ``netlist`` and return its waveforms.
+    """Run ``ngspice -b -n`` on ``netlist`` in a private folder and return its waveforms.
 
     Parameters
     ----------
     netlist : Circuit, str or path-like
         A circuit (written with the ngspice dialect), SPICE text (a ``str``; a one-line
-        ``str`` naming an existing file is that file), or a netlist file (a path-like;
-        relative ``.include``/``.lib`` files are found beside it).
+        ``str`` naming an existing file is that file; its relative includes are looked for in
+        the working folder), or a netlist file (a path-like; relative ``.include``/``.lib``
+        files are found beside it, then in the package part library).
     probes : list of str, optional
         Signals to return (``"out"`` or ``"v(out)"``, ``"i(v1)"``); all of them when None.
     timeout : float
-        Seconds before ngspice is stopped and NgspiceError raised.
+        Seconds before ngspice is stopped and :class:`NgspiceTimeout` raised (default 300).
     analysis : {"tran", "op", "ac"}, optional
         Which of the deck's analyses to run and return; by default the ``.tran`` if there is
         one, else the ``.op``, else the ``.ac``. The deck's other analysis cards (with their
-        ``+`` continuation lines) are commented out in the copy ngspice runs, so ngspice runs
-        exactly this one.
+        ``+`` continuation lines) are left out of the deck ngspice runs.
 
     Returns
     -------
@@ -103,35 +120,34 @@ def run_ngspice(
 
     Raises
     ------
+    NetlistError
+        An include or library file is missing, unreadable or included by itself (with the
+        file and line that names it).
+    NgspiceTimeout
+        ngspice did not finish within ``timeout`` seconds.
     NgspiceError
-        ngspice is not installed, timed out, reported errors, wrote no output, the deck has
-        no ``.tran``/``.op``/``.ac`` (or not the one asked for), or a probe is not among the
+        ngspice is not installed, reported errors, wrote no output, the deck has no
+        ``.tran``/``.op``/``.ac`` (or not the one asked for), or a probe is not among the
         results.
     """
-    deck, cwd = _deck_text(netlist)
-    deck = _library_includes(deck, Path(cwd) if cwd else Path(os.getcwd()))
-    analysis = _chosen_analysis(deck, analysis)
+    lines = _deck_lines(netlist)
+    analysis = _chosen_analysis(lines, analysis)
+    deck = _with_control(lines, analysis)
     binary = shutil.which("ngspice")
     if binary is None:
         raise NgspiceError("ngspice is not installed or not on PATH (apt-get install -y ngspice)")
-    with tempfile.TemporaryDirectory(prefix="circuitsim-ngspice-") as tmp:
-        raw = Path(tmp) / "out.raw"
-        deck_path = Path(tmp) / "deck.cir"
-        deck_path.write_text(_with_control(deck, analysis, raw))
+    with private_folder(FOLDER_PREFIX) as folder:
+        raw = folder / "out.raw"
+        (folder / "deck.cir").write_bytes(deck.encode("utf-8", errors="surrogateescape"))
         started = time.perf_counter()
         try:
-            done = subprocess.run(
-                [binary, "-b", str(deck_path)],
-                cwd=cwd or tmp,
-                capture_output=True,
-                text=True,
-                errors="replace",
-                timeout=timeout,
-                stdin=subprocess.DEVNULL,
+            done = run_with_limit(
+                [binary, "-b", "-n", "deck.cir"], folder, bare_environment(folder), timeout
             )
-        except subprocess.TimeoutExpired as exc:
-            log = _text(exc.stdout) + _text(exc.stderr)
-            raise NgspiceError(f"ngspice did not finish within {timeout:g} s", _tail(log)) from None
+        except TimeLimitExceeded as exc:
+            raise NgspiceTimeout(timeout, _tail(exc.output)) from None
+        except OSError as exc:
+            raise NgspiceError(f"cannot start ngspice ({binary}): {exc}") from None
         wall = time.perf_counter() - started
         log = done.stdout + "\n" + done.stderr
         errors = _error_lines(log)
@@ -156,102 +172,45 @@ def run_ngspice(
     return waves
 
 
-def _deck_text(netlist: Circuit | str | os.PathLike) -> tuple[str, str | None]:
-    """The SPICE text to run and the folder to run it in (None: a temporary one)."""
+def _deck_lines(netlist: Circuit | str | os.PathLike) -> list[str]:
+    """The netlist's circuit lines, flattened (:func:`~.ngspice_deck.flatten_deck`)."""
     if isinstance(netlist, Circuit):
         from circuitsim.netlist.writer import write_netlist
 
-        return write_netlist(dataclasses.replace(netlist, control=[]), "ngspice"), None
-    if isinstance(netlist, str) and ("\n" in netlist or not os.path.isfile(netlist)):
-        return netlist, None
-    path = Path(netlist)
-    try:
-        text = path.read_text(errors="replace")
-    except OSError as exc:
-        raise NgspiceError(f"cannot read the netlist {path}: {exc}") from None
-    return text, str(path.resolve().parent)
-
-
-_INCLUDE_LINE = re.compile(
-    r"""^(?P<lead>\s*)(?P<word>\.include|\.inc|\.lib)(?P<gap>\s+)
-    (?P<path>"[^"]*"|'[^']*'|[^\s"']+)(?P<rest>.*)$""",
-    re.IGNORECASE | re.VERBOSE,
-)
-
-
-def _library_includes(deck: str, folder: Path) -> str:
-    """``deck`` with includes of the package part library given as absolute paths.
-
-    Parameters
-    ----------
-    deck : str
-        SPICE text; its first line is the title.
-    folder : Path
-        Where the netlist's relative includes are looked for first (the netlist's folder).
-
-    Returns
-    -------
-    str
-        The same text, except each top-level ``.include``/``.inc file`` or ``.lib file
-        section`` line whose relative file is not in ``folder`` but is in the package part
-        library, which now names the library file by its absolute path, quoted. A ``.lib``
-        with one word is left alone (ngspice reads it as a section name, not a file).
-    """
-    from circuitsim.netlist.reader import LIBRARY_DIR
-
-    lines = deck.splitlines(keepends=True)
-    in_control = False
-    for index, line in enumerate(lines[1:], start=1):
-        word = line.strip().split(maxsplit=1)[0].lower() if line.strip() else ""
-        if word == ".control":
-            in_control = True
-        elif word == ".endc":
-            in_control = False
-        match = None if in_control else _INCLUDE_LINE.match(line.rstrip("\r\n"))
-        if match is None:
-            continue
-        name = match["path"].strip("\"'")
-        if match["word"].lower() == ".lib" and not match["rest"].split():
-            continue
+        text = write_netlist(dataclasses.replace(netlist, control=[]), "ngspice")
+        found = flatten_deck(text, "<circuit>", Path.cwd())
+    elif isinstance(netlist, str) and ("\n" in netlist or not os.path.isfile(netlist)):
+        found = flatten_deck(netlist, "<string>", Path.cwd())
+    else:
+        path = Path(netlist)
         try:
-            if not name or Path(name).is_absolute() or (folder / name).is_file():
-                continue
-            library_file = LIBRARY_DIR / name
-            if not library_file.is_file():
-                continue
-        except (OSError, ValueError):  # a name no file system takes: ngspice will say so
+            text = decode(path.read_bytes())
+        except OSError as exc:
+            raise NgspiceError(f"cannot read the netlist {path}: {exc.strerror or exc}") from None
+        found = flatten_deck(text, str(path), path.resolve().parent)
+    return [line.text for line in found]
+
+
+def _cards(lines: list[str]) -> list[tuple[str, list[int]]]:
+    """Each card's first word (lower case) and the indices of its lines (``+`` lines too).
+
+    ``#`` and ``$`` lines are passed over when joining, as ngspice's stitching does.
+    """
+    cards: list[tuple[str, list[int]]] = []
+    for index, text in enumerate(lines):
+        if text.startswith("+") and cards:
+            cards[-1][1].append(index)
+        elif text.startswith(("#", "$")):
             continue
-        ending = line[len(line.rstrip("\r\n")) :]
-        lines[index] = (
-            f'{match["lead"]}{match["word"]}{match["gap"]}"{library_file.resolve()}"'
-            f"{match['rest']}{ending}"
-        )
-    return "".join(lines)
-
-
-def _logical_lines(deck: str) -> list[str]:
-    """Physical lines with ``+`` continuations joined (first line, the title, kept as is)."""
-    joined: list[str] = []
-    for line in deck.splitlines():
-        if joined and line.lstrip().startswith("+") and len(joined) > 1:
-            joined[-1] += " " + line.lstrip()[1:]
         else:
-            joined.append(line)
-    return joined
+            word = re.split(r"[\s;]", text, maxsplit=1)[0].lower()
+            cards.append((word, [index]))
+    return cards
 
 
-def _chosen_analysis(deck: str, wanted: str | None = None) -> str:
+def _chosen_analysis(lines: list[str], wanted: str | None = None) -> str:
     """``wanted`` if the deck has it; by default ``"tran"``, else ``"op"``, else ``"ac"``."""
-    found = set()
-    in_control = False
-    for line in _logical_lines(deck)[1:]:
-        word = line.strip().split(maxsplit=1)[0].lower() if line.strip() else ""
-        if word == ".control":
-            in_control = True
-        elif word == ".endc":
-            in_control = False
-        elif not in_control and word in (".tran", ".op", ".ac"):
-            found.add(word[1:])
+    found = {word[1:] for word, _ in _cards(lines) if word in (".tran", ".op", ".ac")}
     if wanted is not None:
         if wanted not in ("tran", "op", "ac"):
             raise NgspiceError(f"unknown analysis {wanted!r}; choose tran, op or ac")
@@ -265,7 +224,7 @@ def _chosen_analysis(deck: str, wanted: str | None = None) -> str:
     raise NgspiceError("the netlist has no .tran, .op or .ac analysis for ngspice to run")
 
 
-# The analysis cards ngspice runs on ``run``; all but the chosen one are commented out, since
+# The analysis cards ngspice runs on ``run``; all but the chosen one are left out, since
 # ngspice 39 aborts a ``run`` over an ``.op`` together with another analysis ("no data saved
 # for ... analysis; analysis not run").
 _ANALYSIS_CARDS = frozenset(
@@ -273,57 +232,38 @@ _ANALYSIS_CARDS = frozenset(
 )
 
 
-def _with_control(deck: str, analysis: str, raw: Path) -> str:
-    """The deck ngspice is given: only the chosen analysis, and our ``.control`` block.
+def _with_control(lines: list[str], analysis: str) -> str:
+    """The deck ngspice is given: our title, the circuit, only the chosen analysis, our block.
 
     Parameters
     ----------
-    deck : str
-        SPICE text; its first line is the title.
+    lines : list of str
+        The flattened circuit lines (:func:`_deck_lines`), without a title.
     analysis : {"tran", "op", "ac"}
         The analysis to run.
-    raw : Path
-        Where ngspice writes the binary rawfile.
 
     Returns
     -------
     str
-        ``deck`` without its ``.control`` blocks and ``.end``, with every analysis card other
-        than ``.<analysis>`` (outside control blocks, any case) and its ``+`` continuation lines
-        commented out with a leading ``*``, then a ``.control`` block that runs and writes the
-        chosen analysis, then ``.end``.
+        :data:`~.ngspice_deck.TITLE`, then ``lines`` without the analysis cards other than
+        ``.<analysis>`` (and their ``+`` lines), then a ``.control`` block that runs and
+        writes the chosen analysis to ``out.raw`` in ngspice's working folder, then ``.end``.
+
+    Raises
+    ------
+    RuntimeError
+        A line ngspice would act on is left (:func:`~.ngspice_deck.check_inert`).
     """
-    kept: list[str] = []
-    in_control = False
-    dropping = False  # inside a commented-out card: its continuation lines go as well
-    for index, line in enumerate(deck.splitlines()):
-        stripped = line.strip()
-        word = stripped.split(maxsplit=1)[0].lower() if stripped and index else ""
-        if in_control or word in (".control", ".endc", ".end"):
-            if word == ".control":
-                in_control = True
-            elif word == ".endc":
-                in_control = False
-            dropping = False
-        elif dropping and stripped.startswith("+"):
-            kept.append("*" + line)
-        elif dropping and (not stripped or stripped.startswith("*")):
-            # ngspice drops blank and comment lines before joining continuations, so a "+"
-            # line after them still belongs to the commented-out card
-            kept.append(line)
-        else:
-            dropping = word in _ANALYSIS_CARDS and word != f".{analysis}"
-            kept.append("*" + line if dropping else line)
-    kept += [
-        ".control",
-        "set filetype=binary",
-        "run",
-        f"setplot {analysis}1",
-        f"write {raw}",
-        ".endc",
-        ".end",
-    ]
-    return "\n".join(kept) + "\n"
+    dropped = {
+        index
+        for word, indices in _cards(lines)
+        if word in _ANALYSIS_CARDS and word != f".{analysis}"
+        for index in indices
+    }
+    kept = [text for index, text in enumerate(lines) if index not in dropped]
+    check_inert(kept)
+    block = [".control", "set filetype=binary", "run", f"setplot {analysis}1", "write out.raw"]
+    return "\n".join([TITLE, *kept, *block, ".endc", ".end"]) + "\n"
 
 
 def _error_lines(log: str) -> str:

@@ -10,13 +10,11 @@ step for .tran) - R1 - out, with R2 and C1 from out to ground. Independent answe
 - .ac (AC 1): H(f) = R2 / (R1 + R2) / (1 + j 2 pi f tau).
 """
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from circuitsim.cli import main
-from circuitsim.interop.ngspice import _with_control, run_ngspice
+from circuitsim.interop.ngspice import _deck_lines, _with_control, run_ngspice
 from circuitsim.solver.waveforms import Waveforms
 from tests.conftest import requires_ngspice
 
@@ -134,30 +132,25 @@ def test_only_the_chosen_card_is_left_for_ngspice():
         "R1 in 0 1k\n"
         ".end\n"
     )
-    raw = Path("/tmp/out.raw")
-    assert _with_control(deck, "op", raw).splitlines()[:9] == [
-        ".op title lines are never cards",
-        "V1 in 0 DC 1",
-        "*  .TRAN 1u 1m",
-        "*+ 0 1u",
-        "",
-        "* a comment inside the card",
-        "*+ uic",
-        ".options reltol=1e-4",
-        ".Op",
-    ]
-    for kept, analysis in (("  .TRAN 1u 1m", "tran"), (".AC dec 5 10 100k", "ac")):
-        lines = _with_control(deck, analysis, raw).splitlines()
-        assert kept in lines and "R1 in 0 1k" in lines
-        assert ".Op" not in lines and "*.Op" in lines
-        # our control block alone: the deck's own (and the .tran inside it) is gone
-        assert lines[-7:] == [
-            ".control",
-            "set filetype=binary",
-            "run",
-            f"setplot {analysis}1",
-            f"write {raw}",
-            ".endc",
-            ".end",
+    lines = _deck_lines(deck)
+    block = [".control", "set filetype=binary", "run", "write out.raw", ".endc", ".end"]
+    assert (
+        _with_control(lines, "op").splitlines()
+        == [
+            "circuitsim deck for ngspice",  # the title is ours, the deck's is dropped
+            "V1 in 0 DC 1",  # the .TRAN card, its "+" lines and the comment between them: gone
+            ".options reltol=1e-4",
+            ".Op",
+            "R1 in 0 1k",  # after the deck's own control block, which is gone with its .tran
+            *block[:3],
+            "setplot op1",
+            *block[3:],
         ]
-        assert ".tran 1u 2m" not in lines
+    )
+    for kept, analysis in ((".TRAN 1u 1m", "tran"), (".AC dec 5 10 100k", "ac")):
+        out = _with_control(lines, analysis).splitlines()
+        assert kept in out and "R1 in 0 1k" in out and ".Op" not in out
+        tran_lines = {"+ 0 1u", "+ uic"} <= set(out)
+        assert tran_lines == (analysis == "tran")
+        assert out[-7:] == [*block[:3], f"setplot {analysis}1", *block[3:]]
+        assert ".tran 1u 2m" not in out

@@ -1,0 +1,232 @@
+"""Running another program on our files only: a private folder, a bare environment, a time limit.
+
+Three pieces, used by :mod:`circuitsim.interop.ngspice`:
+
+* :func:`private_folder` makes a temporary folder named ``<prefix><pid>-<random>`` and holds
+  an exclusive ``flock`` on a ``.lock`` file in it while it is in use; the folder is removed
+  when the block ends, also on an exception (KeyboardInterrupt, or the SystemExit the CLI makes
+  of SIGTERM). A process killed with SIGKILL cannot clean up, but the kernel releases its lock,
+  so the next run removes every folder of that prefix whose lock it can take: a folder still in
+  use is never touched (not even by a process in another PID namespace sharing ``/tmp``).
+* :func:`bare_environment`: only what a program needs to start (``PATH``, the dynamic
+  loader's ``LD_LIBRARY_PATH`` if set), ``HOME`` pointing into the private folder, the C
+  locale; nothing else of the user's environment reaches it.
+* :func:`run_with_limit` starts the program in its own session (process group), with stdin
+  closed and its output captured, and kills the whole group when the time limit passes or
+  when the caller is interrupted. Its process id goes into the folder (``.child``): should the
+  caller be killed with SIGKILL, the next clean-up kills that orphan too (on Linux, where
+  ``/proc/<pid>/cwd`` confirms it is still the program working in that folder).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import signal
+import subprocess
+import tempfile
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - Windows: no flock, stale folders are left alone
+    fcntl = None  # type: ignore[assignment]
+
+__all__ = ["private_folder", "remove_stale_folders", "bare_environment", "run_with_limit"]
+
+_LOCK = ".lock"
+_CHILD = ".child"  # the process id of the program running in the folder
+
+
+@contextlib.contextmanager
+def private_folder(prefix: str, parent: str | None = None) -> Iterator[Path]:
+    """A new folder only this process uses, removed when the block ends.
+
+    Parameters
+    ----------
+    prefix : str
+        Start of the folder's name (``"circuitsim-ngspice-"``); the process id and a random
+        part follow.
+    parent : str, optional
+        Where to make it; default the system's temporary folder.
+
+    Yields
+    ------
+    Path
+        The folder (mode 0700), empty but for its ``.lock`` file.
+    """
+    parent = parent or tempfile.gettempdir()
+    remove_stale_folders(prefix, parent)
+    folder = Path(tempfile.mkdtemp(prefix=f"{prefix}{os.getpid()}-", dir=parent))
+    lock = None
+    try:
+        lock = open(folder / _LOCK, "wb")  # noqa: SIM115 - held open for the whole block
+        if fcntl is not None:
+            fcntl.flock(lock.fileno(), fcntl.LOCK_EX)
+        yield folder
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+        if lock is not None:
+            lock.close()
+
+
+def remove_stale_folders(prefix: str, parent: str | None = None) -> list[Path]:
+    """Remove folders ``<prefix><pid>-*`` that no live process holds; return them.
+
+    A folder counts as stale when its ``.lock`` file can be locked (its process ended without
+    cleaning up, e.g. killed with SIGKILL), or when it has no ``.lock`` file and the process
+    named in it is gone (killed between making the folder and locking it). Folders of other
+    users are skipped.
+    """
+    if fcntl is None:
+        return []
+    parent_path = Path(parent or tempfile.gettempdir())
+    removed = []
+    try:
+        candidates = list(parent_path.glob(f"{prefix}*"))
+    except OSError:
+        return []
+    for folder in candidates:
+        with contextlib.suppress(OSError):
+            info = folder.lstat()
+            if not folder.is_dir() or folder.is_symlink() or info.st_uid != os.getuid():
+                continue
+            if _abandoned(folder, prefix):
+                _stop_orphan(folder)
+                shutil.rmtree(folder, ignore_errors=True)
+                removed.append(folder)
+    return removed
+
+
+def _abandoned(folder: Path, prefix: str) -> bool:
+    """No live process uses ``folder`` (see :func:`remove_stale_folders`)."""
+    lock_path = folder / _LOCK
+    if not lock_path.exists():
+        pid_text = folder.name[len(prefix) :].split("-", 1)[0]
+        return pid_text.isdigit() and not _alive(int(pid_text))
+    with open(lock_path, "rb") as lock:
+        try:
+            fcntl.flock(lock.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return False
+        return True  # closing the file releases the lock; the folder goes next
+
+
+def _stop_orphan(folder: Path) -> None:
+    """Kill the program a dead process left running in ``folder`` (its own process group).
+
+    Only a process whose working folder is ``folder`` is killed (``/proc/<pid>/cwd``), so a
+    process id reused since by an unrelated program is left alone.
+    """
+    with contextlib.suppress(OSError, ValueError):
+        pid = int((folder / _CHILD).read_text())
+        cwd = os.readlink(f"/proc/{pid}/cwd")
+        if cwd in (str(folder), f"{folder} (deleted)"):
+            os.killpg(pid, signal.SIGKILL)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
+
+
+def bare_environment(home: Path) -> dict[str, str]:
+    """The environment a batch program gets: no variables of ours or the user's beyond these.
+
+    Parameters
+    ----------
+    home : Path
+        Given as ``HOME`` (the private folder: no start-up files of the user's are found).
+
+    Returns
+    -------
+    dict of str to str
+        ``PATH`` (the caller's, or the system default), ``LD_LIBRARY_PATH`` when set (a
+        program installed outside the system folders needs it to start), ``HOME``,
+        ``TMPDIR`` (``home``) and ``LC_ALL=C`` (numbers read and written with a dot).
+    """
+    env = {
+        "PATH": os.environ.get("PATH", os.defpath),
+        "HOME": str(home),
+        "TMPDIR": str(home),
+        "LC_ALL": "C",
+    }
+    if os.environ.get("LD_LIBRARY_PATH"):
+        env["LD_LIBRARY_PATH"] = os.environ["LD_LIBRARY_PATH"]
+    if os.environ.get("SYSTEMROOT"):  # Windows programs do not start without it
+        env["SYSTEMROOT"] = os.environ["SYSTEMROOT"]
+    return env
+
+
+@dataclass(frozen=True)
+class Finished:
+    """How a program run ended: exit status and its output (text, undecodable bytes replaced)."""
+
+    returncode: int
+    stdout: str
+    stderr: str
+
+
+class TimeLimitExceeded(Exception):
+    """The program ran past its time limit and was killed; ``output`` holds what it printed."""
+
+    def __init__(self, output: str):
+        self.output = output
+        super().__init__("time limit exceeded")
+
+
+def run_with_limit(args: list[str], cwd: Path, env: dict[str, str], timeout: float) -> Finished:
+    """Run ``args`` in ``cwd`` with ``env``; kill it (and its children) after ``timeout`` s.
+
+    Raises
+    ------
+    TimeLimitExceeded
+        The time limit passed; the process group was killed.
+    OSError
+        The program could not be started.
+    """
+    process = subprocess.Popen(
+        args,
+        cwd=cwd,
+        env=env,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        start_new_session=os.name == "posix",
+    )
+    try:
+        (cwd / _CHILD).write_text(str(process.pid))  # for remove_stale_folders, should we die
+        out, err = process.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        _kill(process)
+        out, err = process.communicate()
+        raise TimeLimitExceeded(_text(out) + _text(err)) from None
+    except BaseException:  # KeyboardInterrupt, SystemExit from SIGTERM: stop it, then go on
+        _kill(process)
+        process.wait()
+        raise
+    finally:
+        if process.returncode is None:
+            _kill(process)
+            process.wait()
+    return Finished(process.returncode, _text(out), _text(err))
+
+
+def _kill(process: subprocess.Popen) -> None:
+    with contextlib.suppress(ProcessLookupError, PermissionError, OSError):
+        if os.name == "posix":
+            os.killpg(process.pid, signal.SIGKILL)
+        else:  # pragma: no cover
+            process.kill()
+
+
+def _text(data: bytes | None) -> str:
+    return data.decode(errors="replace") if data else ""

@@ -1,0 +1,208 @@
+"""ngspice's private folder, environment, time limit and clean-up (issue 21: runner hygiene).
+
+Killed runs must not leave ``circuitsim-ngspice-*`` folders or ngspice processes behind:
+SIGTERM and SIGINT clean up at once, SIGKILL at the next run.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pytest
+
+from circuitsim.interop import ngspice
+from circuitsim.interop.errors import NgspiceError, NgspiceTimeout
+from circuitsim.interop.ngspice import FOLDER_PREFIX, run_ngspice
+from circuitsim.interop.sandbox import (
+    bare_environment,
+    private_folder,
+    remove_stale_folders,
+    run_with_limit,
+)
+from tests.conftest import requires_ngspice
+
+ROOT = Path(__file__).resolve().parents[2]
+# About a billion time steps: ngspice is still busy when the tests stop it.
+SLOW = "slow\nV1 a 0 SIN(0 1 1meg)\nR1 a 0 1k\n.tran 1p 1m 0 1p\n.end\n"
+QUICK = "divider\nV1 a 0 DC 1\nR1 a b 1k\nR2 b 0 1k\n.op\n.end\n"
+
+
+def _running(pid: int) -> bool:
+    """The process exists and is not a zombie (PID 1 of a container may never reap it)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return False
+    return state not in ("Z", "X")
+
+
+def _start_cli_run(tmp_path: Path) -> tuple[subprocess.Popen, Path, int]:
+    """``circuitsim simulate --engine ngspice`` on SLOW, once ngspice is running in its folder.
+
+    Returns the CLI process, ngspice's private folder and ngspice's process id.
+    """
+    temp = tmp_path / "tmp"
+    temp.mkdir()
+    netlist = tmp_path / "slow.cir"
+    netlist.write_text(SLOW)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "circuitsim", "simulate", str(netlist), "--engine", "ngspice"],
+        cwd=ROOT,
+        env={**os.environ, "TMPDIR": str(temp), "PYTHONPATH": str(ROOT)},
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        children = list(temp.glob(f"{FOLDER_PREFIX}{process.pid}-*/.child"))
+        if children and children[0].read_text():
+            return process, children[0].parent, int(children[0].read_text())
+        assert process.poll() is None, process.communicate()
+        time.sleep(0.05)
+    process.kill()
+    raise AssertionError("ngspice did not start within 120 s")
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+@pytest.mark.parametrize(
+    ("sent", "code", "word"),
+    [(signal.SIGTERM, 143, "terminated"), (signal.SIGINT, 130, "interrupted")],
+)
+def test_a_stopped_cli_run_removes_its_folder_and_ngspice(tmp_path, sent, code, word):
+    process, folder, child = _start_cli_run(tmp_path)
+    assert _running(child)
+    process.send_signal(sent)
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == code and word in err
+    assert not folder.exists()
+    assert not _running(child)
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+def test_a_killed_run_is_cleaned_up_by_the_next(tmp_path, monkeypatch):
+    process, folder, child = _start_cli_run(tmp_path)
+    process.kill()  # SIGKILL: no clean-up of its own
+    process.communicate(timeout=60)
+    assert folder.exists() and _running(child)  # what the issue saw: both left behind
+    monkeypatch.setattr(tempfile, "tempdir", str(folder.parent))
+    assert run_ngspice(QUICK)["v(b)"][0] == pytest.approx(0.5, rel=1e-9)
+    assert not folder.exists()
+    deadline = time.monotonic() + 10
+    while _running(child) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _running(child)
+    assert list(folder.parent.iterdir()) == []  # and the quick run's own folder is gone
+
+
+def test_a_folder_in_use_is_never_removed(tmp_path):
+    with private_folder("t-", str(tmp_path)) as folder:
+        assert folder.name.startswith(f"t-{os.getpid()}-")
+        assert remove_stale_folders("t-", str(tmp_path)) == []
+        assert folder.is_dir()
+        # made but not locked yet: kept while its process lives, removed once it is gone
+        (tmp_path / f"t-{os.getpid()}-unlocked").mkdir()
+        dead = subprocess.run(
+            [sys.executable, "-c", "import os; print(os.getpid())"],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        (tmp_path / f"t-{int(dead.stdout)}-unlocked").mkdir()
+        assert remove_stale_folders("t-", str(tmp_path)) == [
+            tmp_path / f"t-{int(dead.stdout)}-unlocked"
+        ]
+        assert (tmp_path / f"t-{os.getpid()}-unlocked").is_dir()
+    assert not folder.exists()
+
+
+def test_the_folder_goes_on_any_exception(tmp_path):
+    with pytest.raises(KeyboardInterrupt), private_folder("t-", str(tmp_path)) as folder:
+        (folder / "deck.cir").write_text("x")
+        raise KeyboardInterrupt
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_environment_is_bare(tmp_path, monkeypatch):
+    monkeypatch.setenv("SPICE_SCRIPTS", "/somewhere")
+    monkeypatch.setenv("NGSPICE_INPUT_DIR", "/somewhere")
+    monkeypatch.setenv("SECRET_TOKEN", "x")
+    env = bare_environment(tmp_path)
+    assert set(env) <= {"PATH", "HOME", "TMPDIR", "LC_ALL", "LD_LIBRARY_PATH"}
+    assert env["HOME"] == str(tmp_path) and env["LC_ALL"] == "C"
+    done = run_with_limit(["env"], tmp_path, env, timeout=30)
+    seen = dict(line.split("=", 1) for line in done.stdout.splitlines() if "=" in line)
+    assert not any(k.startswith(("SPICE", "NGSPICE", "SECRET")) for k in seen)
+    assert seen["HOME"] == str(tmp_path)
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+def test_ngspice_is_started_without_init_files_in_its_own_folder(tmp_path, monkeypatch):
+    seen = {}
+
+    def spy(args, cwd, env, timeout):
+        seen.update(args=args, cwd=cwd, env=env, deck=(cwd / args[-1]).read_text())
+        return run_with_limit(args, cwd, env, timeout)
+
+    monkeypatch.setattr(ngspice, "run_with_limit", spy)
+    monkeypatch.chdir(tmp_path)
+    run_ngspice(QUICK)
+    assert seen["args"][1:] == ["-b", "-n", "deck.cir"]
+    assert seen["cwd"].name.startswith(f"{FOLDER_PREFIX}{os.getpid()}-")
+    assert seen["cwd"] != tmp_path and seen["env"]["HOME"] == str(seen["cwd"])
+    assert seen["deck"].splitlines()[0] == "circuitsim deck for ngspice"
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+def test_timeout_is_a_named_error_and_leaves_nothing(tmp_path, monkeypatch):
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    started = time.monotonic()
+    with pytest.raises(NgspiceTimeout) as info:
+        run_ngspice(SLOW, timeout=0.5)
+    assert time.monotonic() - started < 30
+    assert isinstance(info.value, NgspiceError) and info.value.seconds == 0.5
+    assert "did not finish within 0.5 s" in str(info.value) and "TMAX" in str(info.value)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_only_the_sandbox_starts_programs():
+    """Every external program (ngspice) starts through interop/sandbox.py's run_with_limit."""
+    package = ROOT / "circuitsim"
+    starts = re.compile(
+        r"^\s*(import|from)\s+(subprocess|pty|multiprocessing)\b"
+        r"|\bos\.(system|popen|exec\w*|spawn\w*|posix_spawn\w*|fork\w*)\(",
+        re.MULTILINE,
+    )
+    found = [
+        str(path.relative_to(ROOT))
+        for path in package.rglob("*.py")
+        if starts.search(path.read_text())
+    ]
+    assert found == ["circuitsim/interop/sandbox.py"]
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+def test_cli_ngspice_timeout_option(tmp_path, capsys):
+    from circuitsim.cli import main
+
+    netlist = tmp_path / "slow.cir"
+    netlist.write_text(SLOW)
+    argv = ["simulate", str(netlist), "--engine", "ngspice", "--ngspice-timeout"]
+    assert main([*argv, "0.5"]) == 1
+    err = capsys.readouterr().err
+    assert "ngspice did not finish within 0.5 s and was stopped" in err
+    assert "--ngspice-timeout SECONDS" in err
+    assert main([*argv, "0"]) == 2
+    assert "--ngspice-timeout must be a positive finite number, got 0" in capsys.readouterr().err
