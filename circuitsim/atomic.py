@@ -2,9 +2,9 @@
 
 A leaf module (imports nothing of ours), usable from every room and the CLI.
 
-The data goes to a hidden temporary file beside the target (``.NAME.<random>.tmp``), which is
-renamed over the target only once it is complete, so a reader sees the old file or the new one,
-never a mix, and a failed write leaves the old file as it was. On top of the bare recipe:
+The data goes to a hidden temporary file beside the target (``.NAME.<pid>-<random>.tmp``), which
+is renamed over the target only once it is complete, so a reader sees the old file or the new
+one, never a mix, and a failed write leaves the old file as it was. On top of the bare recipe:
 
 * permissions: a new file gets what an ordinary ``open(path, "w")`` would give (0666 less the
   umask, applied by the kernel when the temporary file is created with mode 0666, so the umask
@@ -18,7 +18,11 @@ never a mix, and a failed write leaves the old file as it was. On top of the bar
 * :func:`check_writable` raises the same errors before any work, so a command can refuse a bad
   output path before a long computation;
 * :func:`write_files_atomic` writes a set of files (a netlist and its companions) all or
-  nothing as far as a file system allows.
+  nothing as far as a file system allows;
+* leftovers: a process killed with SIGKILL cannot remove its temporary file. The next write of
+  the same file removes every ``.NAME.<pid>-<random>.tmp`` whose process is gone and which has
+  not changed for an hour (the hour guards a writer this machine cannot see: another host on a
+  network share, another PID namespace).
 
 Replacing a file by rename gives it a new inode: other hard links to the old file keep the old
 content.
@@ -29,8 +33,10 @@ from __future__ import annotations
 import errno
 import io
 import os
+import re
 import secrets
 import stat
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,6 +48,7 @@ _CREATE = (
     os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0) | getattr(os, "O_BINARY", 0)
 )
 _TRIES = 100  # random temporary names tried before giving up (a clash is already unlikely)
+_STALE_SECONDS = 3600.0  # a leftover temporary file untouched this long, its process gone
 
 
 class WriteError(OSError):
@@ -166,8 +173,9 @@ def _explain(given: str, folder: str, exc: OSError, stage: str) -> WriteError:
 def _create_temporary(target: _Target) -> tuple[int, str]:
     """Open a new hidden file beside ``target``; returns (descriptor, name)."""
     base = os.path.basename(target.path)
+    remove_leftovers(target.path)
     for _ in range(_TRIES):
-        tmp = os.path.join(target.folder, f".{base}.{secrets.token_hex(4)}.tmp")
+        tmp = os.path.join(target.folder, f".{base}.{os.getpid()}-{secrets.token_hex(4)}.tmp")
         try:
             # Mode 0666: the kernel applies the umask (and a folder's default ACL), exactly as
             # for open(path, "w"); no need to read the process-wide umask.
@@ -185,6 +193,57 @@ def _create_temporary(target: _Target) -> tuple[int, str]:
                 raise
         return fd, tmp
     raise _error(errno.EEXIST, target.given, f"no free temporary name in {target.folder or '.'}")
+
+
+def remove_leftovers(path: str | os.PathLike, older_than: float = _STALE_SECONDS) -> list[str]:
+    """Remove the temporary files killed writers of ``path`` left; return their names.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file whose ``.NAME.<pid>-<random>.tmp`` siblings are looked at.
+    older_than : float
+        Seconds since a leftover last changed before it may go (its process must be gone too).
+
+    Returns
+    -------
+    list of str
+        The names removed (none when the folder cannot be listed).
+    """
+    folder, base = os.path.split(os.fspath(path))
+    pattern = re.compile(rf"\.{re.escape(base)}\.(\d+)-[0-9a-f]{{8}}\.tmp")
+    removed = []
+    try:
+        entries = list(os.scandir(folder or "."))
+    except OSError:
+        return removed
+    now = time.time()
+    for entry in entries:
+        match = pattern.fullmatch(entry.name)
+        if match is None or int(match[1]) == os.getpid() or _process_exists(int(match[1])):
+            continue
+        try:
+            if not entry.is_file(follow_symlinks=False):
+                continue
+            if now - entry.stat(follow_symlinks=False).st_mtime < older_than:
+                continue
+            os.unlink(entry.path)
+        except OSError:
+            continue
+        removed.append(entry.path)
+    return removed
+
+
+def _process_exists(pid: int) -> bool:
+    if os.name != "posix":  # Windows' os.kill(pid, 0) would send CTRL_C: assume it lives
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (OSError, OverflowError):  # another user's process (EPERM), or no such pid here
+        return True
+    return True
 
 
 def _remove(name: str) -> None:
