@@ -18,7 +18,6 @@ import copy
 import math
 import os
 import re
-import tempfile
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
@@ -375,11 +374,13 @@ def _run_ngspice(
     variants: SweepCircuits, nodes: list[str], workers: int, progress: Progress | None
 ):
     from circuitsim.interop.ngspice import run_ngspice
+    from circuitsim.interop.sandbox import private_folder
 
     probes = [f"v({node})" for node in nodes]
     total = len(variants.circuits)
     waves: list = [None] * total
-    with tempfile.TemporaryDirectory(prefix="circuitsim-sweep-") as folder:
+    # a private folder: removed however the sweep ends, and by the next run after a SIGKILL
+    with private_folder("circuitsim-sweep-") as folder:
         from circuitsim.netlist.writer import save_netlist
 
         paths = []
@@ -389,10 +390,14 @@ def _run_ngspice(
             paths.append(path)
         with ThreadPoolExecutor(max_workers=workers) as pool:
             futures = {pool.submit(run_ngspice, p, probes): k for k, p in enumerate(paths)}
-            for done, future in enumerate(as_completed(futures), start=1):
-                waves[futures[future]] = future.result()
-                if progress:
-                    progress(done / total, f"ngspice: {done} of {total} variants")
+            try:
+                for done, future in enumerate(as_completed(futures), start=1):
+                    waves[futures[future]] = future.result()
+                    if progress:
+                        progress(done / total, f"ngspice: {done} of {total} variants")
+            except BaseException:  # an error, Ctrl-C, SIGTERM: start no further variant
+                pool.shutdown(wait=True, cancel_futures=True)
+                raise
     points = [len(w.time) for w in waves]
     return waves, {"processes": total, "workers": workers, "time_points": int(np.sum(points))}
 
