@@ -292,3 +292,24 @@ def test_backquotes_and_redirections_in_cards_stay_inert(card, tmp_path):
     except NgspiceError:
         pass  # some of these cards are errors to ngspice: fine, nothing ran
     assert not marker.exists()
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+def test_lines_after_end_reach_plain_ngspice_but_not_the_deck(tmp_path):
+    """ngspice 39 reads on after ``.end``; the deck stops there, as the netlist reader does."""
+    text = "t\nV1 a 0 DC 1\nR1 a b 1k\nR2 b 0 1k\n.op\n.end\nR3 b 0 1\n"
+    (tmp_path / "main.cir").write_text(text)
+    (tmp_path / "plain.cir").write_text(text + ".control\nrun\nprint v(b)\n.endc\n")
+    done = subprocess.run(
+        [NGSPICE, "-b", "-n", "plain.cir"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        stdin=subprocess.DEVNULL,
+        timeout=120,
+    )
+    printed = [line for line in done.stdout.splitlines() if line.startswith("v(b) = ")]
+    shunt = 1e3 * 1.0 / (1e3 + 1.0)  # R2 || R3
+    assert float(printed[0].split("=")[1]) == pytest.approx(shunt / (1e3 + shunt), rel=1e-6)
+    assert run_ngspice(tmp_path / "main.cir")["v(b)"][0] == pytest.approx(0.5, rel=1e-9)
