@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 from circuitsim.atomic import remove_leftovers, write_text_atomic
+from tests.conftest import dead_pid
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -56,19 +57,13 @@ def test_a_killed_writer_leaves_the_old_file_and_the_next_write_cleans_up(tmp_pa
 
 
 def test_only_leftovers_of_dead_processes_and_of_that_file_go(tmp_path):
-    dead = subprocess.run(
-        [sys.executable, "-c", "import os; print(os.getpid())"],
-        capture_output=True,
-        text=True,
-        check=True,
-    )
-    dead_pid = int(dead.stdout)
+    gone = dead_pid()
     names = [
-        f".a.txt.{dead_pid}-0123abcd.tmp",  # goes
+        f".a.txt.{gone}-0123abcd.tmp",  # goes
         f".a.txt.{os.getppid()}-0123abcd.tmp",  # a live process: stays
         f".a.txt.{os.getpid()}-0123abcd.tmp",  # this process: stays
-        f".b.txt.{dead_pid}-0123abcd.tmp",  # another file's: stays
-        f".a.txt.{dead_pid}-0123abcd.tmp.keep",  # not our pattern: stays
+        f".b.txt.{gone}-0123abcd.tmp",  # another file's: stays
+        f".a.txt.{gone}-0123abcd.tmp.keep",  # not our pattern: stays
         ".a.txt.0123abcd.tmp",  # the old pattern without a pid: stays (no owner to check)
     ]
     for name in names:

@@ -30,9 +30,13 @@ class NgspiceTimeout(NgspiceError):
 
     def __init__(self, seconds: float, log: str = ""):
         self.seconds = seconds
+        self._log = log
         super().__init__(
             f"ngspice did not finish within {seconds:g} s and was stopped; a longer .tran step "
             "or TMAX (fewer time points), a shorter TSTOP, or a longer limit (run_ngspice's "
             "timeout=..., circuitsim simulate --ngspice-timeout SECONDS) may help",
             log,
         )
+
+    def __reduce__(self):  # rebuilt from its own arguments in a parent process
+        return (type(self), (self.seconds, self._log))

@@ -6,8 +6,9 @@ Three pieces, used by :mod:`circuitsim.interop.ngspice`:
   an exclusive ``flock`` on a ``.lock`` file in it while it is in use; the folder is removed
   when the block ends, also on an exception (KeyboardInterrupt, or the SystemExit the CLI makes
   of SIGTERM). A process killed with SIGKILL cannot clean up, but the kernel releases its lock,
-  so the next run removes every folder of that prefix whose lock it can take: a folder still in
-  use is never touched (not even by a process in another PID namespace sharing ``/tmp``).
+  so the next run removes the folders of that prefix whose lock it can take and whose process
+  is gone (:func:`remove_stale_folders`): a folder in use is never touched, not even by a
+  process in another PID namespace sharing ``/tmp``, since its lock is held.
 * :func:`bare_environment`: only what a program needs to start (``PATH``, the dynamic
   loader's ``LD_LIBRARY_PATH`` if set), ``HOME`` pointing into the private folder, the C
   locale; nothing else of the user's environment reaches it.
@@ -26,6 +27,7 @@ import shutil
 import signal
 import subprocess
 import tempfile
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -39,6 +41,7 @@ __all__ = ["private_folder", "remove_stale_folders", "bare_environment", "run_wi
 
 _LOCK = ".lock"
 _CHILD = ".child"  # the process id of the program running in the folder
+_SETTLING_SECONDS = 60.0  # an unlocked folder of a live pid this old is no longer being set up
 
 
 @contextlib.contextmanager
@@ -76,10 +79,11 @@ def private_folder(prefix: str, parent: str | None = None) -> Iterator[Path]:
 def remove_stale_folders(prefix: str, parent: str | None = None) -> list[Path]:
     """Remove folders ``<prefix><pid>-*`` that no live process holds; return them.
 
-    A folder counts as stale when its ``.lock`` file can be locked (its process ended without
-    cleaning up, e.g. killed with SIGKILL), or when it has no ``.lock`` file and the process
-    named in it is gone (killed between making the folder and locking it). Folders of other
-    users are skipped.
+    A folder is stale when its ``.lock`` file can be locked (no process holds it) and its
+    process is gone (e.g. killed with SIGKILL) or, with the process id in use again, it has
+    not changed for a minute; or when it has no ``.lock`` file and its process is gone
+    (killed between making the folder and locking it). A locked folder, a folder of this
+    process, another user's folder or a name this module did not make is never touched.
     """
     if fcntl is None:
         return []
@@ -103,16 +107,21 @@ def remove_stale_folders(prefix: str, parent: str | None = None) -> list[Path]:
 
 def _abandoned(folder: Path, prefix: str) -> bool:
     """No live process uses ``folder`` (see :func:`remove_stale_folders`)."""
+    pid_text, dash, _ = folder.name[len(prefix) :].partition("-")
+    if not (pid_text.isdigit() and dash) or int(pid_text) == os.getpid():
+        return False  # not named by this module, or ours (another thread may be using it)
+    owner_gone = not _alive(int(pid_text))
     lock_path = folder / _LOCK
     if not lock_path.exists():
-        pid_text = folder.name[len(prefix) :].split("-", 1)[0]
-        return pid_text.isdigit() and not _alive(int(pid_text))
+        return owner_gone  # killed between making the folder and locking it
     with open(lock_path, "rb") as lock:
         try:
             fcntl.flock(lock.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             return False
-        return True  # closing the file releases the lock; the folder goes next
+    # Unlocked: its process ended, or has only just made the folder and not locked it yet
+    # (then the pid is alive and the folder new); a reused pid is outlived by the age test.
+    return owner_gone or time.time() - folder.stat().st_mtime > _SETTLING_SECONDS
 
 
 def _stop_orphan(folder: Path) -> None:

@@ -216,6 +216,21 @@ READING_RULES = {
 }
 
 
+def _plain_ngspice_vb(folder: Path, deck: bytes) -> float:
+    """v(b) as ``ngspice -b -n`` prints it for ``deck`` (which holds its own print command)."""
+    (folder / "plain.cir").write_bytes(deck)
+    done = subprocess.run(
+        [NGSPICE, "-b", "-n", "plain.cir"],
+        cwd=folder,
+        capture_output=True,
+        text=True,
+        stdin=subprocess.DEVNULL,
+        timeout=120,
+    )
+    printed = [line for line in done.stdout.splitlines() if line.startswith("v(b) = ")]
+    return float(printed[0].split("=")[1])
+
+
 @requires_ngspice
 @pytest.mark.ngspice
 @pytest.mark.parametrize("rule", list(READING_RULES))
@@ -224,18 +239,8 @@ def test_the_deck_is_the_circuit_plain_ngspice_reads(rule, tmp_path):
     for name, text in files.items():
         (tmp_path / name).write_bytes(text.encode())
     main_text = (tmp_path / "main.cir").read_bytes()
-    plain = tmp_path / "plain.cir"
-    plain.write_bytes(main_text + b".control\nop\nprint v(b)\n.endc\n.end\n")
-    done = subprocess.run(
-        [NGSPICE, "-b", "-n", plain.name],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        stdin=subprocess.DEVNULL,
-        timeout=120,
-    )
-    printed = [line for line in done.stdout.splitlines() if line.startswith("v(b) = ")]
-    assert float(printed[0].split("=")[1]) == pytest.approx(expected, rel=1e-6)
+    plain = main_text + b".control\nop\nprint v(b)\n.endc\n.end\n"
+    assert _plain_ngspice_vb(tmp_path, plain) == pytest.approx(expected, rel=1e-6)
     (tmp_path / "main.cir").write_bytes(main_text + b".op\n.end\n")
     assert run_ngspice(tmp_path / "main.cir")["v(b)"][0] == pytest.approx(expected, rel=1e-9)
 
@@ -300,16 +305,7 @@ def test_lines_after_end_reach_plain_ngspice_but_not_the_deck(tmp_path):
     """ngspice 39 reads on after ``.end``; the deck stops there, as the netlist reader does."""
     text = "t\nV1 a 0 DC 1\nR1 a b 1k\nR2 b 0 1k\n.op\n.end\nR3 b 0 1\n"
     (tmp_path / "main.cir").write_text(text)
-    (tmp_path / "plain.cir").write_text(text + ".control\nrun\nprint v(b)\n.endc\n")
-    done = subprocess.run(
-        [NGSPICE, "-b", "-n", "plain.cir"],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        stdin=subprocess.DEVNULL,
-        timeout=120,
-    )
-    printed = [line for line in done.stdout.splitlines() if line.startswith("v(b) = ")]
+    plain = (text + ".control\nrun\nprint v(b)\n.endc\n").encode()
     shunt = 1e3 * 1.0 / (1e3 + 1.0)  # R2 || R3
-    assert float(printed[0].split("=")[1]) == pytest.approx(shunt / (1e3 + shunt), rel=1e-6)
+    assert _plain_ngspice_vb(tmp_path, plain) == pytest.approx(shunt / (1e3 + shunt), rel=1e-6)
     assert run_ngspice(tmp_path / "main.cir")["v(b)"][0] == pytest.approx(0.5, rel=1e-9)

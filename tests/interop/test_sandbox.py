@@ -26,7 +26,7 @@ from circuitsim.interop.sandbox import (
     remove_stale_folders,
     run_with_limit,
 )
-from tests.conftest import requires_ngspice
+from tests.conftest import dead_pid, requires_ngspice
 
 ROOT = Path(__file__).resolve().parents[2]
 # About a billion time steps: ngspice is still busy when the tests stop it.
@@ -93,7 +93,7 @@ def test_a_killed_run_is_cleaned_up_by_the_next(tmp_path, monkeypatch):
     process, folder, child = _start_cli_run(tmp_path)
     process.kill()  # SIGKILL: no clean-up of its own
     process.communicate(timeout=60)
-    assert folder.exists() and _running(child)  # what the issue saw: both left behind
+    assert folder.exists()  # what the issue saw (ngspice may live on too, or die of SIGPIPE)
     monkeypatch.setattr(tempfile, "tempdir", str(folder.parent))
     assert run_ngspice(QUICK)["v(b)"][0] == pytest.approx(0.5, rel=1e-9)
     assert not folder.exists()
@@ -104,25 +104,70 @@ def test_a_killed_run_is_cleaned_up_by_the_next(tmp_path, monkeypatch):
     assert list(folder.parent.iterdir()) == []  # and the quick run's own folder is gone
 
 
+HOLDER = """
+import sys, time
+from circuitsim.interop.sandbox import private_folder
+
+with private_folder("t-", sys.argv[1]) as folder:
+    print(folder, flush=True)
+    time.sleep(600)
+"""
+
+
 def test_a_folder_in_use_is_never_removed(tmp_path):
-    with private_folder("t-", str(tmp_path)) as folder:
-        assert folder.name.startswith(f"t-{os.getpid()}-")
-        assert remove_stale_folders("t-", str(tmp_path)) == []
-        assert folder.is_dir()
-        # made but not locked yet: kept while its process lives, removed once it is gone
-        (tmp_path / f"t-{os.getpid()}-unlocked").mkdir()
-        dead = subprocess.run(
-            [sys.executable, "-c", "import os; print(os.getpid())"],
-            capture_output=True,
-            text=True,
-            check=True,
-        )
-        (tmp_path / f"t-{int(dead.stdout)}-unlocked").mkdir()
-        assert remove_stale_folders("t-", str(tmp_path)) == [
-            tmp_path / f"t-{int(dead.stdout)}-unlocked"
-        ]
-        assert (tmp_path / f"t-{os.getpid()}-unlocked").is_dir()
-    assert not folder.exists()
+    holder = subprocess.Popen(
+        [sys.executable, "-c", HOLDER, str(tmp_path)],
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    folder = Path(holder.stdout.readline().strip())
+    assert folder.name.startswith(f"t-{holder.pid}-")
+    old = time.time() - 3600
+    os.utime(folder, (old, old))  # its age does not matter while its lock is held
+    assert remove_stale_folders("t-", str(tmp_path)) == [] and folder.is_dir()
+    holder.kill()
+    holder.wait(timeout=60)
+    assert remove_stale_folders("t-", str(tmp_path)) == [folder]
+
+
+def test_unlocked_folders_go_once_their_process_is_gone(tmp_path):
+    dead = dead_pid()
+    live = os.getppid()
+    for name in (f"t-{dead}-a", f"t-{live}-b", f"t-{live}-c", f"t-{os.getpid()}-d"):
+        (tmp_path / name).mkdir()
+    (tmp_path / f"t-{live}-c" / ".lock").touch()  # unlocked, and a minute old: a reused pid
+    old = time.time() - 120
+    os.utime(tmp_path / f"t-{live}-c", (old, old))
+    (tmp_path / "t-notapid").mkdir()  # not named by the sandbox: never touched
+    removed = remove_stale_folders("t-", str(tmp_path))
+    assert sorted(p.name for p in removed) == sorted([f"t-{dead}-a", f"t-{live}-c"])
+    left = sorted(p.name for p in tmp_path.iterdir())
+    assert left == sorted([f"t-{live}-b", f"t-{os.getpid()}-d", "t-notapid"])
+
+
+def test_an_orphan_working_in_a_stale_folder_is_killed(tmp_path):
+    dead = dead_pid()
+    folder, reused = (
+        tmp_path / f"t-{dead}-x",
+        tmp_path / f"t-{dead}-y",
+    )
+    for stale in (folder, reused):
+        stale.mkdir()
+        (stale / ".lock").touch()
+    orphan = subprocess.Popen(["sleep", "600"], cwd=folder, start_new_session=True)
+    # a process id in .child now used by a program working elsewhere: left alone
+    bystander = subprocess.Popen(["sleep", "600"], cwd=tmp_path, start_new_session=True)
+    try:
+        (folder / ".child").write_text(str(orphan.pid))
+        (reused / ".child").write_text(str(bystander.pid))
+        assert sorted(remove_stale_folders("t-", str(tmp_path))) == [folder, reused]
+        assert orphan.wait(timeout=10) == -signal.SIGKILL
+        assert bystander.poll() is None
+    finally:
+        bystander.kill()
+        orphan.kill()
+        bystander.wait()
 
 
 def test_the_folder_goes_on_any_exception(tmp_path):
