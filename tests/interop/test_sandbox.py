@@ -245,7 +245,7 @@ def test_cli_ngspice_timeout_option(tmp_path, capsys):
     netlist = tmp_path / "slow.cir"
     netlist.write_text(SLOW)
     argv = ["simulate", str(netlist), "--engine", "ngspice", "--ngspice-timeout"]
-    assert main([*argv, "0.5"]) == 1
+    assert main([*argv, "0.5"]) == 3  # the run failed
     err = capsys.readouterr().err
     assert "ngspice did not finish within 0.5 s and was stopped" in err
     assert "--ngspice-timeout SECONDS" in err
