@@ -77,6 +77,7 @@ from circuitsim.netlist.reader_lines import (
     select_sections,
 )
 from circuitsim.netlist.reader_params import split_assignments
+from circuitsim.netlist.topology import negative_hysteresis
 from circuitsim.netlist.values import looks_numeric
 
 __all__ = ["parse_netlist", "read_netlist", "NetlistWarning", "LIBRARY_DIR"]
@@ -269,6 +270,9 @@ class _Reader:
         if fold(name) in scope.models:
             raise line.error(f"model {name!r} defined twice")
         scope.models[fold(name)] = Model(name, kind, params)
+        problem = negative_hysteresis(scope.models[fold(name)])
+        if problem:
+            warnings.warn(f"{line.file}:{line.number}: {problem}", NetlistWarning, stacklevel=4)
 
     def param(self, line: Line, rest: str, base_dir: Path) -> None:
         pairs = split_assignments(line, rest)

@@ -27,6 +27,9 @@ Kinds of finding
 ``zero-resistance``
     A resistor of 0 ohms: the engine stamps conductances and refuses it (ngspice quietly
     makes it 1 milliohm).
+``negative-hysteresis``
+    A switch model with VH < 0: ngspice runs it with reversed hysteresis, the builtin engine
+    with ``|VH|`` (see :func:`negative_hysteresis`); the reader also warns.
 ``no-nodes``
     The circuit has no node besides ground (an empty or title-only netlist): nothing to
     solve.
@@ -57,6 +60,8 @@ a capacitor it is a capacitor (and current source) cut set, i.e. a node set with
 from __future__ import annotations
 
 import dataclasses
+import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import networkx as nx
@@ -145,6 +150,7 @@ def check_circuit(circuit: Circuit) -> list[Finding]:
             valued = []
     findings += [_value_finding(problem) for problem in problems]
     findings += _zero_resistances(valued)
+    findings += _hysteresis_findings(flat.models)
     if not any(node != GROUND for element in flat.elements for node in element.nodes):
         findings.append(
             Finding(
@@ -158,6 +164,36 @@ def check_circuit(circuit: Circuit) -> list[Finding]:
 
 
 # --- values ---------------------------------------------------------------------------------
+
+
+def negative_hysteresis(model: Model) -> str | None:
+    """Why a switch model with a negative VH runs differently in the two engines, or None.
+
+    ngspice 39 (``swload.c``) reads VH < 0 as reversed hysteresis: on at VT + VH when the
+    control rises, off at VT - VH when it falls (measured with ngspice -b: VT=0.5, VH=-0.2 on
+    at 0.3 V and off at 0.7 V). The builtin engine uses ``|VH|`` as ordinary hysteresis (on at
+    0.7 V, off at 0.3 V). An expression for VH is not evaluated here (see check_circuit).
+    """
+    vh = model.params.get("vh")
+    if fold(model.kind) != "sw" or not isinstance(vh, float | int) or not vh < 0:
+        return None
+    vt = model.params.get("vt", 0.0)
+    vt = float(vt) if isinstance(vt, float | int) else math.nan
+    return (
+        f"switch model {model.name}: VH={vh:g} is negative; ngspice turns such a switch on at "
+        f"VT+VH={vt + vh:g} V when the control rises and off at VT-VH={vt - vh:g} V when it "
+        f"falls (reversed hysteresis), the builtin engine uses |VH| (on at {vt - vh:g} V, off "
+        f"at {vt + vh:g} V): the engines differ; write VH >= 0"
+    )
+
+
+def _hysteresis_findings(models: Mapping[str, Model]) -> list[Finding]:
+    return [
+        Finding("negative-hysteresis", problem)
+        for model in models.values()
+        if (problem := negative_hysteresis(model))
+    ]
+
 
 
 def _value_finding(problem: ValueProblem) -> Finding:
