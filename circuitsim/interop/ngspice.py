@@ -30,7 +30,7 @@ run ends, however it ends (:mod:`circuitsim.interop.sandbox`).
 ngspice's exit status is not trusted (a failed run may still exit 0): a run counts as failed
 when the rawfile is missing or empty, or when the log holds error lines ("Error", "singular
 matrix", "Timestep too small", "doAnalyses: ...", "simulation(s) aborted"); the error then
-carries those lines.
+carries those lines (at most 40, each cut to about 200 characters).
 
 Results: ``.tran`` (time plus signals), ``.op`` (one point at t = 0), or ``.ac`` as magnitude
 and phase: the "time" axis holds the frequencies (Hz) and each complex vector becomes two real
@@ -65,6 +65,7 @@ __all__ = [
     "parse_ascii_raw",
 ]
 from circuitsim.netlist.circuit import Circuit
+from circuitsim.netlist.errors import shorten
 from circuitsim.solver.waveforms import Waveforms
 
 DEFAULT_TIMEOUT = 300.0  # seconds; the paper's slowest case takes a few seconds
@@ -277,12 +278,12 @@ def _error_lines(log: str) -> str:
             continue
         for extra in lines[index : index + 2]:
             if extra.strip():
-                picked.setdefault(extra.rstrip(), None)
+                picked.setdefault(shorten(extra.rstrip()), None)
     return "\n".join(list(picked)[:_MAX_LOG_LINES])
 
 
 def _tail(log: str) -> str:
-    lines = [line for line in log.splitlines() if line.strip()]
+    lines = [shorten(line) for line in log.splitlines() if line.strip()]
     return "\n".join(lines[-_MAX_LOG_LINES:])
 
 

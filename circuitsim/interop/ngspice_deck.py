@@ -42,7 +42,6 @@ __all__ = ["DeckLine", "TITLE", "flatten_deck", "check_inert", "decode"]
 TITLE = "circuitsim deck for ngspice"
 _MAX_DEPTH = 32  # nested includes: deeper than any real library, shallower than the C stack
 _MAX_BYTES = 256 * 2**20  # all files of one deck together; large PDKs stay well below
-_SHOWN = 200  # characters of an offending line quoted in an error
 
 
 @dataclass(frozen=True)
@@ -114,10 +113,18 @@ def flatten_deck(text: str, source: str, folder: Path) -> list[DeckLine]:
     NetlistError
         An include or library file is missing, unreadable, not a regular file, included by
         itself, nested deeper than 32 files, or all files together pass 256 MiB; a ``.lib``
-        section is missing or has no ``.endl``; an ``.include`` names no file.
+        section is missing or has no ``.endl``; an ``.include`` names no file. When the line
+        at fault is in an included file, its text is not shown (only file and line number).
     """
     reading = _Reading(size=len(text))
-    _read_lines(reading, _physical_lines(text), source, folder, top=True)
+    try:
+        _read_lines(reading, _physical_lines(text), source, folder, top=True)
+    except NetlistError as error:
+        if error.file not in (None, source) and error.text:
+            # a line of an included file: that file may be anything (.include /etc/passwd),
+            # its content is not shown (the reader's rule); file and line number stay
+            raise error.without_source_text() from None
+        raise
     return reading.lines
 
 
@@ -219,10 +226,10 @@ def _resolve(where: DeckLine, name: str, folder: Path) -> Path:
         except (OSError, ValueError):  # a name no file system takes (too long, a NUL)
             continue
         if found and not regular:  # a folder, a FIFO, /dev/zero: nothing to splice in
-            raise _error(where, f"include file {name!r} is not a regular file ({candidate})")
+            raise _error(where, f"include file {name!r} is not a regular file ('{candidate}')")
         if found:
             return candidate.resolve()
-    looked = " or ".join(str(t) for t in tried)
+    looked = " or ".join(f"'{t}'" for t in tried)  # quoted: masked if from an include
     raise _error(where, f"include file {name!r} not found (looked for {looked})")
 
 
@@ -230,15 +237,15 @@ def _open(reading: _Reading, where: DeckLine, path: Path, section: str) -> list[
     """The physical lines of an include file, checked against cycles, depth and size."""
     key = (str(path), section)
     if key in reading.stack or len(reading.stack) >= _MAX_DEPTH:
-        chain = " -> ".join(f for f, _ in [*reading.stack, key])
+        chain = " -> ".join(f"'{f}'" for f, _ in [*reading.stack, key])
         raise _error(where, f"include cycle or nesting deeper than {_MAX_DEPTH}: {chain}")
     try:
         size = path.stat().st_size
         if reading.size + size > _MAX_BYTES:
-            raise _error(where, f"the included files pass {_MAX_BYTES // 2**20} MiB ({path})")
+            raise _error(where, f"the included files pass {_MAX_BYTES // 2**20} MiB ('{path}')")
         data = path.read_bytes()
     except OSError as exc:
-        raise _error(where, f"cannot read {path}: {exc.strerror or exc}") from None
+        raise _error(where, f"cannot read '{path}': {exc.strerror or exc}") from None
     reading.size += len(data)
     return _physical_lines(decode(data))
 
@@ -269,10 +276,10 @@ def _library_section(reading: _Reading, where: DeckLine, folder: Path) -> None:
         None,
     )
     if start is None:
-        raise _error(where, f"library section {section!r} not found in {path}")
+        raise _error(where, f"library section {section!r} not found in '{path}'")
     stop = next((i for i in range(start + 1, len(lines)) if _starts(lines[i], ".endl")), None)
     if stop is None:
-        raise _error(where, f"library section {section!r} in {path} has no .endl")
+        raise _error(where, f"library section {section!r} in '{path}' has no .endl")
     body = [""] * (start + 1) + lines[start + 1 : stop]  # blank lines keep the line numbers
     reading.stack.append((str(path), section.lower()))
     try:
@@ -282,8 +289,7 @@ def _library_section(reading: _Reading, where: DeckLine, folder: Path) -> None:
 
 
 def _error(where: DeckLine, message: str) -> NetlistError:
-    shown = where.text if len(where.text) <= _SHOWN else where.text[:_SHOWN] + " ..."
-    return NetlistError(message, file=where.file, line=where.number, text=shown)
+    return NetlistError(message, file=where.file, line=where.number, text=where.text)
 
 
 def check_inert(lines: list[str]) -> None:

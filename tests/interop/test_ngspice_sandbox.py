@@ -309,3 +309,24 @@ def test_lines_after_end_reach_plain_ngspice_but_not_the_deck(tmp_path):
     shunt = 1e3 * 1.0 / (1e3 + 1.0)  # R2 || R3
     assert _plain_ngspice_vb(tmp_path, plain) == pytest.approx(shunt / (1e3 + shunt), rel=1e-6)
     assert run_ngspice(tmp_path / "main.cir")["v(b)"][0] == pytest.approx(0.5, rel=1e-9)
+
+
+def test_an_included_files_line_is_not_quoted(tmp_path):
+    (tmp_path / "main.cir").write_text("t\n.include secret.txt\n")
+    (tmp_path / "secret.txt").write_text("password hunter2\n.include nosuch-hunter2.inc\n")
+    with pytest.raises(NetlistError) as info:
+        run_ngspice(tmp_path / "main.cir")
+    assert "hunter2" not in str(info.value)
+    assert f"{tmp_path / 'secret.txt'}:2" in str(info.value)
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+def test_ngspice_log_lines_are_cut(tmp_path):
+    word = "x" * 1_000_000
+    (tmp_path / "main.cir").write_text(
+        f"t\nV1 a 0 DC 1\nR1 a 0 1k\nQ{word} a 0 0 nomodel\n.op\n.end\n"
+    )
+    with pytest.raises(NgspiceError) as info:
+        run_ngspice(tmp_path / "main.cir")
+    assert len(str(info.value)) < 20_000
