@@ -235,6 +235,12 @@ def test_only_the_sandbox_starts_programs():
         if starts.search(path.read_text())
     ]
     assert found == ["circuitsim/interop/sandbox.py"]
+    callers = [
+        str(path.relative_to(ROOT))
+        for path in package.rglob("*.py")
+        if "run_with_limit" in path.read_text()
+    ]
+    assert sorted(callers) == ["circuitsim/interop/ngspice.py", "circuitsim/interop/sandbox.py"]
 
 
 @requires_ngspice
@@ -251,3 +257,46 @@ def test_cli_ngspice_timeout_option(tmp_path, capsys):
     assert "--ngspice-timeout SECONDS" in err
     assert main([*argv, "0"]) == 2
     assert "--ngspice-timeout must be a positive finite number, got 0" in capsys.readouterr().err
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["compare", "--engine", "ngspice", "--tstop", "0.3"],
+        [
+            "sweep",
+            "--engine",
+            "ngspice",
+            "--param",
+            "speed",
+            "--values",
+            "54:55:1",
+            "--tstop",
+            "0.3",
+            "--window",
+            "0.1",
+        ],
+    ],
+    ids=["compare", "sweep"],
+)
+def test_other_verbs_run_ngspice_in_the_sandbox(argv, tmp_path, monkeypatch, capsys):
+    """compare and sweep reach ngspice through run_ngspice (reproduce does so through
+    compare.case.run_engine, as compare does)."""
+    from circuitsim.cli import main
+
+    calls = []
+
+    def spy(args, cwd, env, timeout):
+        calls.append((args[1:], cwd.name, (cwd / args[-1]).read_text().splitlines()[0]))
+        return run_with_limit(args, cwd, env, timeout)
+
+    monkeypatch.setattr(ngspice, "run_with_limit", spy)
+    extra = ["--out", str(tmp_path)] if argv[0] == "sweep" else []
+    assert main([*argv, *extra]) == 0
+    capsys.readouterr()
+    assert len(calls) == (1 if argv[0] == "compare" else 2)
+    for args, folder, title in calls:
+        assert args == ["-b", "-n", "deck.cir"] and folder.startswith(FOLDER_PREFIX)
+        assert title == "circuitsim deck for ngspice"
