@@ -21,6 +21,7 @@ import pytest
 from circuitsim.cli import main
 from circuitsim.interop.errors import NgspiceError
 from circuitsim.interop.ngspice import run_ngspice
+from circuitsim.interop.ngspice_deck import check_inert
 from circuitsim.netlist.errors import NetlistError
 from tests.conftest import NGSPICE, requires_ngspice
 
@@ -330,3 +331,28 @@ def test_ngspice_log_lines_are_cut(tmp_path):
     with pytest.raises(NgspiceError) as info:
         run_ngspice(tmp_path / "main.cir")
     assert len(str(info.value)) < 20_000
+
+
+@pytest.mark.parametrize(
+    "line",
+    [
+        ".control",
+        "  .CONTROL",
+        "\t.endc x",
+        ".con\rtrol",
+        "*# shell x",
+        "* a comment",
+        ".incl x",
+        ".lib 'a.lib' sect",
+        ".title x",
+        "@",
+        "R1 a b 1k\n.control",
+    ],
+)
+def test_check_inert_refuses_what_ngspice_acts_on(line):
+    with pytest.raises(RuntimeError, match="still holds a line ngspice acts on"):
+        check_inert(["R1 a 0 1k", line])
+
+
+def test_check_inert_passes_circuit_lines():
+    check_inert(["R1 a 0 1k", "+ tc1=0", ".lib sect", ".model d1 d", "$ note", "#x", ".endl"])
