@@ -35,13 +35,19 @@ from collections.abc import Sequence
 
 from circuitsim import __version__
 from circuitsim.cli import circuit_verbs, common, model_verbs, netlist_verbs
-from circuitsim.cli.common import UsageError, warnings_as_lines
+from circuitsim.cli.common import UsageError, shown, warnings_as_lines
 
 COMMANDS = [*model_verbs.COMMANDS, *netlist_verbs.COMMANDS, *circuit_verbs.COMMANDS]
 
 
 EXIT_OK, EXIT_FINDING, EXIT_BAD_INPUT, EXIT_RUN_FAILED = 0, 1, 2, 3
 EXIT_INTERRUPTED, EXIT_CLOSED_OUTPUT, EXIT_TERMINATED = 130, 141, 143
+
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser, its usage errors with long words cut (see :func:`shown`)."""
+
+    def error(self, message: str):
+        super().error(shown(message))
 
 
 def _library_errors() -> tuple[type[BaseException], ...]:
@@ -75,7 +81,7 @@ def exit_code(error: BaseException) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The top-level parser with every registered verb."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="circuitsim",
         description=(
             "Mechanical ODE models and their op-amp analog-computer circuits: direct solution, "
@@ -159,6 +165,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         processes stopped first); see the module docstring.
     """
     argv = sys.argv[1:] if argv is None else list(argv)
+    if any("\x00" in arg for arg in argv):  # only in-process: a shell cannot pass one
+        print("circuitsim: error: an argument contains a NUL character", file=sys.stderr)
+        return EXIT_BAD_INPUT
     common.HELP_MODEL = _model_for_help(argv)
     try:
         parser = build_parser()
@@ -175,16 +184,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's final flush
         return code
     except UsageError as exc:
-        print(f"circuitsim {args.command}: error: {exc}", file=sys.stderr)
+        print(f"circuitsim {args.command}: error: {shown(str(exc))}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except _library_errors() as exc:
-        print(f"circuitsim {args.command}: error: {exc}", file=sys.stderr)
+        print(f"circuitsim {args.command}: error: {shown(str(exc))}", file=sys.stderr)
         return exit_code(exc)
     except BrokenPipeError:
         _quiet_stdout()
         return EXIT_CLOSED_OUTPUT
     except OSError as exc:
-        print(f"circuitsim {args.command}: error: {exc}", file=sys.stderr)
+        print(f"circuitsim {args.command}: error: {shown(str(exc))}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except MemoryError:
         print(

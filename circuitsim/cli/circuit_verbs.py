@@ -14,6 +14,7 @@ from circuitsim.cli.common import (
     check_scenario_options,
     parameter_assignment,
     prepare_output_folder,
+    print_warning,
     progress,
     require_count,
     require_figure_path,
@@ -121,7 +122,7 @@ def _print_warnings(synthesis) -> None:
     """The translator's warnings as ``warning:`` lines (the mapping check's are in its
     summary)."""
     for warning in synthesis.warnings:
-        print(f"warning: {warning}", file=sys.stderr)
+        print_warning(warning)
 
 
 def _print_fits(system, stream=None) -> None:
@@ -599,7 +600,7 @@ def _run_sweep(args: argparse.Namespace) -> int:
     finally:
         bar.close()
     for warning in result.warnings:
-        print(f"warning: {warning}", file=sys.stderr)
+        print_warning(warning)
     speed = model.options.get("speed")
     if name == speed:
         coefficients = args.coeffs or model.default_coefficients

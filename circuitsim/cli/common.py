@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
+import re
 import sys
 import time
 import warnings
@@ -21,6 +22,18 @@ HELP_MODEL: Model | None = None
 """The model whose names and units the help texts use: set by :func:`circuitsim.cli.main`
 for ``--model FILE --help``; None (the default) gives texts for any model, with the built-in
 wheelset as the example."""
+
+
+LONG_WORD = 200
+"""Characters of one word (a path, a value) an error message shows: a 5,000-character path
+or a megabyte line must not come back whole on stderr."""
+
+_WORD = re.compile(rf"\S{{{LONG_WORD + 1},}}")
+
+
+def shown(message: str) -> str:
+    """``message`` with every word longer than LONG_WORD characters cut, saying its length."""
+    return _WORD.sub(lambda m: f"{m.group(0)[:LONG_WORD]}...({len(m.group(0)):,} chars)", message)
 
 
 class UsageError(Exception):
@@ -393,7 +406,7 @@ def print_warning(message: Warning | str, *_: object, **__: object) -> None:
     It has the signature of :func:`warnings.showwarning`, which :func:`warnings_as_lines`
     replaces with it: no file name, line number or source line of ours in front.
     """
-    print(f"warning: {message}", file=sys.stderr, flush=True)
+    print(f"warning: {shown(str(message))}", file=sys.stderr, flush=True)
 
 
 @contextlib.contextmanager

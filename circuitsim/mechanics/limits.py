@@ -3,7 +3,7 @@
 A forcing of 1e9 Hz over one second (or a stiff eigenvalue an explicit method must follow)
 asks for billions of steps: without a limit the integration runs for days, holding a dense
 interpolant per step. :func:`guarded_method` wraps any scipy ``OdeSolver`` class so that every
-step attempt is charged to a :class:`Budget`; past either limit the step raises
+step is charged to a :class:`Budget`; past either limit the step raises
 :class:`BudgetExhausted`, which :func:`~circuitsim.mechanics.solve.solve` turns into an
 :class:`~circuitsim.mechanics.errors.IntegrationLimitError` saying where (model time) it
 stopped. scipy documents ``_step_impl`` as the method an ``OdeSolver`` subclass implements;
@@ -54,7 +54,8 @@ class Budget:
     Parameters
     ----------
     max_steps : int or None
-        Most step attempts (accepted or rejected), all segments together; None: no limit.
+        Most steps (each with the rejected attempts scipy makes inside it), all segments
+        together; None: no limit.
     max_wall_time : float or None
         Most seconds of wall time from the budget's creation; None: no limit.
     """
@@ -75,7 +76,7 @@ class Budget:
         return time.monotonic() - self.started
 
     def charge(self, t: float, step: float) -> None:
-        """Count one step attempt from model time ``t`` (s) of size ``step`` (s).
+        """Count one step from model time ``t`` (s) of size ``step`` (s).
 
         Raises
         ------
@@ -90,7 +91,7 @@ class Budget:
 
 
 def guarded_method(method: str | type[OdeSolver], budget: Budget) -> type[OdeSolver]:
-    """The ``OdeSolver`` class of ``method`` with every step attempt charged to ``budget``.
+    """The ``OdeSolver`` class of ``method`` with every step charged to ``budget``.
 
     Raises
     ------

@@ -261,7 +261,7 @@ def solve(
     x0 : array_like, shape (n,), optional
         Initial state (default ``system.x0``, or zeros).
     max_steps : int or None
-        Most step attempts, all restarts together (default 500,000; None: no limit).
+        Most integrator steps, all restarts together (default 500,000; None: no limit).
     max_wall_time : float or None
         Most seconds of wall time (default 300; None: no limit).
 

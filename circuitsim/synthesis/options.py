@@ -44,6 +44,9 @@ class SynthesisOptions:
         The switch model's on and off resistance (ohms); Ron is compensated in the series R.
     points_per_period : int
         ``.tran`` maximum step = shortest period of the run / this.
+    scaling_wall_time : float
+        Most wall time (s) of the direct solution that sets the scales and predicts the
+        peaks; past it a SynthesisError says where it stopped.
     """
 
     opamp: str = "ideal"
@@ -60,6 +63,7 @@ class SynthesisOptions:
     switch_ron: float = 1.0
     switch_roff: float = 1e12
     points_per_period: int = 200
+    scaling_wall_time: float = 60.0
 
     def validated(self) -> SynthesisOptions:
         """Self, after checking every field; SynthesisError naming the bad option."""
@@ -75,7 +79,8 @@ class SynthesisOptions:
                 )
         if self.series.lower() not in ("e96", "e24", "exact"):
             raise SynthesisError(f"option series={self.series!r}: choose E96, E24 or exact")
-        positive = ("swing", "time_scale", "r_min", "r_max", "r_unit", "switch_ron")
+        positive = ("swing", "time_scale", "r_min", "r_max", "r_unit", "switch_ron",
+                    "scaling_wall_time")  # fmt: skip
         for key in positive:
             value = getattr(self, key)
             if key == "time_scale" and value is None:  # the model's, else 1

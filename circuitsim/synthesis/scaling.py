@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from circuitsim.mechanics.limits import Budget, BudgetExhausted, guarded_method
 from circuitsim.mechanics.system import System
 from circuitsim.synthesis.errors import SynthesisError
 from circuitsim.synthesis.eseries import floor_to_series
@@ -45,8 +46,14 @@ class Scaling:
     warnings: tuple[str, ...] = ()
 
 
-def direct_solution(system: System, t_stop: float) -> tuple[np.ndarray, np.ndarray]:
+def direct_solution(
+    system: System, t_stop: float, max_wall_time: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Integrate the model over [0, t_stop] for its peaks (not a reference-grade solution).
+
+    At most :data:`MAX_SCALING_STEPS` steps and ``max_wall_time`` seconds (default
+    :data:`MAX_SCALING_WALL_TIME`; :class:`SynthesisOptions` ``scaling_wall_time``), else a
+    SynthesisError saying where it stopped.
 
     Returns
     -------
@@ -60,25 +67,44 @@ def direct_solution(system: System, t_stop: float) -> tuple[np.ndarray, np.ndarr
     # peaks only: modest tolerances, but sampled densely enough (40 points per fastest period)
     # that a peak between samples is missed by less than 0.3 %
     samples = int(min(200_000, max(2_000, 40 * fastest * t_stop)))
-    result = solve_ivp(
-        system.rhs,
-        (0.0, t_stop),
-        x0,
-        method="RK45",
-        rtol=1e-6,
-        atol=1e-12,
-        max_step=1.0 / (8.0 * fastest),
-        t_eval=np.linspace(0.0, t_stop, samples),
-    )
+    # a piecewise-linear term far stiffer than the linear part (not in ``fastest``) makes the
+    # adaptive steps tiny: the same limits as the direct solution's end it with a message
+    budget = Budget(MAX_SCALING_STEPS, max_wall_time or MAX_SCALING_WALL_TIME)
+    try:
+        result = solve_ivp(
+            system.rhs,
+            (0.0, t_stop),
+            x0,
+            method=guarded_method("RK45", budget),
+            rtol=1e-6,
+            atol=1e-12,
+            max_step=1.0 / (8.0 * fastest),
+            t_eval=np.linspace(0.0, t_stop, samples),
+        )
+    except BudgetExhausted as exhausted:
+        spent = (
+            f"{budget.steps - 1:,} steps" if exhausted.limit == "steps"
+            else f"{budget.elapsed:.3g} s"
+        )  # fmt: skip
+        raise SynthesisError(
+            f"the direct solution that sets the scales stopped at t = {exhausted.t:.6g} s of "
+            f"{t_stop:g} s after {spent} (steps of {exhausted.step:.3g} s: a stiff term, "
+            "perhaps a piecewise-linear one far stiffer than the linear part): give every "
+            "state's range (--range STATE=PEAK) or --scaling unity, or a shorter --tstop"
+        ) from None
     if not result.success:
         raise SynthesisError(f"direct solution for the scaling failed: {result.message}")
     return result.t, result.y
 
 
 MAX_SCALING_STEPS = 200_000
-"""Most steps the scaling's direct solution may need (8 per period of the fastest frequency,
-over the run): the wheelset's default run needs about 600. A forcing of 1e300 Hz would
-otherwise keep it busy for ever."""
+"""Most steps the scaling's direct solution may take (refused at once when 8 per period of the
+fastest frequency, over the run, exceed it): the wheelset's default run takes about 600. A
+forcing of 1e300 Hz would otherwise keep it busy for ever."""
+
+MAX_SCALING_WALL_TIME = 60.0
+"""Default wall-time limit of the scaling's direct solution, s (a stiff piecewise-linear term
+can make its explicit steps a billionth of the run)."""
 
 
 def _fastest_frequency(system: System, t_stop: float) -> float:
@@ -137,7 +163,9 @@ def choose_scaling(
     if len(options.ranges) == system.n:
         peaks = np.array([options.ranges[s] for s in system.states], dtype=float)
     else:
-        _, x = trajectory if trajectory is not None else direct_solution(system, t_stop)
+        if trajectory is None:
+            trajectory = direct_solution(system, t_stop, options.scaling_wall_time)
+        _, x = trajectory
         peaks = np.max(np.abs(x), axis=1)
         for i, name in enumerate(system.states):
             if name in options.ranges:

@@ -143,7 +143,7 @@ def synthesize(
         )
     needed = options.scaling != "unity" and len(options.ranges) < system.n
     if trajectory is None and (peaks or needed):
-        trajectory = direct_solution(system, t_stop)
+        trajectory = direct_solution(system, t_stop, options.scaling_wall_time)
     scaling = choose_scaling(system, options, t_stop, trajectory)
     G = scaling.volts_per_unit
     warnings = list(scaling.warnings)

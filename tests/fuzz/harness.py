@@ -9,8 +9,8 @@ bound (``signal.setitimer`` in the main thread) and classifies what happened:
     ``error:`` line: ``check`` reporting findings).
 ``named``
     It raised one of the project's typed errors (:data:`NAMED_ERRORS`, or the case's own
-    ``named`` types); for the command line: exit code 1 or 2 with exactly one ``error:`` line
-    on stderr and no traceback.
+    ``named`` types); for the command line: exit code 1, 2 or 3 (README, "Exit codes") with
+    exactly one ``error:`` line on stderr and no traceback.
 ``traceback``
     Anything else: an untyped exception (``TypeError``, ``RecursionError``, ``MemoryError``
     ...), or a command line that printed a traceback, several error lines or an error message
@@ -154,7 +154,7 @@ def classify_cli(result: CliResult) -> tuple[str, str]:
         return "traceback", f"exit {result.code}, {len(result.stderr)} characters on stderr"
     if result.code == 0 or (result.code == 1 and not errors):
         return "clean", f"exit {result.code}"
-    if result.code in (1, 2) and len(errors) == 1:
+    if result.code in (1, 2, 3) and len(errors) == 1:  # README "Exit codes": 3 a failed run
         return "named", errors[0][:200]
     return "traceback", f"exit {result.code} with {len(errors)} error lines"
 

@@ -48,7 +48,9 @@ def test_command_line_results():
     assert classify_cli(named) == ("named", "circuitsim check: error: x.cir:3: bad value")
     trace = CliResult(1, "", "Traceback (most recent call last):\n  ...\nTypeError: x\n")
     assert classify_cli(trace)[0] == "traceback"
-    assert classify_cli(CliResult(3, "", "circuitsim x: error: y"))[0] == "traceback"
+    # 3 is a failed run (README "Exit codes"): named when it says why in one line
+    assert classify_cli(CliResult(3, "", "circuitsim x: error: y"))[0] == "named"
+    assert classify_cli(CliResult(4, "", "circuitsim x: error: y"))[0] == "traceback"
     assert classify_cli(CliResult(2, "", "error: " + "z" * 10_000))[0] == "traceback"
 
 
