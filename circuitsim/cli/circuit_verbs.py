@@ -8,6 +8,7 @@ import sys
 from typing import TYPE_CHECKING, TextIO
 
 from circuitsim.cli.common import (
+    MAX_WORKERS,
     UsageError,
     add_model_options,
     add_scenario_options,
@@ -350,7 +351,7 @@ def _add_reproduce(sub: argparse._SubParsersAction) -> None:
 def _run_reproduce(args: argparse.Namespace) -> int:
     from circuitsim.compare.reproduce import OPAMPS, SERIES, reproduce
 
-    require_count("--workers", args.workers)
+    require_count("--workers", args.workers, MAX_WORKERS)
     prepare_output_folder("--out", args.out, "report.md", "metrics.json")
     result = reproduce(
         args.out,
@@ -556,7 +557,7 @@ def _run_sweep(args: argparse.Namespace) -> int:
     swept = [p for p in args.param if isinstance(p, str)]
     if len(swept) != 1:
         raise UsageError("name exactly one --param to sweep (a NAME without =VALUE)")
-    require_count("--jobs", args.jobs)
+    require_count("--jobs", args.jobs, MAX_WORKERS)
     require_positive("--tstop", args.tstop)
     require_positive("--window", args.window)
     check_scenario_options(args)
@@ -594,7 +595,7 @@ def _run_sweep(args: argparse.Namespace) -> int:
             args.engine,
             options,
             window=window,
-            workers=args.jobs,
+            workers=min(args.jobs, len(values)),  # more would only make idle threads
             progress=bar,
         )
     finally:

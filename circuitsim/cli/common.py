@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
+import os
 import re
 import sys
 import time
@@ -86,8 +87,14 @@ def require_fraction(option: str, value: float | None) -> None:
         raise UsageError(f"{option} must be between 0 and 1 (exclusive), got {_number(value)}")
 
 
-def require_count(option: str, value: int | None) -> None:
-    """Refuse a ``value`` of ``option`` below 1 (None: not given, accepted).
+MAX_WORKERS = max(256, os.cpu_count() or 1)
+"""Most processes or threads ``--workers``/``--jobs`` may ask for (a 400-digit count once
+reached multiprocessing as an OverflowError)."""
+
+
+def require_count(option: str, value: int | None, most: int | None = None) -> None:
+    """Refuse a ``value`` of ``option`` below 1, or above ``most`` when given (None: not
+    given, accepted).
 
     Raises
     ------
@@ -96,6 +103,8 @@ def require_count(option: str, value: int | None) -> None:
     """
     if value is not None and value < 1:
         raise UsageError(f"{option} must be at least 1, got {value}")
+    if value is not None and most is not None and value > most:
+        raise UsageError(f"{option} must be at most {most:,}, got {value}")
 
 
 def figure_formats() -> list[str]:
