@@ -1,10 +1,12 @@
-"""A model written with every shorthand goes through generate, our engine and compare."""
+"""A model written with every shorthand goes through generate, both engines and compare."""
 
 import numpy as np
+import pytest
 
 from circuitsim.compare.case import run_case
 from circuitsim.mechanics import load_model
 from circuitsim.synthesis.options import SynthesisOptions
+from tests.conftest import requires_ngspice
 
 MODEL = """
 [model]
@@ -54,7 +56,8 @@ enters = { x = 1 }
 """
 
 
-def test_every_shorthand_through_generate_builtin_simulate_and_compare(tmp_path):
+@pytest.mark.parametrize("engine", ["builtin", pytest.param("ngspice", marks=requires_ngspice)])
+def test_every_shorthand_through_generate_simulate_and_compare(tmp_path, engine):
     path = tmp_path / "shorthands.toml"
     path.write_text(MODEL)
     system = load_model(path).system()
@@ -63,7 +66,7 @@ def test_every_shorthand_through_generate_builtin_simulate_and_compare(tmp_path)
     result = run_case(
         system,
         SynthesisOptions(opamp="ideal", series="exact", t_stop=1.5),
-        engine="builtin",
+        engine=engine,
         netlist=tmp_path / "shorthands.cir",
     )
     assert (tmp_path / "shorthands.cir").exists()
