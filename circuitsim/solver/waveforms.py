@@ -7,6 +7,7 @@ which engine ran. Signal names follow SPICE: ``v(node)`` for node voltages (lowe
 
 from __future__ import annotations
 
+import io
 import os
 from dataclasses import dataclass, field
 
@@ -79,15 +80,25 @@ class Waveforms:
         return key if key in self.signals else f"v({key})"
 
     def to_csv(self, path: str | os.PathLike) -> None:
-        """Write ``time,<signal>,...`` with a header row, full precision, atomically."""
+        """Write ``time,<signal>,...`` with a header row, atomically; every value with 17
+        significant digits, correctly rounded (it reads back exactly: float_text.py)."""
         columns = np.column_stack([self.time, *self.signals.values()])
         header = ",".join(["time", *self.signals])
+        try:
+            from circuitsim.solver.float_text import table_lines
+        except ImportError:  # no numba: numpy's writer (the same values, ~6x slower)
+
+            def table_lines(table):
+                text = io.StringIO()
+                np.savetxt(text, table, delimiter=",", fmt="%.17g")
+                yield text.getvalue().encode()
 
         def write(handle) -> None:
-            handle.write(header + "\n")
-            np.savetxt(handle, columns, delimiter=",", fmt="%.17g")
+            handle.write(header.encode() + b"\n")
+            for lines in table_lines(columns):
+                handle.write(lines)
 
-        write_atomic(path, write)
+        write_atomic(path, write, binary=True)
 
     def to_npz(self, path: str | os.PathLike) -> None:
         """Write an ``.npz`` with ``time`` and one array per signal, atomically."""

@@ -28,6 +28,8 @@ CACHE_ENV = "CIRCUITSIM_CACHE_DIR"
 # reference-engine files whose constants the kernels compile in (numba freezes globals)
 CONSTANT_SOURCES = ("port_solver.py", "transient.py")
 PACKAGE = "circuitsim."
+# the modules whose numba functions make up the kernels (their sources' stamp: check_cache)
+KERNEL_PACKAGES = ("circuitsim.solver.compiled", "circuitsim.solver.devices")
 
 _LOCK = threading.Lock()
 _PREPARED: list[bool] = []
@@ -66,8 +68,9 @@ def _locator_classes():
     return [KernelCacheLocator, *caching.CompileResultCacheImpl._locator_classes]
 
 
-def relocate_caches() -> list:
-    """Point every not yet used numba function of this package at :func:`numba_folder`.
+def relocate_caches(names: list[str] | None = None) -> list:
+    """Point every not yet used numba function of this package (or of the modules ``names``)
+    at :func:`numba_folder`.
 
     Done per function (a cache object of its own), so numba's defaults for other packages
     stay as they are. Returns the cache objects, one per function.
@@ -82,8 +85,10 @@ def relocate_caches() -> list:
         _impl_class = KernelCacheImpl
 
     caches = []
-    for name, module in list(sys.modules.items()):
-        if not name.startswith(PACKAGE) or module is None:
+    chosen = names if names is not None else [n for n in sys.modules if n.startswith(PACKAGE)]
+    for name in chosen:
+        module = sys.modules.get(name)
+        if module is None:
             continue
         for obj in list(vars(module).values()):
             if not isinstance(obj, CPUDispatcher) or obj.py_func.__module__ != name:
@@ -130,7 +135,8 @@ def check_cache() -> None:
             return
         from circuitsim.solver.compiled import port_loop, transient  # noqa: F401
 
-        caches = relocate_caches()
+        kernel_modules = [n for n in sys.modules if n.startswith(KERNEL_PACKAGES)]
+        caches = relocate_caches(kernel_modules)
         sources = {Path(sys.modules[c._py_func.__module__].__file__) for c in caches}
         folder = Path(port_loop.__file__).resolve().parent
         sources |= {folder.parent / name for name in CONSTANT_SOURCES}

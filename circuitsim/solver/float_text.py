@@ -1,0 +1,201 @@
+"""Tables of floats as CSV text, fast and exact: 17 significant digits, correctly rounded.
+
+``numpy.savetxt`` formats each value with Python's ``%`` (about 3 s for the 15,000 x 237 table
+of a TL074 wheelset run). Here numba forms the digits: each value is multiplied by a power
+of ten held as a double-double (an exact power split in two floats), the product is formed
+exactly (Dekker's two-product) and rounded to a 17-digit integer. That integer is the
+correctly rounded one unless the product lies within 1e-7 of a rounding tie, far beyond
+what the double-double's ~1e-30 relative error can move; such values, and those outside
+1e-270 ... 1e290 in magnitude (where a power of ten would overflow the split), are formatted
+by Python's ``repr``. 17 correctly rounded digits read back to the same float.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from fractions import Fraction
+
+import numpy as np
+from numba import njit
+
+LOW_EXPONENT, HIGH_EXPONENT = -270, 290  # decimal exponents formed here; outside: repr
+POWER_OFFSET = 16 - HIGH_EXPONENT  # POWERS[k - POWER_OFFSET] is 10**k
+TOKEN = 24  # longest token: "-1.2345678901234567e-270"
+SPLITTER = 134217729.0  # 2**27 + 1 (Dekker)
+
+
+def _powers() -> np.ndarray:
+    """10**k for k = 16 - HIGH_EXPONENT ... 16 - LOW_EXPONENT as (hi, lo) double-doubles."""
+    table = []
+    for k in range(16 - HIGH_EXPONENT, 16 - LOW_EXPONENT + 1):
+        exact = Fraction(10) ** k
+        hi = float(exact)
+        table.append((hi, float(exact - Fraction(hi))))
+    return np.array(table)
+
+
+POWERS = _powers()
+
+
+@njit(cache=True, inline="always")
+def _two_product(a, b):
+    """a * b as hi + lo, exactly (Dekker)."""
+    p = a * b
+    t = SPLITTER * a
+    a_hi = t - (t - a)
+    a_lo = a - a_hi
+    t = SPLITTER * b
+    b_hi = t - (t - b)
+    b_lo = b - b_hi
+    return p, ((a_hi * b_hi - p) + a_hi * b_lo + a_lo * b_hi) + a_lo * b_lo
+
+
+@njit(cache=True, inline="always")
+def _digits(value, exponent, powers):
+    """(17-digit integer, whether it is certain) of |value| / 10**(exponent - 16)."""
+    p_hi, p_lo = powers[16 - exponent - POWER_OFFSET, 0], powers[16 - exponent - POWER_OFFSET, 1]
+    hi, lo = _two_product(value, p_hi)
+    lo += value * p_lo
+    whole = math.floor(hi)
+    rest = (hi - whole) + lo
+    below = math.floor(rest)
+    fraction = rest - below
+    number = np.uint64(np.int64(whole) + np.int64(below) + (1 if fraction >= 0.5 else 0))
+    return number, abs(fraction - 0.5) > 1e-7
+
+
+@njit(cache=True, inline="always")
+def _write_token(out, at, value, powers):
+    """Write ``value``'s token at out[at:]; returns the new end, or -1 when repr must."""
+    if value != value:
+        out[at], out[at + 1], out[at + 2] = 110, 97, 110  # nan
+        return at + 3
+    if value == 0.0:
+        if math.copysign(1.0, value) < 0:
+            out[at] = 45
+            at += 1
+        out[at] = 48
+        return at + 1
+    magnitude = abs(value)
+    if magnitude == np.inf:
+        if value < 0:
+            out[at] = 45
+            at += 1
+        out[at], out[at + 1], out[at + 2] = 105, 110, 102  # inf
+        return at + 3
+    exponent = int(math.floor(math.log10(magnitude)))
+    if exponent < LOW_EXPONENT or exponent > HIGH_EXPONENT - 1:
+        return -1
+    number, certain = _digits(magnitude, exponent, powers)
+    if number >= 100_000_000_000_000_000:  # log10 rounded up: one digit too many
+        exponent += 1
+        number, certain = _digits(magnitude, exponent, powers)
+    elif number < 10_000_000_000_000_000:
+        exponent -= 1
+        number, certain = _digits(magnitude, exponent, powers)
+    if not certain or exponent < LOW_EXPONENT or exponent > HIGH_EXPONENT - 1:
+        return -1
+    if value < 0:
+        out[at] = 45
+        at += 1
+    ten = np.uint64(10)
+    count = 17
+    while count > 1 and number % ten == 0:  # trailing zeros of the fraction
+        number //= ten
+        count -= 1
+    for k in range(count - 1, 0, -1):  # the fraction's digits, from the last
+        rest = number // ten
+        out[at + 1 + k] = 48 + (number - rest * ten)
+        number = rest
+    out[at] = 48 + number
+    if count > 1:
+        out[at + 1] = 46
+        at += count + 1
+    else:
+        at += 1
+    if exponent != 0:
+        out[at] = 101
+        out[at + 1] = 45 if exponent < 0 else 43
+        at += 2
+        e = abs(exponent)
+        if e >= 100:
+            out[at] = 48 + e // 100
+            at += 1
+        out[at] = 48 + (e // 10) % 10
+        out[at + 1] = 48 + e % 10
+        at += 2
+    return at
+
+
+@njit(cache=True)
+def _write_rows(table, powers, fallback, fallback_len):
+    """The rows of ``table`` as CSV bytes, and the flat indices whose token repr must form
+    (those are written from ``fallback``, one row of bytes per such value, in order, once
+    known: a first call passes none and learns the indices)."""
+    rows, cols = table.shape
+    out = np.empty(rows * cols * (TOKEN + 1) + 1, dtype=np.uint8)
+    missing = []
+    at = 0
+    used = 0
+    for i in range(rows):
+        for j in range(cols):
+            end = _write_token(out, at, table[i, j], powers)
+            if end < 0:
+                missing.append(i * cols + j)
+                if used < fallback.shape[0]:
+                    n = fallback_len[used]
+                    out[at : at + n] = fallback[used, :n]
+                    end = at + n
+                else:
+                    end = at
+                used += 1
+            out[end] = 44 if j < cols - 1 else 10
+            at = end + 1
+    return out[:at], np.array(missing, dtype=np.int64)
+
+
+def table_lines(table: np.ndarray, rows_per_chunk: int = 512) -> Iterator[bytes]:
+    """``table`` (rows, columns) of floats as CSV lines (comma-separated, newline-ended),
+    17 significant digits correctly rounded (each value reads back exactly), in chunks of
+    ``rows_per_chunk`` rows (a small buffer, reused while it is hot in the cache).
+
+    Parameters
+    ----------
+    table : ndarray, shape (m, k)
+
+    Yields
+    ------
+    bytes
+        ASCII text of consecutive rows.
+    """
+    table = np.asarray(table, dtype=np.float64)
+    if table.ndim != 2 or table.shape[1] == 0:
+        raise ValueError(f"table_lines: expected a 2-d table with columns, got {table.shape}")
+    none = np.zeros((0, TOKEN), dtype=np.uint8)
+    no_lengths = np.zeros(0, dtype=np.int64)
+    for start in range(0, table.shape[0], rows_per_chunk):
+        chunk = np.ascontiguousarray(table[start : start + rows_per_chunk])
+        text, missing = _write_rows(chunk, POWERS, none, no_lengths)
+        if missing.size:
+            tokens = [repr(float(v)).encode() for v in chunk.ravel()[missing]]
+            fallback = np.zeros((len(tokens), TOKEN), dtype=np.uint8)
+            for k, token in enumerate(tokens):
+                fallback[k, : len(token)] = np.frombuffer(token, dtype=np.uint8)
+            lengths = np.array([len(t) for t in tokens], dtype=np.int64)
+            text, _ = _write_rows(chunk, POWERS, fallback, lengths)
+        yield text.tobytes()
+
+
+def table_text(table: np.ndarray) -> bytes:
+    """All of :func:`table_lines` as one bytes object."""
+    return b"".join(table_lines(table))
+
+
+def _use_user_cache() -> None:
+    from circuitsim.solver.compiled.cache import relocate_caches
+
+    relocate_caches([__name__])
+
+
+_use_user_cache()
