@@ -379,13 +379,23 @@ class _Reader:
             if token is not None and token.kind == "=":
                 c.take("=")
                 value_token = c.take(f"value of option {name}")
-                if (
-                    value_token.kind == "word"
-                    and not looks_numeric(value_token.text)
-                ):
+                if value_token.kind == "word" and not looks_numeric(value_token.text):
+                    if any(ch.isdigit() and not ch.isascii() for ch in value_token.text):
+                        raise c.error(
+                            f"option {name}: {value_token.text!r} is not a number (only the "
+                            "ASCII digits 0-9 are digits, as in ngspice)"
+                        )
                     self.circuit.options[name] = fold(value_token.text)
                 else:
-                    self.circuit.options[name] = to_value(value_token, line, f"option {name}")
+                    value = to_value(value_token, line, f"option {name}")
+                    if isinstance(value, Expression):
+                        # evaluated now when the global .param values allow, as .tran's are
+                        # (ngspice evaluates {1e-6*10} for reltol; the engines take numbers)
+                        try:
+                            value = evaluate(value.text, self.known)
+                        except ValueError:
+                            pass
+                    self.circuit.options[name] = value
             else:
                 self.circuit.options[name] = True
 

@@ -167,3 +167,20 @@ def test_the_kelvin_sign_is_not_the_letter_k(tmp_path):
 def test_ascii_capitals_still_fold():
     circuit = parse_netlist("t\nV1 A 0 1\nR1 a B 1k\nR2 b GND 1k\n")
     assert [e.nodes for e in circuit.elements] == [("a", "0"), ("a", "b"), ("b", "0")]
+
+
+# --- .options values -----------------------------------------------------------------------
+
+
+def test_an_option_given_as_an_expression_is_evaluated_at_read_time():
+    # found by the differential fuzz: ngspice takes reltol={1e-6*10}, our engine wanted a number
+    circuit = parse_netlist("t\n.param tight=1e-6\n.options reltol={tight*10} abstol={1p*2}\n")
+    assert circuit.options["reltol"] == pytest.approx(1e-5)
+    assert circuit.options["abstol"] == pytest.approx(2e-12)
+
+
+def test_an_option_with_digits_of_another_script_is_refused():
+    # ngspice: "bad type given for option reltol"; Python's float() would read it as 1
+    with pytest.raises(NetlistError, match="not a number") as info:
+        parse_netlist("t\nR1 a 0 1\n.options reltol=\U0001d7e3\n")
+    assert info.value.line == 3
