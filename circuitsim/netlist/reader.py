@@ -24,7 +24,8 @@ What is read (ngspice 39 conventions, checked with ``ngspice -b``):
   part library ``circuitsim/netlist/library/``. Included text has no title line. A ``.lib
   name`` with one word followed later in the same file by ``.endl`` is a section; sections
   are read only when asked for by ``.lib file name``. Include cycles are errors.
-- ``.options`` values: numbers are floats, ``{...}`` Expressions, flags ``True`` and other
+- ``.options`` values: numbers are floats, ``{...}`` evaluated (with the global ``.param``
+  values read so far) or else kept as Expressions, flags ``True`` and other
   words (``method=gear``) the word as a ``str`` (lower case).
 
 Ignored with a :class:`NetlistWarning` (``warnings`` module), because they only choose what a

@@ -138,7 +138,7 @@ def test_options_flags_and_words():
         "noacct": True,
         "reltol": 1e-3,
         "method": "gear",
-        "gmin": Expression("1p"),
+        "gmin": 1e-12,  # an expression is evaluated when it can be
         "abstol": -1.0,
     }
 
