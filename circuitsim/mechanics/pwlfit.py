@@ -13,10 +13,13 @@ The breakpoints are chosen by the fit, in two steps repeated with a tightening t
    largest error on the grid (a small linear program, scipy's HiGHS): for a convex or concave
    piece this halves the chord's error, so the first target tried is about twice the bound.
 
-The first target whose result is within the bound on the check grid wins. The check grid
-refines the fit grid eight times (so it holds every breakpoint), and the error reported adds
-the largest possible excursion between its points, max |f''| h^2 / 8 (f'' estimated from the
-grid's second differences): the figure is a bound for the whole range, not a sample.
+The first target whose result is within the bound on the check grid wins. Points where the
+curve must equal the function (``exact_at``, by default the argument 0 of a model file's fit)
+split the range; each part is fitted so, with its pinned ends fixed in the linear program.
+The check grid refines the fit grid eight times (so it holds every breakpoint), and the error
+reported adds the largest possible excursion between its points, max |f''| h^2 / 8 (f''
+estimated from the grid's second differences): the figure is a bound for the whole range,
+not a sample.
 """
 
 from __future__ import annotations
@@ -105,6 +108,7 @@ def fit_piecewise_linear(
     upper: float,
     bound: float,
     max_segments: int = MAX_SEGMENTS,
+    exact_at: tuple[float, ...] = (),
 ) -> PiecewiseLinearFit:
     """Fit ``function`` on ``[lower, upper]`` within ``bound`` (module docstring).
 
@@ -119,16 +123,45 @@ def fit_piecewise_linear(
     max_segments : int
         Refuse fits that need more pieces than this (each breakpoint costs an |x| block of
         two op-amps in the circuit).
+    exact_at : tuple of float
+        Arguments in the range where the curve equals the function exactly (each becomes a
+        breakpoint; the range is fitted piece by piece between them). The model file pins
+        u = 0 by default: a minimax fit is otherwise off by up to ``bound`` at rest, a
+        spurious force at the equilibrium.
 
     Raises
     ------
     FitError
-        Bad range or bound, or no fit within ``max_segments`` pieces.
+        Bad range, bound or exact point, or no fit within ``max_segments`` pieces.
     """
     if not (np.isfinite(lower) and np.isfinite(upper) and lower < upper):
         raise FitError(f"the range needs lower < upper, got [{lower:g}, {upper:g}]")
     if not (np.isfinite(bound) and bound > 0):
         raise FitError(f"the maximum error must be > 0, got {bound:g}")
+    for point in exact_at:
+        if not lower <= point <= upper:
+            raise FitError(f"exact point {point:g} is outside the range [{lower:g}, {upper:g}]")
+    pinned = {float(point) for point in exact_at}
+    edges = sorted(pinned | {float(lower), float(upper)})
+    knots, values, errors, points = [], [], [], 0
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        piece = _fit_range(function, a, b, bound, max_segments, a in pinned, b in pinned)
+        start = 1 if knots else 0  # a joint is the previous piece's last knot
+        knots += list(piece[0][start:])
+        values += list(piece[1][start:])
+        errors.append(piece[2])
+        points += piece[3]
+    if len(knots) - 1 > max_segments:
+        raise FitError(
+            f"no piecewise-linear fit within {bound:.3g} with at most {max_segments} segments "
+            f"(the pieces between the exact points need {len(knots) - 1}): raise max_error or "
+            "max_segments, or narrow the range"
+        )
+    return PiecewiseLinearFit(np.array(knots), np.array(values), max(errors), bound, points)
+
+
+def _fit_range(function, lower, upper, bound, max_segments, pin_left, pin_right):
+    """(knots, values, error bound, check points) of one range; pinned ends equal f."""
     check = np.linspace(lower, upper, FIT_INTERVALS * CHECK_REFINEMENT + 1)
     f_check = np.asarray(function(check), dtype=float)
     grid, f_grid = check[::CHECK_REFINEMENT], f_check[::CHECK_REFINEMENT]
@@ -142,10 +175,10 @@ def fit_piecewise_linear(
         knots = _greedy_knots(grid, f_grid, target, max_segments)
         if knots is None:
             break
-        values = _minimax_values(grid, f_grid, knots)
+        values = _minimax_values(grid, f_grid, knots, pin_left, pin_right)
         error = float(np.max(np.abs(np.interp(check, grid[knots], values) - f_check))) + between
         if error <= bound:
-            return PiecewiseLinearFit(grid[knots], values, error, bound, len(check))
+            return grid[knots], values, error, len(check)
         best = error if best is None else min(best, error)
     reached = f" (best {best:.3g})" if best is not None else ""
     raise FitError(
@@ -183,8 +216,11 @@ def _greedy_knots(u: np.ndarray, f: np.ndarray, target: float, limit: int) -> np
     return np.array(knots)
 
 
-def _minimax_values(u: np.ndarray, f: np.ndarray, knots: np.ndarray) -> np.ndarray:
-    """Values at ``u[knots]`` that minimize max |p - f| over the grid (a linear program)."""
+def _minimax_values(
+    u: np.ndarray, f: np.ndarray, knots: np.ndarray, pin_left: bool, pin_right: bool
+) -> np.ndarray:
+    """Values at ``u[knots]`` that minimize max |p - f| over the grid (a linear program);
+    a pinned end keeps the function's value."""
     count = len(knots)
     points = len(u)
     # hat-function basis: p(u_i) = (1 - w) v_k + w v_{k+1} on the piece k holding u_i
@@ -203,7 +239,17 @@ def _minimax_values(u: np.ndarray, f: np.ndarray, knots: np.ndarray) -> np.ndarr
     cost = np.zeros(count + 1)
     cost[-1] = 1.0
     bounds = [(None, None)] * count + [(0, None)]
+    if pin_left:
+        bounds[0] = (f[knots[0]], f[knots[0]])
+    if pin_right:
+        bounds[count - 1] = (f[knots[-1]], f[knots[-1]])
     result = linprog(cost, A_ub=a_ub.tocsr(), b_ub=b_ub, bounds=bounds, method="highs")
     if not result.success:  # cannot happen for a feasible LP; keep the interpolant then
         return f[knots].copy()
-    return np.asarray(result.x[:count])
+    values = np.array(result.x[:count])
+    # exactly the function's value at a pinned end (the solver meets bounds to ~1e-9)
+    if pin_left:
+        values[0] = f[knots[0]]
+    if pin_right:
+        values[-1] = f[knots[-1]]
+    return values

@@ -38,7 +38,7 @@ SHAPES = {
     "table": ("breakpoints", "slopes"),
     "fit": ("function", "range", "max_error"),
 }
-_OPTIONAL = {"fit": ("variable", "max_segments")}
+_OPTIONAL = {"fit": ("variable", "max_segments", "exact_at")}
 
 
 @dataclass(frozen=True)
@@ -83,7 +83,7 @@ def read_shape(reader, kind: str, table, key: str, read_row: Callable) -> ShapeS
     values: dict = {}
     for name in required:
         value, where = table[name], f"{key}.{name}"
-        if name in ("breakpoints", "slopes", "range"):
+        if name in ("breakpoints", "slopes", "range", "exact_at"):
             if not isinstance(value, list) or not value:
                 raise reader.fail(where, "wrong type: expected a non-empty array")
             values[name] = tuple(reader.expression(v, f"{where}[{i}]") for i, v in enumerate(value))
@@ -98,6 +98,12 @@ def read_shape(reader, kind: str, table, key: str, read_row: Callable) -> ShapeS
         )
     if kind == "fit" and len(values["range"]) != 2:
         raise reader.fail(f"{key}.range", "wrong length: expected [lower, upper]")
+    if "exact_at" in table:  # an empty array is allowed: no exact point
+        value, where = table["exact_at"], f"{key}.exact_at"
+        if not isinstance(value, list):
+            raise reader.fail(where, f"wrong type: expected an array, got {value!r}")
+        items = (reader.expression(v, f"{where}[{i}]") for i, v in enumerate(value))
+        values["exact_at"] = tuple(items)
     variable = table.get("variable", "u")
     if not isinstance(variable, str) or not variable.isidentifier():
         raise reader.fail(f"{key}.variable", f"expected a name, got {variable!r}")
@@ -206,9 +212,13 @@ def _fitted(shape: ShapeSpec, value: Callable[[Item], float], env: Mapping) -> C
     )  # fmt: skip
     lower, upper = (value(item) for item in v["range"])
     bound = value(v["max_error"])
+    if "exact_at" in v:
+        exact = tuple(value(item) for item in v["exact_at"])
+    else:  # the curve passes through f(0): no spurious force at rest
+        exact = (0.0,) if lower <= 0.0 <= upper else ()
     function = v["function"]
     numbers = {name: float(env[name]) for name in function.expression.names if name in env}
-    cache_key = (function.expression.text, shape.variable, lower, upper, bound,
+    cache_key = (function.expression.text, shape.variable, lower, upper, bound, exact,
                  shape.max_segments, tuple(sorted(numbers.items())))  # fmt: skip
     if cache_key in _FITS:
         return _FITS[cache_key]
@@ -220,7 +230,7 @@ def _fitted(shape: ShapeSpec, value: Callable[[Item], float], env: Mapping) -> C
             raise ShapeError(function.key, f"bad expression: {exc}") from None
 
     try:
-        fit = fit_piecewise_linear(f, lower, upper, bound, shape.max_segments)
+        fit = fit_piecewise_linear(f, lower, upper, bound, shape.max_segments, exact)
     except FitError as exc:
         raise ShapeError(key, str(exc)) from None
     fit = replace(fit, function=function.expression.text)

@@ -130,6 +130,25 @@ def test_fit_uses_fewer_pieces_than_chord_interpolation_needs():
     assert fit.segments <= 10
 
 
+def test_a_fit_passes_through_the_function_at_zero_unless_told_otherwise(tmp_path):
+    # a minimax fit of an odd function is otherwise off by up to its bound at rest
+    text = 'fit = {{ row = {{ x = 1 }}, function = "Fs*tanh(u/u0)", range = [-0.1, 0.3], ' \
+        'max_error = 0.01{extra} }}'  # fmt: skip
+    at_rest = np.zeros((4, 1))
+    term = term_of(tmp_path, text.format(extra=""))
+    assert term.value(at_rest)[0] == pytest.approx(0.0, abs=1e-12) and 0.0 in term.fits[0].knots
+    free = term_of(tmp_path, text.format(extra=", exact_at = []"))
+    assert abs(free.value(at_rest)[0]) > 1e-4
+    pinned = term_of(tmp_path, text.format(extra=", exact_at = [0.05, 0.2]"))
+    x = np.zeros((4, 2))
+    x[0] = [0.05, 0.2]
+    assert pinned.value(x) == pytest.approx(2.0 * np.tanh(x[0] / 0.05), abs=1e-12)
+    u = np.linspace(-0.1, 0.3, 400_001)
+    for fitted in (term, free, pinned):
+        states = np.vstack([u, np.zeros((3, u.size))])
+        assert np.max(np.abs(fitted.value(states) - 2.0 * np.tanh(u / 0.05))) <= 0.01
+
+
 def test_fit_refuses_what_it_cannot_do():
     with pytest.raises(FitError, match="at most 40 segments"):
         fit_piecewise_linear(np.sin, 0.0, 100.0, 1e-4)
@@ -164,6 +183,10 @@ def test_fit_refuses_what_it_cannot_do():
          "nonlinear.term.fit.function", "not a finite real number at u = -1"),  # fmt: skip
         (f'fit = {{ {ROW}, function = "u**", range = [0, 1], max_error = 1 }}',
          "nonlinear.term.fit.function", "bad expression"),  # fmt: skip
+        (f'fit = {{ {ROW}, function = "u", range = [0, 1], max_error = 1, exact_at = [2] }}',
+         "nonlinear.term.fit", "outside the range"),  # fmt: skip
+        (f'fit = {{ {ROW}, function = "u", range = [0, 1], max_error = 1, exact_at = 0 }}',
+         "nonlinear.term.fit.exact_at", "expected an array"),  # fmt: skip
         (f'fit = {{ {ROW}, function = "u", range = [0], max_error = 1 }}',
          "nonlinear.term.fit.range", "wrong length"),  # fmt: skip
         (f'fit = {{ {ROW}, function = "u", range = [1, 0], max_error = 1 }}',

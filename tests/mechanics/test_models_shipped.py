@@ -117,7 +117,7 @@ def test_wheelset_with_saturating_creep_matches_the_smooth_law_solved_by_scipy()
     # the fitted curve is within 1 % of F_sat of the law: the trajectories differ by that much
     # force acting through the whole run, measured here (not by the same fit)
     for k, state in enumerate(system.states):
-        assert nrmsd_percent(x_ours[k], x_theirs[k]) < 0.1, state  # measured 0.017-0.046
+        assert nrmsd_percent(x_ours[k], x_theirs[k]) < 0.1, state  # measured 0.024-0.066
     # the saturation matters: with the linear creep law the response is another one
     linear = load_model("wheelset_creep").system(nonlinear={"creep": False})
     x_linear = solve(linear, (0, 2.0)).sol(t)
