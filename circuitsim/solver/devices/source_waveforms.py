@@ -185,4 +185,13 @@ def _pulse_value(element, key: str) -> float:
     raw = getattr(element.waveform, key)
     if raw is None:
         return np.inf
-    return number(raw, element.name, f"PULSE {key}")
+    value = number(raw, element.name, f"PULSE {key}")
+    # ngspice 39 fails on a negative rise or fall time ("impossible error") and holds the
+    # initial value for ever with a negative width; a negative delay shifts the pulse train
+    # earlier, as there (and here)
+    if key in ("rise", "fall", "width", "period") and value < 0:
+        raise CircuitInputError(
+            f"{element.name}: PULSE {key} {value:g} s is negative (a time span must be >= 0; "
+            "0 means the default)"
+        )
+    return value
