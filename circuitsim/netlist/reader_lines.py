@@ -83,7 +83,9 @@ def logical_lines(text: str, file: str, has_title: bool) -> tuple[str, list[Line
         keyword = fold(body.split()[0])
         if keyword == ".control":
             block: list[str] = []
-            while i < len(physical) and fold(physical[i].strip()).split()[:1] != [".endc"]:
+            # ngspice ends the block at any line that starts with .endc (".endc;x", ".endcs"
+            # too): matched the same way, so that no card is read into the block by mistake
+            while i < len(physical) and not fold(physical[i].strip()).startswith(".endc"):
                 block.append(physical[i].rstrip())
                 i += 1
             if i >= len(physical):

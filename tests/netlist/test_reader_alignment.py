@@ -184,3 +184,15 @@ def test_an_option_with_digits_of_another_script_is_refused():
     with pytest.raises(NetlistError, match="not a number") as info:
         parse_netlist("t\nR1 a 0 1\n.options reltol=\U0001d7e3\n")
     assert info.value.line == 3
+
+
+# --- the end of a .control block ------------------------------------------------------------
+
+
+@pytest.mark.parametrize("closer", [".endc", ".ENDC", ".endc;x", ".endc $ note", ".endcs"])
+def test_a_control_block_ends_where_ngspice_ends_it(closer):
+    # found by the differential fuzz: ".endc;x" did not end the block here, so the circuit's
+    # cards after it were swallowed into the block; ngspice matches ".endc" as a prefix
+    circuit = parse_netlist(f"t\n.control\nrun\n{closer}\nV1 a 0 1\nR1 a 0 1k\n.op\n.end\n")
+    assert [e.name for e in circuit.elements] == ["V1", "R1"]
+    assert circuit.control == ["run"]
