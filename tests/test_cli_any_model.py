@@ -194,3 +194,9 @@ def test_compare_prints_the_warnings_generate_prints(tmp_path, capsys):
     main(["compare", *scenario, "--series", "E96"])
     compared = [line for line in capsys.readouterr().err.splitlines() if "warning:" in line]
     assert compared == generated
+
+
+def test_stability_of_a_model_without_a_speed_points_to_eigenvalues(tmp_path, capsys):
+    assert main(["stability", "--model", decay(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "no parameter for --speed" in err and "--eigenvalues" in err and "--parameter" in err

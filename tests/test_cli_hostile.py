@@ -62,3 +62,20 @@ def test_more_jobs_than_variants_runs(tmp_path, capsys):
     argv = ["sweep", "--param", "speed", "--values", "50", "--tstop", "0.05"]
     assert main([*argv, "--jobs", str(MAX_WORKERS), "--out", str(tmp_path)]) == 0
     assert "1 variant of V" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["simulate", str(ROOT / "tests/solver/golden/rc.cir"), "--max-steps", "1" * 400],
+         "--max-steps must be at most"),
+        (["ode", "--tstop", "0.1", "--max-steps", "1" * 400], "--max-steps must be at most"),
+        (["simulate", str(ROOT / "tests/solver/golden/rc.cir"), "--max-wall-time", "nan"],
+         "--max-wall-time must be a positive finite number"),
+        (["compare", "--netlist", ".", "--tstop", "0.1"], "cannot write .: it is a directory"),
+    ],
+    ids=["simulate-steps", "ode-steps", "simulate-wall-time", "compare-netlist-folder"],
+)  # fmt: skip
+def test_limits_and_output_folders_found_by_the_fuzzer(argv, words, capsys):
+    assert main(argv) == 2
+    assert words in capsys.readouterr().err

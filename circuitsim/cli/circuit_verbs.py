@@ -244,7 +244,8 @@ def _check_compare(args: argparse.Namespace) -> None:
     if args.netlist is not None:
         from circuitsim.synthesis.generate import companion_paths
 
-        require_writable(args.netlist, *companion_paths(args.netlist))
+        require_writable(args.netlist)  # first: "." or a folder has no companion files
+        require_writable(*companion_paths(args.netlist))
     require_writable(args.plot)
 
 

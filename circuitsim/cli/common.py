@@ -92,6 +92,11 @@ MAX_WORKERS = max(256, os.cpu_count() or 1)
 reached multiprocessing as an OverflowError)."""
 
 
+MAX_STEP_COUNT = 2**62
+"""Largest ``--max-steps`` taken: the compiled kernels hold it in a 64-bit integer (a 400-digit
+count was an OverflowError there)."""
+
+
 def require_count(option: str, value: int | None, most: int | None = None) -> None:
     """Refuse a ``value`` of ``option`` below 1, or above ``most`` when given (None: not
     given, accepted).

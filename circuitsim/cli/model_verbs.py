@@ -6,6 +6,7 @@ import argparse
 import math
 
 from circuitsim.cli.common import (
+    MAX_STEP_COUNT,
     UsageError,
     add_model_options,
     add_scenario_options,
@@ -110,8 +111,14 @@ def _run_stability(args: argparse.Namespace) -> int:
         if speed_parameter not in model.parameters:
             # eigenvalues() raises the ModelError naming the file and the known parameters
             eigenvalues(model, speed_parameter, [0.0])
+    elif "speed" not in model.options:
+        raise UsageError(
+            f"model {model.name} has no parameter for --speed (no [options] speed): name the "
+            "parameter to search with --parameter NAME, or list the modes at given "
+            "parameters with --eigenvalues"
+        )
     else:
-        speed_parameter = model.option_parameters({"speed": 0.0}).popitem()[0]
+        speed_parameter = model.options["speed"]
     speed = model.parameters[speed_parameter] if args.speed is None else args.speed
     coefficients = args.coeffs or model.default_coefficients
     fixed = dict(args.param) or None
@@ -272,7 +279,7 @@ def _check_ode(args: argparse.Namespace) -> None:
     require_positive("--tstop", args.tstop)
     require_positive("--dt", args.dt)
     require_fraction("--rtol", args.rtol)
-    require_count("--max-steps", args.max_steps)
+    require_count("--max-steps", args.max_steps, MAX_STEP_COUNT)
     require_positive("--max-wall-time", args.max_wall_time)
     require_figure_path("--plot", args.plot)
     require_writable(args.csv, args.plot)

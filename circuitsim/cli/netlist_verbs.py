@@ -6,8 +6,10 @@ import argparse
 import sys
 
 from circuitsim.cli.common import (
+    MAX_STEP_COUNT,
     progress_after,
     read_netlist_reporting_warnings,
+    require_count,
     require_figure_path,
     require_positive,
     require_writable,
@@ -145,6 +147,8 @@ def _run_simulate(args: argparse.Namespace) -> int:
 
     require_figure_path("--plot", args.plot)
     require_positive("--ngspice-timeout", args.ngspice_timeout)
+    require_count("--max-steps", args.max_steps, MAX_STEP_COUNT)
+    require_positive("--max-wall-time", args.max_wall_time)
     require_writable(args.csv, args.plot)
     if args.engine == "ngspice":
         from circuitsim.interop.ngspice import run_ngspice
