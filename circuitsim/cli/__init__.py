@@ -129,7 +129,7 @@ def _model_for_help(argv: list[str]):
 
     try:
         return load_model(path)
-    except ModelError:
+    except (ModelError, OSError, ValueError):  # the run itself reports why
         return None
 
 

@@ -212,7 +212,13 @@ def read_model(path: str | Path | None = None) -> ModelSpec:
     ModelError
         Naming the file, the dotted key and what is wrong.
     """
-    path = model_path(path)
+    if path is not None and "\x00" in str(path):
+        raise ModelError("cannot read: the path contains a NUL character", file=repr(str(path)))
+    try:
+        path = model_path(path)
+    except (OSError, ValueError) as exc:  # a name too long for the file system
+        reason = getattr(exc, "strerror", None) or str(exc)
+        raise ModelError(f"cannot read: {reason}", file=str(path)) from None
     file = str(path)
     reader = _Reader(file)
     document = _load_toml(path, reader)

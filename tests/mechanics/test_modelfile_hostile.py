@@ -120,3 +120,20 @@ def test_the_cli_prints_one_line_and_exits_2(tmp_path, capsys):
     assert main(["ode", "--model", str(path), "--tstop", "0.1"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"circuitsim ode: error: {path}: matrices.A[0][0]:")
+
+
+@pytest.mark.parametrize(
+    "path, words",
+    [("x" * 5000, "cannot read: File name too long"), ("a\x00b", "contains a NUL character")],
+    ids=["5000 characters", "NUL"],
+)
+def test_unreadable_paths_are_model_errors(tmp_path, path, words):
+    with pytest.raises(ModelError, match=words):
+        load_model(str(tmp_path / path))
+
+
+def test_help_with_an_unreadable_model_is_the_generic_help(tmp_path, capsys):
+    with pytest.raises(SystemExit) as caught:
+        main(["ode", "--model", str(tmp_path / ("x" * 5000)), "--help"])
+    assert caught.value.code == 0
+    assert "the built-in wheelset" in capsys.readouterr().out
