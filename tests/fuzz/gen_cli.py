@@ -113,7 +113,7 @@ def base_command(rng: random.Random, verb: str) -> list[str]:
         return ["convert", netlist, "--dialect", rng.choice(["ltspice", "multisim"]),
                 "-o", str(out / "c.cir")]  # fmt: skip
     if verb == "simulate":
-        return ["simulate", netlist, "--max-steps", "2000", "--max-wall-time", "2",
+        return ["simulate", netlist, "--max-steps", "2000", "--max-wall-time", "8",
                 "--csv", str(out / "s.csv")]  # fmt: skip
     raise ValueError(verb)
 
