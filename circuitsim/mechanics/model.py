@@ -14,10 +14,17 @@ import numpy as np
 
 from circuitsim.mechanics.errors import ModelError
 from circuitsim.mechanics.expressions import ExpressionError
-from circuitsim.mechanics.modelfile import Item, ModelSpec, Parameter, read_model
+from circuitsim.mechanics.modelfile import ForcingSpec, Item, ModelSpec, Parameter, read_model
 from circuitsim.mechanics.parameters import evaluate_parameters
 from circuitsim.mechanics.shapes import ShapeError, compile_shape
-from circuitsim.mechanics.system import AbsTerm, PiecewiseLinearTerm, Sinusoid, System
+from circuitsim.mechanics.system import (
+    AbsTerm,
+    Bump,
+    PiecewiseLinearInput,
+    PiecewiseLinearTerm,
+    Sinusoid,
+    System,
+)
 
 # A mass matrix whose condition number exceeds this is treated as singular: inverting it would
 # turn rounding noise into accelerations.
@@ -310,18 +317,8 @@ class Model:
             )
         sources = []
         for name, group in spec.forcing.items():
-            if not forcing_on[name]:
-                continue
-            sources.append(
-                Sinusoid(
-                    direction=rhs_direction(group.enters),
-                    amplitude=value(group.amplitude),
-                    frequency=value(group.frequency),
-                    phase=value(group.phase),
-                    amplitude_unit=group.unit,
-                    name=name,
-                )
-            )
+            if forcing_on[name]:
+                sources.extend(_inputs(group, rhs_direction(group.enters), value, self._fail))
         self._check_finite(A, b0, terms, sources, set_name)
         return System(
             name=self.name,
@@ -383,3 +380,37 @@ class Model:
         if out.shape != (n,):
             raise self._fail("initial", f"x0 needs {n} values ({', '.join(self.states)})")
         return out.copy()
+
+
+def _inputs(group: ForcingSpec, direction: np.ndarray, value, fail) -> list:
+    """The System inputs of one forcing group (a sum of sines gives one Sinusoid each)."""
+    unit, name = group.unit, group.name
+    if group.kind == "sine":
+        return [Sinusoid(direction, value(group.amplitude), value(group.frequency),
+                         value(group.phase), unit, name)]  # fmt: skip
+    if group.kind == "sines":
+        return [
+            Sinusoid(direction, value(a), value(f), value(p), unit, f"{name}{i}")
+            for i, (a, f, p) in enumerate(group.components, start=1)
+        ]
+    amplitude = value(group.amplitude)
+    if group.kind == "bump":
+        duration = value(group.duration)
+        if not duration > 0:
+            raise fail(f"{group.key}.duration", f"must be positive, got {duration:g}")
+        return [Bump(direction, amplitude, value(group.start), duration, group.shape, unit, name)]
+    if group.kind == "step":
+        start, rise = value(group.start), value(group.rise)
+        if not rise >= 0:
+            raise fail(f"{group.key}.rise", f"must be 0 or positive, got {rise:g}")
+        times, values = [start, start + rise], [0.0, amplitude]
+    else:
+        points = np.array(group.points, dtype=float)
+        times, values = points[:, 0], amplitude * points[:, 1]
+        if group.speed is not None:
+            speed = value(group.speed)
+            if not speed > 0:
+                raise fail(f"{group.key}.speed", f"must be positive, got {speed:g}")
+            times = times / speed
+    times, values = np.asarray(times, dtype=float), np.asarray(values, dtype=float)
+    return [PiecewiseLinearInput(direction, times, values, unit, name, group.kind)]

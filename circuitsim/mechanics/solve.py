@@ -6,7 +6,9 @@ error estimate lies), so each argument is a terminal event: integration stops ex
 crossing and restarts from it. Between two crossings the field is affine (each ``|g|`` is
 ``side * g``), and that affine piece is what is integrated, so every step, including the
 trial steps that reach past the next kink before the event cuts them back, sees one smooth
-vector field. Times at which a term switches on (``t_on``) end a segment the same way.
+vector field. Times at which a term switches on (``t_on``) end a segment the same way, and so
+do the corners of the inputs (each point of a time series or step, both ends of a bump): the
+forcing of a segment is its smooth piece, extended past the corner for the trial steps.
 
 Like any event location, a crossing and re-crossing of the same kink within one step is not
 seen; ``max_step`` bounds how short such an excursion can be.
@@ -30,7 +32,7 @@ from circuitsim.mechanics.limits import (
     limit_error,
     refuse_unresolvable_forcing,
 )
-from circuitsim.mechanics.system import System
+from circuitsim.mechanics.system import Sinusoid, System
 
 # A restart that has not moved time forward more than this many times in a row means events
 # keep firing at the restart point: give up rather than loop forever.
@@ -164,10 +166,18 @@ class _Phase:
         offsets = np.array(offsets, dtype=float)
         G = np.array(columns, dtype=float).reshape(len(columns), n).T
         self.labels = labels
-        self.F = np.array([f.direction for f in system.forcing], dtype=float).reshape(-1, n).T
-        self.amplitude = np.array([f.amplitude for f in system.forcing], dtype=float)
-        self.omega = np.array([2.0 * np.pi * f.frequency for f in system.forcing], dtype=float)
-        self.phase = np.array([f.phase for f in system.forcing], dtype=float)
+        sines = [f for f in system.forcing if isinstance(f, Sinusoid)]
+        self.F = np.array([f.direction for f in sines], dtype=float).reshape(-1, n).T
+        self.amplitude = np.array([f.amplitude for f in sines], dtype=float)
+        self.omega = np.array([2.0 * np.pi * f.frequency for f in sines], dtype=float)
+        self.phase = np.array([f.phase for f in sines], dtype=float)
+        # the other inputs: their smooth piece from t to their next corner (a segment of a
+        # time series, the inside of a bump), extended past it like the kinks' affine pieces
+        self.inputs = [
+            (np.asarray(f.direction, dtype=float), f.piece(t))
+            for f in system.forcing
+            if not isinstance(f, Sinusoid)
+        ]
         self.forcing = self._forcing()
         sides, biases = self._sides(A, b, R, offsets, G, t, x, atol, nudge)
         self.A = A + G @ (sides[:, None] * R)
@@ -177,14 +187,31 @@ class _Phase:
     def _forcing(self):
         """The forcing as a closure; a single sinusoid uses math.sin (numpy's per-call
         overhead dominates at these sizes)."""
+        sines = None
         if self.amplitude.size == 1:
             column = self.F[:, 0] * self.amplitude[0]
             omega, phase = float(self.omega[0]), float(self.phase[0])
-            return lambda t: column * math.sin(omega * t + phase)
-        if self.amplitude.size:
+
+            def sines(t):
+                return column * math.sin(omega * t + phase)
+
+        elif self.amplitude.size:
             F, amplitude, omegas, phases = self.F, self.amplitude, self.omega, self.phase
-            return lambda t: F @ (amplitude * np.sin(omegas * t + phases))
-        return None
+
+            def sines(t):
+                return F @ (amplitude * np.sin(omegas * t + phases))
+
+        if not self.inputs:
+            return sines
+        inputs = self.inputs
+
+        def total(t):
+            out = sines(t) if sines is not None else 0.0
+            for direction, piece in inputs:
+                out = out + direction * piece(t)
+            return out
+
+        return total
 
     def _sides(self, A, b, R, offsets, G, t, x, atol, nudge):
         """The side each kink argument is on (or, sitting on zero, about to move into).
@@ -287,6 +314,10 @@ def solve(
         raise IntegrationError(f"initial state needs {n} values, got {x.size}")
     switches = sorted({term.t_on for term in system.nonlinear if term.t_on is not None})
     switches = [s for s in switches if t0 < s < t1]
+    # segments end where a term switches on and at every corner of an input (a time series'
+    # points, a bump's ends): the input is smooth only between them
+    corners = {float(c) for force in system.forcing for c in force.corners()}
+    stops = sorted({s for s in corners if t0 < s < t1} | set(switches))
     atol_vector = np.broadcast_to(np.asarray(atol, dtype=float), (n,))
     refuse_unresolvable_forcing(system, (t0, t1), float(np.min(atol_vector)), max_steps)
     budget = Budget(max_steps, max_wall_time)
@@ -300,7 +331,7 @@ def solve(
     first_step = None
     while t < t1:
         phase = _Phase(system, t, x, atol_vector, nudge=stalls > 0)
-        t_end = next((s for s in switches if s > t), t1)
+        t_end = next((s for s in stops if s > t), t1)
         events = phase.events
         if first_step is not None:
             options["first_step"] = min(first_step, t_end - t)

@@ -1,7 +1,7 @@
 """A model with numbers in it: the first-order form every other room works from.
 
     dx/dt = A x + b0 + sum_k direction_k * s_k(x)
-                    + sum_j direction_j * amplitude_j * sin(2 pi f_j t + phase_j)
+                    + sum_j direction_j * u_j(t)
 
 where each piecewise-linear term contributes a scalar
 
@@ -10,7 +10,8 @@ where each piecewise-linear term contributes a scalar
 (switched in from ``t_on`` when given) along its ``direction`` vector. A second-order model
 M q'' + C q' + K q + f_nl(q) = F(t) becomes this with x = [q, q'], the directions carrying
 -M^-1. The translator realizes exactly these objects: one integrator per state, one resistor per
-nonzero entry of A, one |x| block per AbsTerm, one source per Sinusoid.
+nonzero entry of A, one |x| block per AbsTerm, one source per forcing input u_j(t): a
+sinusoid (SIN), a piecewise-linear time series or step (PWL), a smooth bump (sampled PWL).
 """
 
 from __future__ import annotations
@@ -115,6 +116,187 @@ class Sinusoid:
         """``amplitude * sin(2 pi f t + phase)`` (without the direction)."""
         return self.amplitude * np.sin(2.0 * np.pi * self.frequency * t + self.phase)
 
+    def corners(self) -> np.ndarray:
+        """Times (s) where the input or its slope jumps: none for a sinusoid."""
+        return np.empty(0)
+
+    def piece(self, t: float):
+        """The input as a smooth function of time from ``t`` to the next corner (all of it)."""
+        return self.value
+
+    @property
+    def fastest(self) -> float:
+        """The highest frequency (Hz) the circuit's time step must resolve."""
+        return abs(self.frequency)
+
+    @property
+    def peak(self) -> float:
+        """max |value| over all time (amplitude unit)."""
+        return abs(self.amplitude)
+
+    def same_as(self, other) -> bool:
+        """Whether ``other`` is the same input (equal numbers, equal direction)."""
+        return (
+            isinstance(other, Sinusoid)
+            and (self.amplitude, self.frequency, self.phase) == (
+                other.amplitude, other.frequency, other.phase)
+            and np.array_equal(self.direction, other.direction)
+        )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class PiecewiseLinearInput:
+    """Forcing ``direction * u(t)``, u interpolated linearly between given points.
+
+    Before the first point u holds the first value, after the last the last value. Two points
+    at the same time make a jump (a step); the direct solution restarts at every point
+    (:func:`circuitsim.mechanics.solve.solve`), the translator writes a PWL source.
+
+    Attributes
+    ----------
+    direction : ndarray, shape (n,)
+        Per unit of u.
+    times : ndarray, shape (p,)
+        Seconds, non-decreasing.
+    values : ndarray, shape (p,)
+        u at ``times``, in ``amplitude_unit``.
+    amplitude_unit : str
+    name : str
+    kind : str
+        What the model file called it (``"series"``, ``"step"`` ...), for messages.
+    """
+
+    direction: np.ndarray
+    times: np.ndarray
+    values: np.ndarray
+    amplitude_unit: str = ""
+    name: str = ""
+    kind: str = "series"
+
+    def value(self, t: float | np.ndarray) -> float | np.ndarray:
+        """u(t) (without the direction); at a jump, the value after it."""
+        times, values = self.times, self.values
+        index = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 1)
+        upper = np.minimum(index + 1, len(times) - 1)
+        span = times[upper] - times[index]
+        safe = np.where(span > 0, span, 1.0)
+        weight = np.where(span > 0, np.clip((t - times[index]) / safe, 0.0, 1.0), 0.0)
+        out = values[index] + weight * (values[upper] - values[index])
+        return float(out) if np.ndim(out) == 0 else out
+
+    def corners(self) -> np.ndarray:
+        """The points' times, s (each once)."""
+        return np.unique(self.times)
+
+    def piece(self, t: float):
+        """u on the segment that starts at or before ``t``, extended as a straight line."""
+        times, values = self.times, self.values
+        k = int(np.searchsorted(times, t, side="right")) - 1
+        if k < 0 or k >= len(times) - 1:
+            constant = float(values[0] if k < 0 else values[-1])
+            return lambda time: constant
+        t0, v0 = float(times[k]), float(values[k])
+        slope = float((values[k + 1] - v0) / (times[k + 1] - t0))
+        return lambda time: v0 + slope * (time - t0)
+
+    @property
+    def fastest(self) -> float:
+        """0: the input is exact between its corners, which the engines step onto."""
+        return 0.0
+
+    @property
+    def peak(self) -> float:
+        """max |u| (amplitude unit)."""
+        return float(np.max(np.abs(self.values)))
+
+    def same_as(self, other) -> bool:
+        """Whether ``other`` is the same input (equal points, equal direction)."""
+        return (
+            isinstance(other, PiecewiseLinearInput)
+            and np.array_equal(self.times, other.times)
+            and np.array_equal(self.values, other.values)
+            and np.array_equal(self.direction, other.direction)
+        )
+
+
+#: The smooth bump shapes: u(s) on s = (t - start) / duration in [0, 1].
+BUMP_SHAPES = ("haversine", "half_sine")
+
+
+@dataclass(frozen=True)
+class Bump:
+    """Forcing ``direction * u(t)``: one smooth bump of ``duration`` from ``start``, else 0.
+
+    ``haversine``: u = amplitude (1 - cos(2 pi s)) / 2 (value and slope continuous at both
+    ends); ``half_sine``: u = amplitude sin(pi s) (slope jumps at both ends), s = (t - start) /
+    duration.
+
+    Attributes
+    ----------
+    direction : ndarray, shape (n,)
+    amplitude : float
+        Peak of u, in ``amplitude_unit``.
+    start, duration : float
+        Seconds.
+    shape : str
+        One of ``BUMP_SHAPES``.
+    amplitude_unit, name : str
+    """
+
+    direction: np.ndarray
+    amplitude: float
+    start: float
+    duration: float
+    shape: str = "haversine"
+    amplitude_unit: str = ""
+    name: str = ""
+    kind: str = "bump"
+
+    def _inside(self, t):
+        s = (np.asarray(t, dtype=float) - self.start) / self.duration
+        if self.shape == "haversine":
+            return self.amplitude * 0.5 * (1.0 - np.cos(2.0 * np.pi * s))
+        return self.amplitude * np.sin(np.pi * s)
+
+    def value(self, t: float | np.ndarray) -> float | np.ndarray:
+        """u(t) (without the direction)."""
+        inside = (t >= self.start) & (t <= self.start + self.duration)
+        out = np.where(inside, self._inside(t), 0.0)
+        return float(out) if np.ndim(out) == 0 else out
+
+    def corners(self) -> np.ndarray:
+        """Start and end of the bump, s."""
+        return np.array([self.start, self.start + self.duration])
+
+    def piece(self, t: float):
+        """The bump's formula inside it, 0 outside."""
+        if self.start <= t < self.start + self.duration:
+            return self._inside
+        return lambda time: 0.0
+
+    @property
+    def fastest(self) -> float:
+        """1 / duration, Hz (the haversine's cosine; the half-sine's is half of it)."""
+        return 1.0 / self.duration
+
+    @property
+    def peak(self) -> float:
+        """|amplitude|."""
+        return abs(self.amplitude)
+
+    def same_as(self, other) -> bool:
+        """Whether ``other`` is the same input."""
+        return (
+            isinstance(other, Bump)
+            and (self.amplitude, self.start, self.duration, self.shape)
+            == (other.amplitude, other.start, other.duration, other.shape)
+            and np.array_equal(self.direction, other.direction)
+        )
+
+
+#: Any forcing a System may carry.
+Forcing = Sinusoid | PiecewiseLinearInput | Bump
+
 
 @dataclass(frozen=True)
 class System:
@@ -134,7 +316,7 @@ class System:
         Constant part.
     nonlinear : tuple of PiecewiseLinearTerm
         Enabled piecewise-linear terms only (a switched-off flange is absent).
-    forcing : tuple of Sinusoid
+    forcing : tuple of Sinusoid, PiecewiseLinearInput or Bump
         Enabled forcing terms.
     x0 : ndarray, shape (n,)
         Initial state.
@@ -156,7 +338,7 @@ class System:
     A: np.ndarray
     b0: np.ndarray
     nonlinear: tuple[PiecewiseLinearTerm, ...] = ()
-    forcing: tuple[Sinusoid, ...] = ()
+    forcing: tuple[Forcing, ...] = ()
     x0: np.ndarray | None = None
     parameters: dict[str, float] = field(default_factory=dict)
     circuit_hints: dict = field(default_factory=dict)

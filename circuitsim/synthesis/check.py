@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from circuitsim.mechanics.system import System
+from circuitsim.mechanics.system import Sinusoid, System
 from circuitsim.netlist.circuit import (
     Capacitor,
     Circuit,
@@ -44,6 +44,10 @@ from circuitsim.synthesis.scalemap import ScaleMap
 from circuitsim.synthesis.stability import critical_speed
 
 OPAMP_SUBCIRCUITS = ("opamp_ideal", "tl074")
+
+# A PWL source may depart from a smooth input by its sampling error (synthesis/inputs.py's
+# SAMPLING_ERROR of the peak) and a little more.
+SHAPE_TOLERANCE = 2e-4
 
 
 @dataclass
@@ -137,6 +141,7 @@ class _Checker:
         self.state_expr: dict[str, _Affine] = {}
         self.parts_ij: dict[tuple[int, int], tuple[str, ...]] = {}
         self.forcing: list[tuple] = []  # (state index, gain, model Hz, phase rad, part)
+        self.inputs: list[tuple] = []  # (state index, gain, Pwl, time scale, part)
         self.constants: list[tuple] = []  # (state index, value, part)
         self.paths: list[tuple] = []  # (state index, _Affine, t_on, switch name)
 
@@ -247,6 +252,8 @@ class _Checker:
                         (i, gain * float(w.amplitude), float(w.frequency) / K,
                          math.radians(float(w.phase)), r.name)
                     )  # fmt: skip
+                elif isinstance(source.waveform, Pwl):
+                    self.inputs.append((i, gain, source.waveform, K, r.name))
                 elif source.waveform is None:
                     self.constants.append((i, gain * float(source.dc), r.name))
                 else:
@@ -380,6 +387,9 @@ class _Checker:
     def compare_forcing(self, report: MappingReport) -> None:
         realized = list(self.forcing)
         for k, force in enumerate(self.sys.forcing, start=1):
+            if not isinstance(force, Sinusoid):
+                self.compare_input(report, k, force)
+                continue
             for i in np.flatnonzero(force.direction):
                 model = float(force.direction[i]) * force.amplitude
                 match = [
@@ -405,6 +415,8 @@ class _Checker:
                     self.problems.append(f"{what}: phase {f[3]} rad, model {force.phase} rad")
         for f in realized:
             self.problems.append(f"{f[4]}: a sine input the model does not have")
+        for f in self.inputs:
+            self.problems.append(f"{f[4]}: a PWL input the model does not have")
         b_real = np.zeros(self.n)
         parts: dict[int, tuple] = {}
         for i, value, part in self.constants:
@@ -416,6 +428,48 @@ class _Checker:
                     Entry(f"b0[{self.sys.states[i]}]", float(self.sys.b0[i]), b_real[i],
                           self.allowed(parts.get(i, ())), parts.get(i, ()))
                 )  # fmt: skip
+
+    def compare_input(self, report: MappingReport, k: int, force) -> None:
+        """A PWL-realized input: its gain (peak into each state) and its shape.
+
+        The shape is compared at the midpoints of the PWL's segments (where a sampled bump's
+        interpolation error is largest), except the short ramps written for the input's jumps.
+        """
+        for i in np.flatnonzero(force.direction):
+            match = [f for f in self.inputs if f[0] == i]
+            what = f"forcing {k} -> {self.sys.states[i]}"
+            if not match:
+                self.problems.append(f"{what}: not in the netlist")
+                continue
+            f = match[0]
+            self.inputs.remove(f)
+            _, gain, pwl, K, part = f
+            times = np.array([float(t) for t, _ in pwl.points]) * K
+            volts = np.array([float(v) for _, v in pwl.points])
+            # the gain at the input's largest point in the run (a point of the PWL)
+            p = int(np.argmax(np.abs(volts)))
+            model = float(force.direction[i]) * float(force.value(times[p]))
+            report.entries.append(
+                Entry(f"{what} gain", model, gain * volts[p], self.allowed((part,)), (part,))
+            )
+            middle = 0.5 * (times[:-1] + times[1:])
+            jumps = getattr(force, "times", np.empty(0))
+            jumps = jumps[1:][np.diff(jumps) == 0]
+            # the ramps written for the input's jumps are no part of the comparison
+            ramp = np.zeros(middle.size, dtype=bool)
+            for at in jumps:
+                ramp |= (times[:-1] <= at) & (at <= times[1:])
+            middle = middle[~ramp]
+            if middle.size == 0:
+                continue
+            realized = gain * np.interp(middle, times, volts)
+            wanted = float(force.direction[i]) * np.asarray(force.value(middle))
+            worst = float(np.max(np.abs(realized - wanted))) / max(abs(model), 1e-300)
+            if worst > SHAPE_TOLERANCE + self.allowed((part,)):
+                self.problems.append(
+                    f"{what} ({part}): the PWL source departs from the input by {worst:.2e} of "
+                    f"its peak"
+                )
 
     def compare_nonlinear(self, report: MappingReport) -> None:
         n = self.n

@@ -18,8 +18,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from circuitsim.mechanics.errors import IntegrationError
 from circuitsim.mechanics.limits import Budget, BudgetExhausted, guarded_method
-from circuitsim.mechanics.system import System
+from circuitsim.mechanics.solve import solve
+from circuitsim.mechanics.system import Sinusoid, System
 from circuitsim.synthesis.errors import SynthesisError
 from circuitsim.synthesis.eseries import floor_to_series
 from circuitsim.synthesis.options import SWING_LIMIT, SynthesisOptions
@@ -67,6 +69,18 @@ def direct_solution(
     # peaks only: modest tolerances, but sampled densely enough (40 points per fastest period)
     # that a peak between samples is missed by less than 0.3 %
     samples = int(min(200_000, max(2_000, 40 * fastest * t_stop)))
+    t = np.linspace(0.0, t_stop, samples)
+    if any(not isinstance(f, Sinusoid) for f in system.forcing):
+        # a step or time series: the solver that restarts at the input's corners, within the
+        # same limits (its kink events cost more than a plain run on a model with many |x|
+        # terms, so only here)
+        try:
+            result = solve(system, (0.0, t_stop), rtol=1e-6, atol=1e-12, method="RK45",
+                           max_step=1.0 / (8.0 * fastest), x0=x0, max_steps=MAX_SCALING_STEPS,
+                           max_wall_time=max_wall_time or MAX_SCALING_WALL_TIME)  # fmt: skip
+        except IntegrationError as exc:
+            raise SynthesisError(f"direct solution for the scaling failed: {exc}") from None
+        return t, result.sol(t)
     # a piecewise-linear term far stiffer than the linear part (not in ``fastest``) makes the
     # adaptive steps tiny: the same limits as the direct solution's end it with a message
     budget = Budget(MAX_SCALING_STEPS, max_wall_time or MAX_SCALING_WALL_TIME)
@@ -79,7 +93,7 @@ def direct_solution(
             rtol=1e-6,
             atol=1e-12,
             max_step=1.0 / (8.0 * fastest),
-            t_eval=np.linspace(0.0, t_stop, samples),
+            t_eval=t,
         )
     except BudgetExhausted as exhausted:
         spent = (
@@ -119,9 +133,9 @@ def _fastest_frequency(system: System, t_stop: float) -> float:
         Naming the frequency, its source and what to do instead.
     """
     sources = [
-        (abs(f.frequency), f"the forcing {f.name or ''} at {abs(f.frequency):.3g} Hz")
+        (float(f.fastest), f"the forcing {f.name or ''} at {float(f.fastest):.3g} Hz")
         for f in system.forcing
-        if f.amplitude != 0 and np.any(np.asarray(f.direction) != 0)
+        if f.peak != 0 and np.any(np.asarray(f.direction) != 0)
     ]
     eigen = np.linalg.eigvals(system.A) if system.n else np.zeros(0)
     if eigen.size:

@@ -12,8 +12,9 @@ so with circuit time tau = t / K the integrator realizes
 
 and each model coefficient becomes a resistor: a linear term A_ij x_j is a resistor from the
 +x_j node (A_ij > 0) or the -x_j node (A_ij < 0) with 1/(R C_i) = K G_i |A_ij| / G_j; a
-sinusoid a SIN source through its own resistor; the constant b0 a DC source; a piecewise-linear
-term its signal (:mod:`circuitsim.synthesis.pwl`) through a switch and a resistor. Component
+forcing input its SIN or PWL source through its own resistor
+(:mod:`~circuitsim.synthesis.inputs`); the constant b0 a DC source; a piecewise-linear term
+its signal (:mod:`circuitsim.synthesis.pwl`) through a switch and a resistor. Component
 values, names and scaling: :mod:`~circuitsim.synthesis.eseries`,
 :mod:`~circuitsim.synthesis.naming`, :mod:`~circuitsim.synthesis.scaling`. The whole design is
 described in docs/translator.md.
@@ -32,7 +33,6 @@ from circuitsim.netlist.circuit import (
     Circuit,
     Model,
     Pwl,
-    Sin,
     Switch,
     Transient,
     VoltageSource,
@@ -40,12 +40,14 @@ from circuitsim.netlist.circuit import (
 from circuitsim.synthesis.blocks import BomEntry, Builder
 from circuitsim.synthesis.errors import SynthesisError
 from circuitsim.synthesis.eseries import CAPACITOR_DECADES
+from circuitsim.synthesis.inputs import add_forcing
 from circuitsim.synthesis.naming import PartNames, node_name
 from circuitsim.synthesis.opamps import add_opamp
 from circuitsim.synthesis.options import SWING_LIMIT, SynthesisOptions
 from circuitsim.synthesis.pwl import TermBuilder
 from circuitsim.synthesis.scalemap import ScaleMap, StateScale
 from circuitsim.synthesis.scaling import choose_scaling, direct_solution
+from circuitsim.synthesis.timestep import StepChoice, choose_step
 
 
 @dataclass
@@ -66,6 +68,9 @@ class Synthesis:
         Model seconds covered by the ``.tran``.
     node_peaks : dict of str to float
         Predicted peak |v| of the state nodes over the run (V), from the direct solution.
+    step : StepChoice
+        The ``.tran`` maximum step and the mode or forcing that set it
+        (:mod:`circuitsim.synthesis.timestep`).
     """
 
     circuit: Circuit
@@ -74,6 +79,7 @@ class Synthesis:
     warnings: list[str] = field(default_factory=list)
     t_stop: float = 0.0
     node_peaks: dict[str, float] = field(default_factory=dict)
+    step: StepChoice | None = None
 
     @property
     def max_error(self) -> float:
@@ -169,14 +175,15 @@ def synthesize(
                     f"{source} -> {target} integrator (A[{target}, {source}])",
                 )
             )
-    _add_forcing(system, circuit, names, nodes, inputs, G, K, options)
+    step = choose_step(system, K, t_stop, options.points_per_period)
+    add_forcing(system, circuit, names, inputs, _Input, G, K, options, t_stop, step.tmax)
     _add_constants(system, circuit, names, inputs, G, K)
     first_block, first_bom = len(circuit.elements), len(builder.bom)
     signals = _add_nonlinear(system, builder, names, nodes, inputs, G, K, options)
     blocks = {id(e) for e in circuit.elements[first_block:]}
     block_bom = {id(e) for e in builder.bom[first_bom:]}
 
-    tmax = _max_step(system, K, t_stop, options)
+    tmax = step.tmax
     for i, state in enumerate(states):
         _add_integrator(builder, names, state, nodes[state], inputs[state], options, warnings)
         x0 = 0.0 if system.x0 is None else float(system.x0[i])
@@ -203,7 +210,7 @@ def synthesize(
             for i, s in enumerate(states)
         },
     )
-    return Synthesis(circuit, scale_map, builder.bom, warnings, t_stop, node_peaks)
+    return Synthesis(circuit, scale_map, builder.bom, warnings, t_stop, node_peaks, step)
 
 
 def _predicted_peaks(x, G, states, nodes, signals, options, node_peaks, warnings) -> None:
@@ -244,53 +251,6 @@ def _predicted_peaks(x, G, states, nodes, signals, options, node_peaks, warnings
                     f"alone is {abs(inner.alpha * inner.offset):.3g} V; a larger --range for "
                     f"{', '.join(rows)} lowers it)"
                 )
-
-
-def _add_forcing(system, circuit, names, nodes, inputs, G, K, options) -> None:
-    """One SIN source per forcing term (a negated one when an entry has the other sign)."""
-    for k, force in enumerate(system.forcing, start=1):
-        direction = np.asarray(force.direction, dtype=float)
-        used = np.flatnonzero(direction)
-        if used.size == 0 or force.amplitude == 0:
-            continue
-        # the source stands for the forcing in a state's units when they agree (the wheelset:
-        # metres of track displacement, scaled like y itself, so R17 = R31 in every scaling;
-        # the generator may exceed the swing: it drives a virtual ground); else 1 V per unit
-        like = [j for j, unit in enumerate(system.units) if unit and unit == force.amplitude_unit]
-        volts_per_unit = G[like[0]] if like else 1.0
-        amplitude = volts_per_unit * force.amplitude
-        key = getattr(force, "name", "") or f"forcing{k}"
-        first_sign = np.sign(direction[used[0]])
-        sources = {}
-        for sign in (first_sign, -first_sign):
-            if not np.any(np.sign(direction[used]) == sign):
-                continue
-            name = names.forcing_source(k, key, negated=sign != first_sign)
-            node = name.lower()
-            circuit.add(
-                VoltageSource(
-                    name,
-                    node,
-                    "0",
-                    waveform=Sin(
-                        0.0, sign * amplitude, force.frequency * K, 0.0, 0.0,
-                        math.degrees(force.phase),
-                    ),
-                )
-            )  # fmt: skip
-            sources[sign] = node
-        for i in used:
-            target = system.states[i]
-            entry = float(direction[i]) * force.amplitude
-            inputs[target].append(
-                _Input(
-                    names.forcing_resistor(target, k, key),
-                    sources[np.sign(direction[i])],
-                    K * G[i] * abs(entry) / abs(amplitude),
-                    float(direction[i]),
-                    f"forcing {k} -> {target} integrator (direction[{target}])",
-                )
-            )
 
 
 def _add_constants(system, circuit, names, inputs, G, K) -> None:
@@ -445,16 +405,3 @@ def _add_integrator(builder, names, state, state_nodes, state_inputs, options, w
         builder.place_resistor(name, a, b, options.r_unit, role, series="exact")
     add_opamp(circuit, names.opamp_section(state, "inverter"), "0", inv_junction, plus,
               options.opamp)  # fmt: skip
-
-
-def _max_step(system: System, K: float, t_stop: float, options: SynthesisOptions) -> float:
-    """``.tran`` maximum step (circuit seconds): the fastest period / points_per_period."""
-    eigen = np.linalg.eigvals(system.A)
-    fastest = max(
-        [abs(f.frequency) for f in system.forcing]
-        + [float(np.max(np.abs(eigen))) / (2 * np.pi) if eigen.size else 0.0]
-        + [20.0 / t_stop]
-    )
-    step = 1.0 / (options.points_per_period * fastest * K)
-    # a round number of steps, 2 significant digits, for a readable .tran line
-    return float(f"{step:.2g}")
