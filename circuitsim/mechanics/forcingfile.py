@@ -1,4 +1,5 @@
-"""The inputs of a model file beyond one sinusoid: keys per kind, and time-series points.
+"""The ``[forcing.NAME]`` tables of a model file: sinusoids, sums of sines, time series,
+steps and bumps.
 
 A ``[forcing.NAME]`` table with ``kind = "series"`` takes its points from a CSV file (two
 columns: time, value; ``#`` comments and one header line allowed) or inline (``points =
@@ -10,7 +11,10 @@ the key (and the CSV file's line). The format is documented in docs/model.md.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, replace
 from pathlib import Path
+
+from circuitsim.mechanics.expressions import Item, parse
 
 #: Keys each forcing kind takes besides description, enabled, kind, unit, enters.
 FORCING_KEYS: dict[str, tuple[str, ...]] = {
@@ -32,6 +36,113 @@ _PREFIXES = {"n": 1e-9, "u": 1e-6, "µ": 1e-6, "m": 1e-3, "c": 1e-2, "d": 1e-1, 
 #: A time series longer than this is refused: each point is a restart of the direct
 #: solution and a corner of the netlist's PWL source.
 MAX_POINTS = 20_000
+
+
+@dataclass(frozen=True)
+class ForcingSpec:
+    """A forcing group as written in ``[forcing.<name>]`` (docs/model.md, "Forcing").
+
+    ``kind`` says which fields matter: ``sine`` (amplitude, frequency, phase), ``sines``
+    (``components``: (amplitude, frequency, phase) Items), ``series`` (``points`` read from
+    the file or inline, in SI seconds and ``unit``, times ``amplitude``; ``speed``: the first
+    column is a distance in metres travelled at this speed), ``step`` (amplitude, ``start``,
+    ``rise``), ``bump`` (amplitude, ``start``, ``duration``, ``shape``).
+    """
+
+    name: str
+    key: str
+    description: str
+    enabled: bool
+    amplitude: Item
+    unit: str
+    frequency: Item
+    phase: Item
+    enters: dict[int, Item]
+    kind: str = "sine"
+    components: tuple[tuple[Item, Item, Item], ...] = ()
+    points: tuple[tuple[float, float], ...] = ()
+    speed: Item | None = None
+    start: Item | None = None
+    duration: Item | None = None
+    rise: Item | None = None
+    shape: str = "haversine"
+
+
+def _optional(reader, table: dict, name: str, key: str, default) -> Item:
+    return reader.expression(table.get(name, default), f"{key}.{name}")
+
+
+def read_forcing(reader, table: dict, key: str, enters: dict[int, Item]) -> ForcingSpec:
+    """The ``[forcing.NAME]`` table ``table`` (``enters`` already read) as a ForcingSpec.
+
+    Raises
+    ------
+    ModelError
+        An unknown kind, a key the kind does not take, a missing key, a bad series.
+    """
+    kind = reader.string(table, "kind", key, default="sine")
+    if kind not in FORCING_KEYS:
+        raise reader.fail(f"{key}.kind", f"must be one of {', '.join(FORCING_KEYS)}, got {kind!r}")
+    common = ("description", "enabled", "kind", "unit", "enters")
+    reader.check_keys(table, key, common + FORCING_KEYS[kind])
+    needed = {"sine": ("amplitude", "frequency"), "sines": ("amplitudes", "frequencies"),
+              "step": ("amplitude",), "bump": ("amplitude", "duration")}  # fmt: skip
+    for name in needed.get(kind, ()):
+        if name not in table:
+            raise reader.fail(f"{key}.{name}", "missing key")
+    default_amplitude = 1.0 if kind in ("series", "sines") else 0.0
+    spec = ForcingSpec(
+        name=key.split(".", 1)[1],
+        key=key,
+        description=reader.string(table, "description", key, default=""),
+        enabled=reader.boolean(table, "enabled", key, True),
+        amplitude=_optional(reader, table, "amplitude", key, default_amplitude),
+        unit=reader.string(table, "unit", key, default=""),
+        frequency=_optional(reader, table, "frequency", key, 0.0),
+        phase=_optional(reader, table, "phase", key, 0.0),
+        enters=enters,
+        kind=kind,
+    )
+    extra: dict = {}
+    if kind == "sines":
+        extra["components"] = _sine_components(reader, table, key)
+    elif kind == "series":
+        extra["points"] = series_points(reader, table, key)
+        if "speed" in table:
+            extra["speed"] = reader.expression(table["speed"], f"{key}.speed")
+    elif kind in ("step", "bump"):
+        extra["start"] = _optional(reader, table, "start", key, 0.0)
+        if kind == "step":
+            extra["rise"] = _optional(reader, table, "rise", key, 0.0)
+        else:
+            extra["duration"] = reader.expression(table["duration"], f"{key}.duration")
+            extra["shape"] = reader.string(table, "shape", key, default="haversine")
+            if extra["shape"] not in ("haversine", "half_sine"):
+                raise reader.fail(
+                    f"{key}.shape", f"must be haversine or half_sine, got {extra['shape']!r}"
+                )
+    return replace(spec, **extra)
+
+
+def _sine_components(reader, table: dict, key: str) -> tuple[tuple[Item, Item, Item], ...]:
+    """``amplitudes``, ``frequencies`` and optional ``phases``: arrays of one length."""
+    arrays = {}
+    for name in ("amplitudes", "frequencies", "phases"):
+        value = table.get(name)
+        if value is None:
+            continue
+        if not isinstance(value, list) or not value:
+            raise reader.fail(f"{key}.{name}", "wrong type: expected a non-empty array")
+        arrays[name] = [reader.expression(v, f"{key}.{name}[{i}]") for i, v in enumerate(value)]
+    count = len(arrays["amplitudes"])
+    for name, items in arrays.items():
+        if len(items) != count:
+            raise reader.fail(
+                f"{key}.{name}", f"wrong length: {len(items)} entries for {count} amplitudes"
+            )
+    zero = Item(f"{key}.phases", parse(0.0))
+    phases = arrays.get("phases", [zero] * count)
+    return tuple(zip(arrays["amplitudes"], arrays["frequencies"], phases, strict=True))
 
 
 def series_points(reader, table: dict, key: str) -> tuple[tuple[float, float], ...]:

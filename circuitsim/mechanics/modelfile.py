@@ -10,13 +10,13 @@ import math
 import os
 import re
 import tomllib
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
 from circuitsim.mechanics.errors import ModelError
 from circuitsim.mechanics.expressions import RESERVED, ExpressionError, Item, parse
-from circuitsim.mechanics.forcingfile import FORCING_KEYS, series_points
+from circuitsim.mechanics.forcingfile import ForcingSpec, read_forcing
 from circuitsim.mechanics.parameters import Parameter, read_parameters
 from circuitsim.mechanics.shapes import SHAPES, ShapeSpec, read_shape
 
@@ -64,36 +64,6 @@ class NonlinearSpec:
     abs_terms: tuple[AbsSpec, ...]
     t_on: Item | None
     shapes: tuple[ShapeSpec, ...] = ()
-
-
-@dataclass(frozen=True)
-class ForcingSpec:
-    """A forcing group as written in ``[forcing.<name>]`` (docs/model.md, "Forcing").
-
-    ``kind`` says which fields matter: ``sine`` (amplitude, frequency, phase), ``sines``
-    (``components``: (amplitude, frequency, phase) Items), ``series`` (``points`` read from
-    the file or inline, in SI seconds and ``unit``, times ``amplitude``; ``speed``: the first
-    column is a distance in metres travelled at this speed), ``step`` (amplitude, ``start``,
-    ``rise``), ``bump`` (amplitude, ``start``, ``duration``, ``shape``).
-    """
-
-    name: str
-    key: str
-    description: str
-    enabled: bool
-    amplitude: Item
-    unit: str
-    frequency: Item
-    phase: Item
-    enters: dict[int, Item]
-    kind: str = "sine"
-    components: tuple[tuple[Item, Item, Item], ...] = ()
-    points: tuple[tuple[float, float], ...] = ()
-    speed: Item | None = None
-    start: Item | None = None
-    duration: Item | None = None
-    rise: Item | None = None
-    shape: str = "haversine"
 
 
 @dataclass(frozen=True)
@@ -636,67 +606,7 @@ def _nonlinear(reader, table, key, states, equations, kind) -> NonlinearSpec:
 
 def _forcing(reader, table, key, equations) -> ForcingSpec:
     table = reader.table(table, key)
-    kind = reader.string(table, "kind", key, default="sine")
-    if kind not in FORCING_KEYS:
-        raise reader.fail(f"{key}.kind", f"must be one of {', '.join(FORCING_KEYS)}, got {kind!r}")
-    common = ("description", "enabled", "kind", "unit", "enters")
-    reader.check_keys(table, key, common + FORCING_KEYS[kind])
-    needed = {"sine": ("amplitude", "frequency"), "sines": ("amplitudes", "frequencies"),
-              "step": ("amplitude",), "bump": ("amplitude", "duration")}  # fmt: skip
-    for name in ("enters",) + needed.get(kind, ()):
-        if name not in table:
-            raise reader.fail(f"{key}.{name}", "missing key")
-    default_amplitude = 1.0 if kind in ("series", "sines") else 0.0
-    spec = ForcingSpec(
-        name=key.split(".", 1)[1],
-        key=key,
-        description=reader.string(table, "description", key, default=""),
-        enabled=reader.boolean(table, "enabled", key, True),
-        amplitude=_optional(reader, table, "amplitude", key, default_amplitude),
-        unit=reader.string(table, "unit", key, default=""),
-        frequency=_optional(reader, table, "frequency", key, 0.0),
-        phase=_optional(reader, table, "phase", key, 0.0),
-        enters=_row(reader, table["enters"], f"{key}.enters", equations, "first_order"),
-        kind=kind,
-    )
-    extra: dict = {}
-    if kind == "sines":
-        extra["components"] = _sine_components(reader, table, key)
-    elif kind == "series":
-        extra["points"] = series_points(reader, table, key)
-        if "speed" in table:
-            extra["speed"] = reader.expression(table["speed"], f"{key}.speed")
-    elif kind in ("step", "bump"):
-        extra["start"] = _optional(reader, table, "start", key, 0.0)
-        if kind == "step":
-            extra["rise"] = _optional(reader, table, "rise", key, 0.0)
-        else:
-            extra["duration"] = reader.expression(table["duration"], f"{key}.duration")
-            extra["shape"] = reader.string(table, "shape", key, default="haversine")
-            if extra["shape"] not in ("haversine", "half_sine"):
-                raise reader.fail(
-                    f"{key}.shape", f"must be haversine or half_sine, got {extra['shape']!r}"
-                )
-    return replace(spec, **extra)
-
-
-def _sine_components(reader, table, key) -> tuple[tuple[Item, Item, Item], ...]:
-    """``amplitudes``, ``frequencies`` and optional ``phases``: arrays of one length."""
-    arrays = {}
-    for name in ("amplitudes", "frequencies", "phases"):
-        value = table.get(name)
-        if value is None:
-            continue
-        if not isinstance(value, list) or not value:
-            raise reader.fail(f"{key}.{name}", f"wrong type: expected a non-empty array, got "
-                              f"{_type(value)}")  # fmt: skip
-        arrays[name] = [reader.expression(v, f"{key}.{name}[{i}]") for i, v in enumerate(value)]
-    count = len(arrays["amplitudes"])
-    for name, items in arrays.items():
-        if len(items) != count:
-            raise reader.fail(
-                f"{key}.{name}", f"wrong length: {len(items)} entries for {count} amplitudes"
-            )
-    zero = Item(f"{key}.phases", parse(0.0))
-    phases = arrays.get("phases", [zero] * count)
-    return tuple(zip(arrays["amplitudes"], arrays["frequencies"], phases, strict=True))
+    if "enters" not in table:
+        raise reader.fail(f"{key}.enters", "missing key")
+    enters = _row(reader, table["enters"], f"{key}.enters", equations, "first_order")
+    return read_forcing(reader, table, key, enters)
