@@ -326,7 +326,8 @@ def _parameter_help() -> str:
 
 
 def add_scenario_options(parser: argparse.ArgumentParser) -> None:
-    """--speed, --freq, --amplitude, --flange/--no-flange and --param: the run's scenario.
+    """--speed, --freq, --amplitude, --flange/--no-flange, --forcing and --param: the run's
+    scenario.
 
     Shared by the verbs that build a System from a model file (see ``scenario_system``).
     """
@@ -335,6 +336,14 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--amplitude", type=float, metavar="A", help=scenario_help("amplitude"))
     parser.add_argument(
         "--flange", action=argparse.BooleanOptionalAction, default=None, help=_switch_help()
+    )
+    parser.add_argument(
+        "--forcing",
+        action="append",
+        metavar="NAME",
+        help="switch on only this forcing group of the model (repeatable), the others off; "
+        "e.g. the wheelset's --forcing irregularity runs its random track profile instead of "
+        "the sinusoid; default: as the model file says",
     )
     parser.add_argument(
         "--param",
@@ -391,7 +400,11 @@ def scenario_system(args: argparse.Namespace, with_model: bool = False, model: M
     nonlinear = None
     if args.flange is not None:
         nonlinear = {name: args.flange for name in model.nonlinear_terms}
-    system = model.system(args.coeffs, parameters, nonlinear, x0)
+    forcing = None
+    if getattr(args, "forcing", None):
+        forcing = {name: False for name in model.forcing_terms}
+        forcing.update({name: True for name in args.forcing})  # an unknown name: ModelError
+    system = model.system(args.coeffs, parameters, nonlinear, x0, forcing=forcing)
     return (model, system) if with_model else system
 
 

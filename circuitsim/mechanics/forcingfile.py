@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from importlib import resources
 from pathlib import Path
 
 from circuitsim.mechanics.expressions import Item, parse
@@ -239,12 +240,16 @@ def _inline_points(reader, value, key: str) -> list[tuple[float, float, str]]:
 
 
 def _csv_points(reader, value, key: str) -> list[tuple[float, float, str]]:
-    """Rows of a two-column CSV file beside the model file (or an absolute path)."""
+    """Rows of a two-column CSV file: an absolute path, or a name beside the model file, else
+    among the shipped models' files (circuitsim/mechanics/models/)."""
     if not isinstance(value, str) or not value.strip():
         raise reader.fail(key, "wrong type: expected a file name (a string)")
     path = Path(value)
     if not path.is_absolute():
-        path = Path(reader.file).parent / path
+        beside = Path(reader.file).parent / path
+        # a copy of a shipped model still finds the shipped profile it names
+        shipped = Path(str(resources.files("circuitsim.mechanics") / "models")) / path
+        path = beside if beside.exists() or not shipped.exists() else shipped
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:

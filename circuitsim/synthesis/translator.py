@@ -140,6 +140,8 @@ def synthesize(
     t_stop = float(options.t_stop or hints.get("t_stop", 5.0))
     if options.time_scale is None:  # the model file's [circuit] time_scale, else real time
         options = replace(options, time_scale=float(hints.get("time_scale", 1.0)))
+    if not (math.isfinite(t_stop) and t_stop > 0):
+        raise SynthesisError(f"t_stop must be a positive number of seconds, got {t_stop:g}")
     K = options.time_scale
     unknown = sorted(set(options.ranges) - set(system.states))
     if unknown:

@@ -14,6 +14,7 @@ from circuitsim.cli import main
 from circuitsim.mechanics import load_model
 from circuitsim.netlist.errors import NetlistError
 from circuitsim.synthesis.check import check_mapping
+from circuitsim.synthesis.errors import SynthesisError
 from circuitsim.synthesis.generate import generate
 from circuitsim.synthesis.options import SynthesisOptions
 
@@ -69,18 +70,27 @@ def test_a_bad_output_path_fails_before_the_translation(
     assert list(tmp_path.iterdir()) == []
 
 
-def test_a_netlist_that_does_not_read_back_writes_nothing(tmp_path, system):
+def test_a_netlist_that_does_not_read_back_writes_nothing(tmp_path, system, monkeypatch):
     netlist = tmp_path / "w.cir"
     generate(system, netlist)
     before = snapshot(tmp_path)
-    # A hint no SPICE can run: the netlist's .tran gets a negative stop time.
-    broken = replace(system, circuit_hints={**system.circuit_hints, "t_stop": -5.0})
-    with pytest.raises(NetlistError, match="tstop must be positive"):
-        generate(broken, netlist)
+    # A writer that emits a line no reader takes (a resistor with one node)
+    written = generate_module.write_netlist(generate_module.synthesize(system).circuit)
+    broken = written.replace(".end\n", "RBROKEN a\n.end\n")
+    monkeypatch.setattr(generate_module, "write_netlist", lambda circuit, dialect: broken)
+    with pytest.raises(NetlistError, match="RBROKEN"):
+        generate(system, netlist)
     assert snapshot(tmp_path) == before
     with pytest.raises(NetlistError):
-        generate(broken, tmp_path / "fresh.cir")
+        generate(system, tmp_path / "fresh.cir")
     assert snapshot(tmp_path) == before
+
+
+def test_a_negative_stop_time_is_refused_before_anything_is_written(tmp_path, system):
+    broken = replace(system, circuit_hints={**system.circuit_hints, "t_stop": -5.0})
+    with pytest.raises(SynthesisError, match="t_stop"):
+        generate(broken, tmp_path / "w.cir")
+    assert snapshot(tmp_path) == {}
 
 
 def test_the_report_is_the_check_of_the_files_written(tmp_path, system):
