@@ -22,9 +22,10 @@ from circuitsim.mechanics.errors import IntegrationError
 from circuitsim.mechanics.limits import Budget, BudgetExhausted, guarded_method
 from circuitsim.mechanics.solve import solve
 from circuitsim.mechanics.system import Sinusoid, System
+from circuitsim.synthesis.bounds import fit_blocks, fit_spread
 from circuitsim.synthesis.errors import SynthesisError
 from circuitsim.synthesis.eseries import floor_to_series
-from circuitsim.synthesis.options import SWING_LIMIT, SynthesisOptions
+from circuitsim.synthesis.options import SynthesisOptions
 
 
 @dataclass(frozen=True)
@@ -201,58 +202,6 @@ def choose_scaling(
             continue
         # a readable scale (E24 value) just below the one that reaches the swing exactly
         gains[i] = floor_to_series(options.swing / peaks[i], "E24")
-    _fit_abs_blocks(system, options, gains, peaks, x, warnings)
+    fit_blocks(system, options, gains, peaks, x, warnings)
+    fit_spread(system, options, gains, warnings)
     return Scaling(gains, peaks, options.time_scale, tuple(warnings))
-
-
-# |x| block outputs are kept at or below this fraction of the op-amps' swing (a clipped output
-# sits just below the swing; the margin keeps the block's diodes and summer off the rail)
-ABS_BLOCK_MARGIN = 0.9
-
-
-def _fit_abs_blocks(system, options, gains, peaks, x, warnings) -> None:
-    """Lower the scales of states whose |x| blocks would pass the op-amps' swing (in place).
-
-    A block realizes alpha |r . x + offset| with alpha = min_j G_j / |r_j| (pwl.py): its
-    offset adds alpha |offset| whatever the states' own peaks, so a state scaled to 5 V can
-    drive a block past a TL074's 13 V (|u + 1| with u peaking at 0.2: 29 V). The states of
-    such a row get E24 scales low enough for ``ABS_BLOCK_MARGIN`` of the swing, each change
-    named in ``warnings``. ``x`` (shape (n, m)) is the direct solution, or None when every
-    range was given (then |r . x + offset| <= sum_j |r_j| peak_j + |offset|).
-    """
-    limit = SWING_LIMIT[options.opamp] * ABS_BLOCK_MARGIN
-    if options.nonlinear != "abs" or not math.isfinite(limit):
-        return
-    pieces = [
-        (term.name, np.asarray(piece.row, dtype=float), float(piece.offset))
-        for term in system.nonlinear
-        for piece in term.abs_terms
-        if piece.gain != 0 and np.any(piece.row)
-    ]
-    before = gains.copy()
-    blamed: dict[int, set[str]] = {}
-    for _ in range(len(pieces) * len(gains) + 1):  # scales only fall: this ends
-        lowered = False
-        for name, row, offset in pieces:
-            used = np.flatnonzero(row)
-            alpha = float(min(gains[j] / abs(row[j]) for j in used))
-            if x is not None:
-                peak = float(np.max(np.abs(row @ x + offset)))
-            else:
-                peak = float(np.sum(np.abs(row) * peaks) + abs(offset))
-            if alpha * peak <= limit:
-                continue
-            factor = limit / (alpha * peak)
-            for j in used:
-                gains[j] = floor_to_series(gains[j] * factor, "E24")
-                blamed.setdefault(int(j), set()).add(name)
-            lowered = True
-        if not lowered:
-            break
-    for j in sorted(blamed):
-        warnings.append(
-            f"state {system.states[j]} scaled to {gains[j]:.3g} V per unit instead of "
-            f"{before[j]:.3g}, so that the |x| blocks of {', '.join(sorted(blamed[j]))} (with "
-            f"their offsets) stay within {ABS_BLOCK_MARGIN:g} of the {options.opamp} op-amp's "
-            f"{SWING_LIMIT[options.opamp]:g} V swing"
-        )

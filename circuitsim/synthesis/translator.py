@@ -38,6 +38,7 @@ from circuitsim.netlist.circuit import (
     VoltageSource,
 )
 from circuitsim.synthesis.blocks import BomEntry, Builder
+from circuitsim.synthesis.bounds import check_buildable
 from circuitsim.synthesis.errors import SynthesisError
 from circuitsim.synthesis.eseries import CAPACITOR_DECADES
 from circuitsim.synthesis.inputs import add_forcing
@@ -201,6 +202,8 @@ def synthesize(
     for cap in (e for e in circuit.elements if isinstance(e, Capacitor)):
         cap.ic = circuit.initial_conditions[cap.positive]
     circuit.analyses.append(Transient(tstep=tmax, tstop=t_stop / K, tmax=tmax, uic=True))
+    if options.scaling != "unity":  # unity scaling is the paper's mapping, asked for as it is
+        check_buildable(circuit, options, {e.part.lower(): e.role for e in builder.bom})
 
     node_peaks: dict[str, float] = {}
     if trajectory is not None:
