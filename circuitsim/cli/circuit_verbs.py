@@ -164,7 +164,7 @@ def _run_generate(args: argparse.Namespace) -> int:
     _print_warnings(result.synthesis)
     print(f"wrote {result.netlist}, {result.scale_file}, {result.bom_file}")
     _print_fits(system)
-    print(result.synthesis.step.describe(options.time_scale))
+    print(result.synthesis.step.describe(result.synthesis.scale_map.time_scale))
     print(result.report.summary())
     return 0 if result.report.ok else 1
 
@@ -302,7 +302,7 @@ def _run_compare(args: argparse.Namespace) -> int:
             critical_speed_model=getattr(report, "critical_speed_model", None),
             critical_speed_circuit=getattr(report, "critical_speed_realized", None),
             timings_s=case.timings,
-            time_step=case.synthesis.step.describe(options.time_scale),
+            time_step=case.synthesis.step.describe(case.synthesis.scale_map.time_scale),
         )
         print(json.dumps(data, indent=1))
         if written:  # stdout holds the JSON alone
@@ -310,7 +310,8 @@ def _run_compare(args: argparse.Namespace) -> int:
     else:
         if written:
             print(f"wrote {', '.join(written)}")
-        print(f"circuit ({label}) against the ODE; {case.synthesis.step.describe()}")
+        step = case.synthesis.step.describe(case.synthesis.scale_map.time_scale)
+        print(f"circuit ({label}) against the ODE; {step}")
         print(comparison.table())
         if report is not None:
             print(report.summary())
