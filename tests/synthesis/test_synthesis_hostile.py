@@ -30,10 +30,13 @@ def test_a_coefficient_of_1e_320_is_refused_by_name(tmp_path):
         synthesize(system)
 
 
-def test_a_tiny_coefficient_still_in_the_float_range_is_built(tmp_path):
-    # 1e-290 1/s: a 1e295 ohm resistor (far outside the range, and warned), not a crash
+def test_a_tiny_coefficient_still_in_the_float_range_is_refused_by_name(tmp_path):
+    # 1e-290 1/s: a 1e295 ohm resistor, which no part builds: refused naming it (synthesis/
+    # bounds.py), not a crash; unity scaling (the paper's mapping, taken as asked) builds it
     system = model(tmp_path, "[matrices]\nA = [[-1e-290]]\n[initial]\nx = 1\n").system()
-    result = synthesize(system)
+    with pytest.raises(SynthesisError, match=r"R11 would be 1e\+295 ohm \(x -> x integrator"):
+        synthesize(system)
+    result = synthesize(system, SynthesisOptions(scaling="unity"))
     resistors = [e for e in result.bom if e.unit == "ohm" and "A[x, x]" in e.role]
     assert resistors and math.isclose(resistors[0].value, 1e295, rel_tol=0.02)
     assert any("is outside" in w for w in result.warnings)
