@@ -234,10 +234,12 @@ class TermBuilder:
             inputs.append((f"ABS{m}", out, abs(c), abs(c), f"{term.name}: |x| block {m}"))
         if term.constant:
             source = f"{n}_const"
-            self.b.circuit.add(
-                VoltageSource(f"V{prefix}_CONST", source, "0", dc=-sigma * beta * term.constant)
-            )
-            inputs.append(("CONST", source, 1.0, 1.0, f"{term.name}: constant"))
+            volts = -sigma * beta * term.constant
+            # at most 1 V from the source, the rest as the summer's weight: a constant of
+            # 17.5 V would be a bias no +-15 V circuit has (synthesis/bounds.py)
+            weight = max(1.0, abs(volts))
+            self.b.circuit.add(VoltageSource(f"V{prefix}_CONST", source, "0", dc=volts / weight))
+            inputs.append(("CONST", source, weight, weight, f"{term.name}: constant"))
         out = f"{n}_sig"
         self.b.summer(f"{prefix}_SUM", f"{prefix}_SUM", out, inputs, self.r_unit)
         return out, beta
