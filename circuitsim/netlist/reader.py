@@ -78,7 +78,6 @@ from circuitsim.netlist.reader_lines import (
     select_sections,
 )
 from circuitsim.netlist.reader_params import split_assignments
-from circuitsim.netlist.topology import negative_hysteresis
 from circuitsim.netlist.values import looks_numeric
 
 __all__ = ["parse_netlist", "read_netlist", "NetlistWarning", "LIBRARY_DIR"]
@@ -271,7 +270,13 @@ class _Reader:
         if fold(name) in scope.models:
             raise line.error(f"model {name!r} defined twice")
         scope.models[fold(name)] = Model(name, kind, params)
-        problem = negative_hysteresis(scope.models[fold(name)])
+        # topology (and networkx with it, a third of a second) only for a model that sets VH
+        vh = params.get("vh")
+        problem = None
+        if isinstance(vh, float | int) and vh < 0:
+            from circuitsim.netlist.topology import negative_hysteresis
+
+            problem = negative_hysteresis(scope.models[fold(name)])
         if problem:
             warnings.warn(f"{line.file}:{line.number}: {problem}", NetlistWarning, stacklevel=4)
 
