@@ -72,8 +72,8 @@ class SimulationOptions:
         circuit or the machine does not allow it), ``"ports"`` (compiled, Newton on the
         junction voltages alone: solver/compiled/ports.py; same conditions), ``"python"``
         (the reference engine, solver/transient.py) or ``"auto"`` (default: when numba is
-        installed and the circuit is supported, ports up to 64 junctions and compiled above
-        (solver/compiled/__init__.py, PORTS_MAX_JUNCTIONS), else python;
+        installed and the circuit is supported, ports at every size (solver/compiled/runner.py,
+        auto_kernel), else python;
         ``Waveforms.stats["kernel"]`` says which ran).
     """
 

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 from circuitsim.solver.compiled.cache import check_cache, clear_stale_cache
 from circuitsim.solver.compiled.runner import (
-    PORTS_MAX_JUNCTIONS,
     PortsStart,
     auto_kernel,
     kernel_unavailable,
@@ -32,7 +31,6 @@ from circuitsim.solver.compiled.runner import (
 from circuitsim.solver.compiled.warmup import WARM_UP_NETLIST, warm_up
 
 __all__ = [
-    "PORTS_MAX_JUNCTIONS",
     "WARM_UP_NETLIST",
     "PortsStart",
     "auto_kernel",

@@ -11,8 +11,11 @@ from the third iteration on) is checked by one refinement step against the full 
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
-from numba import njit
+from numba import njit, objmode
+from numba.core.errors import NumbaWarning
 
 from circuitsim.solver.compiled.devices import junction_charge, junction_current, pnjlim
 from circuitsim.solver.compiled.lowrank import (
@@ -23,7 +26,12 @@ from circuitsim.solver.compiled.lowrank import (
     source_solution,
     update,
 )
+from circuitsim.solver.compiled.sparse_factors import sparse_port_factors
 from circuitsim.solver.port_solver import REFINE_FRACTION
+
+# factor_now leaves compiled code for SuperLU holding the GIL (nogil loops run in threads:
+# only the factorizations, a few per run, are serialized); numba warns about it when compiling
+warnings.filterwarnings("ignore", "Code running in object mode", NumbaWarning)
 
 # a junction current change that moves no unknown by more than this fraction of its absolute
 # tolerance (vntol, abstol) is not applied until it grows (junction_response)
@@ -37,14 +45,28 @@ ACTIVE_JUNCTIONS = 14  # the compiled kernel's: junction columns active in the l
 # the loop returns PAUSED once this many steps were attempted, so that the caller can check
 # its wall-time limit and Ctrl-C (both loops; slots 15-17 are port_state.py's)
 PAUSE_ATTEMPTS = 18
-COUNTERS = 19  # size of KernelState.ints
+# (both loops) active junctions the last refactor made during the run left, and that
+# refactor's VERSION (see rebase_wanted)
+AFTER_REFACTOR, MEASURED_VERSION = 19, 20
 
-# More active junctions than this at the end of REBASE_STEPS accepted steps in a row: refactor
-# at the present conductances (both compiled loops). Measured on the TL074 wheelset from its
-# uic start (every junction factored at 0 V): the ports kernel took 0.89 s keeping that
-# factorization all run, 0.09 s with this rule (3 factorizations); the ideal wheelset (4
-# junctions) never reaches it.
+# When to refactor at the present conductances because many junctions stay active (both
+# compiled loops). A factorization made at a solution leaves active only the junctions whose
+# conductance keeps changing (those conducting forward: about half of a precision rectifier's);
+# a refactor cannot make fewer than that, so the rule is relative to what the last one left:
+# more than REBASE_ACTIVE and more than REBASE_GROWTH times that count, at the end of
+# REBASE_STEPS accepted steps in a row. A uic start's factorization (every junction at 0 V)
+# left nothing measured, so the first refactor comes once more than REBASE_ACTIVE stay active
+# (the TL074 wheelset: 0.89 s on that one factorization, 0.09 s after one refactor); the
+# absolute count alone refactored every 8 steps from 16 junctions on (docs/solver.md).
 REBASE_ACTIVE = 8
+REBASE_GROWTH = 2
+
+
+@njit(cache=True, inline="always")
+def rebase_wanted(active, after_refactor):
+    """Whether ``active`` junction columns in the last Newton iteration of an accepted step
+    are many more than the ``after_refactor`` a refactor at a solution left (0: none yet)."""
+    return active > REBASE_ACTIVE and active > REBASE_GROWTH * after_refactor
 
 
 @njit(cache=True, inline="always")
@@ -77,9 +99,22 @@ def port_values(gd, g_switch, state, r, a0):
 
 @njit(cache=True)
 def factor_now(plan, st, a0):
-    """Refactor at the present values and bump the factorization version."""
+    """Refactor at the present values and bump the factorization version: densely in
+    compiled code (lowrank.rebuild), or with SuperLU when the state has no room for the dense
+    matrices (sparse_factors.py; the ports kernel above SPARSE_FROM unknowns)."""
     values = port_values(st.gd, plan.g_switch, st.state, plan.VT.shape[0], a0)
-    rebuild(st.fac, plan, a0, values)
+    fac = st.fac
+    if fac.Binv.shape[0] == fac.yc.size:
+        rebuild(fac, plan, a0, values)
+    else:
+        with objmode(singular="int64"):
+            singular = sparse_port_factors(
+                plan.G, plan.M, plan.U, plan.VT, plan.port_p, plan.port_n, values, a0,
+                plan.rhs_const, plan.src_unit, plan.abs_tol, fac.Z, fac.ZT, fac.K, fac.ZdT,
+                fac.KdT, fac.zrel, fac.Zq, fac.Kq, fac.yc, fac.cc, fac.Yb, fac.Cb, fac.ref,
+            )  # fmt: skip
+        if singular:
+            raise np.linalg.LinAlgError("singular matrix")
     st.ints[FACTORIZATIONS] += 1
     st.ints[VERSION] += 1
 

@@ -41,6 +41,11 @@ CHARGE_PARAMS = (
 )
 
 
+# size of the loops' integer state (KernelState.ints, PortState.ints): compiled/newton.py's
+# slots and port_state.py's
+INT_SLOTS = 21
+
+
 class KernelPlan(NamedTuple):
     """Constant data of one transient run (shapes: n unknowns, md junctions, ms switches,
     nl linear charges, r = md + ms + nl low-rank columns, ns sources)."""
@@ -106,12 +111,14 @@ class Factors(NamedTuple):
     b_val: np.ndarray
 
 
-def empty_factors(n: int, r: int, md: int, nl: int, ns: int) -> Factors:
-    """Zero arrays of the right shapes, for :func:`rebuild` to fill."""
+def empty_factors(n: int, r: int, md: int, nl: int, ns: int, dense: bool = True) -> Factors:
+    """Zero arrays of the right shapes, for :func:`rebuild` to fill; without ``dense``, B, its
+    inverse and its CSR form are empty (factor_now then factors with SuperLU)."""
     z = np.zeros
+    nd = n if dense else 0
     return Factors(
-        z((n, n)),
-        z((n, n)),
+        z((nd, nd)),
+        z((nd, nd)),
         z((n, r)),
         z((r, n)),
         z((r, r)),
@@ -125,9 +132,9 @@ def empty_factors(n: int, r: int, md: int, nl: int, ns: int) -> Factors:
         z(r),
         z((n, ns)),
         z((r, ns)),
-        z(n + 1, dtype=np.int64),
-        z(n * n, dtype=np.int64),
-        z(n * n),
+        z(nd + 1, dtype=np.int64),
+        z(nd * nd, dtype=np.int64),
+        z(nd * nd),
     )
 
 
@@ -162,8 +169,6 @@ class KernelState(NamedTuple):
 
 def unsupported(system: MnaSystem) -> str | None:
     """Why the kernel cannot run this system, or None when it can."""
-    if system.size > MAX_UNKNOWNS:
-        return f"{system.size} unknowns (the kernel's dense algebra stops at {MAX_UNKNOWNS})"
     parts = []
     for family in system.families:
         part = family.kernel_data()
@@ -178,9 +183,6 @@ def unsupported(system: MnaSystem) -> str | None:
     if ranks == 0:
         return "no charges, junctions or switches (nothing for the kernel to integrate)"
     return None
-
-
-MAX_UNKNOWNS = 600
 
 
 def _csr(name: str, matrix: np.ndarray) -> dict:
@@ -374,6 +376,7 @@ def start_counters(size: int) -> np.ndarray:
     ints[10] = 1  # one output point (t = 0)
     ints[13] = -1
     ints[18] = np.iinfo(np.int64).max  # PAUSE_ATTEMPTS: no pause until the caller sets one
+    ints[20] = 1  # newton.MEASURED_VERSION: the start's factorization is version 1
     return ints
 
 
@@ -391,7 +394,7 @@ def initial_state(
     out_x[0] = x0
     return KernelState(
         fs=np.array([0.0, 0.0, 0.0, np.nan]),
-        ints=start_counters(19),
+        ints=start_counters(INT_SLOTS),
         ht=np.zeros(4),
         hx=hx,
         hq=hq,

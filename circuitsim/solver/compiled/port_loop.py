@@ -28,21 +28,23 @@ from circuitsim.solver.compiled.devices import (
 )
 from circuitsim.solver.compiled.lowrank import NEGLIGIBLE
 from circuitsim.solver.compiled.newton import (
+    AFTER_REFACTOR,
     ATTEMPTS,
     COUNT,
     FIRST,
     JUNCTION_NEGLIGIBLE,
     LAST_A0,
+    MEASURED_VERSION,
     NEWTON,
     NHIST,
     PAUSE_ATTEMPTS,
-    REBASE_ACTIVE,
     REJECTED,
     SAME_A0,
     VERSION,
     H,
     T,
     factor_now,
+    rebase_wanted,
 )
 from circuitsim.solver.compiled.port_state import (
     ACTIVE_STREAK,
@@ -469,7 +471,10 @@ def run(plan, st, t_until):
             break
 
         # accept
-        if m_last > REBASE_ACTIVE:
+        if si[VERSION] != si[MEASURED_VERSION]:  # the first accepted step on a new refactor
+            si[AFTER_REFACTOR] = m_last
+            si[MEASURED_VERSION] = si[VERSION]
+        if rebase_wanted(m_last, si[AFTER_REFACTOR]):
             si[ACTIVE_STREAK] += 1
         else:
             si[ACTIVE_STREAK] = 0

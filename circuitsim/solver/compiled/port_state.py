@@ -7,11 +7,13 @@ from typing import NamedTuple
 import numpy as np
 
 from circuitsim.solver.compiled.plan import (
+    INT_SLOTS,
     KernelPlan,
     device_states,
     empty_factors,
     start_counters,
 )
+from circuitsim.solver.compiled.sparse_factors import SPARSE_FROM
 
 # extra slots beyond compiled/newton.py's indices
 CFG_A0 = 4  # fs: the a0 the configuration was made for
@@ -26,7 +28,7 @@ class PortState(NamedTuple):
     eliminated ports, r = md + rR, nq charge slots, nrows recorded unknowns)."""
 
     fs: np.ndarray  # (5,) t, h, saved h, last a0, configuration a0
-    ints: np.ndarray  # (19,) counters and flags (compiled/newton.py indices, CFG_*, ...)
+    ints: np.ndarray  # (INT_SLOTS,) counters and flags (compiled/newton.py indices, CFG_*, ...)
     ht: np.ndarray  # (4,) accepted times, newest first
     hq: np.ndarray  # (4, nq) charges there
     hi: np.ndarray  # (2, nq) their derivatives
@@ -94,7 +96,7 @@ def initial_port_state(
     rows = np.ascontiguousarray(rows, dtype=np.int64)
     out_x = np.zeros((capacity, rows.size))
     out_x[0] = x0[rows]
-    ints = start_counters(19)
+    ints = start_counters(INT_SLOTS)
     ints[CFG_VERSION] = -1
     z = np.zeros
     return PortState(
@@ -108,7 +110,7 @@ def initial_port_state(
         x_ext=x_ext.copy(),
         x_prev_ext=x_ext.copy(),
         **device_states(families),
-        fac=empty_factors(n, r, md, plan.lin_slots.size, plan.src_kind.size),
+        fac=empty_factors(n, r, md, plan.lin_slots.size, plan.src_kind.size, dense=n < SPARSE_FROM),
         dR=z(rR),
         F=z((rR, rR)),
         G=z((rR, rR)),

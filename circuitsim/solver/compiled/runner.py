@@ -34,12 +34,6 @@ from circuitsim.solver.errors import (
 from circuitsim.solver.system import MnaSystem
 from circuitsim.solver.transient import recorded, run_transient, start_transient, wall_deadline
 
-# ``kernel="auto"`` runs the ports kernel up to this many junctions, the compiled kernel above.
-# A ports iteration solves for the active junctions only, and H is formed column by column as
-# needed (ports.py); but the kernel keeps md x md matrices. Measured (docs/performance.md):
-# both wheelset circuits, 4 junctions / 54 unknowns and 56 junctions / 266 unknowns, run
-# faster on ports than on compiled; larger circuits were not measured.
-PORTS_MAX_JUNCTIONS = 64
 # The loop returns to Python after FIRST_PAUSE attempted steps, then after about PAUSE_SECONDS
 # of work, to check the wall-time limit. Each return restarts the loop's local caches (its
 # results then differ in round-off, not beyond its tolerances): the first chunk is long
@@ -61,9 +55,10 @@ def kernel_unavailable(system: MnaSystem) -> str | None:
 
 
 def auto_kernel(system: MnaSystem) -> str:
-    """``"ports"`` or ``"compiled"``: the one ``kernel="auto"`` runs for a supported system."""
-    junctions = sum(f.port_nodes[0].size for f in system.nonlinear if f.port_nodes is not None)
-    return "ports" if junctions <= PORTS_MAX_JUNCTIONS else "compiled"
+    """The kernel ``kernel="auto"`` runs for a supported system: ``"ports"`` at every size
+    (measured faster than the full compiled kernel on every circuit of the scaling benchmark;
+    docs/performance.md)."""
+    return "ports"
 
 
 def transient_runner(system: MnaSystem, stats: dict) -> Callable:

@@ -24,25 +24,28 @@ from circuitsim.solver.compiled.lowrank import add_u_columns, csr_matvec
 from circuitsim.solver.compiled.newton import (
     ACCEPTED,
     ACTIVE_JUNCTIONS,
+    AFTER_REFACTOR,
     AT_BREAK,
     ATTEMPTS,
     BI,
     COUNT,
     FIRST,
     LAST_A0,
+    MEASURED_VERSION,
     NEWTON,
     NHIST,
     ORDER,
     PAUSE_ATTEMPTS,
-    REBASE_ACTIVE,
     REJECTED,
     SAME_A0,
     SAVED_H,
+    VERSION,
     H,
     T,
     extend,
     factor_now,
     newton,
+    rebase_wanted,
 )
 
 REBASE_STEPS = 8  # refactor when this many accepted steps in a row used one new a0
@@ -370,7 +373,11 @@ def run(plan, st, t_until):
             break
 
         # accept
-        stale_streak = stale_streak + 1 if si[ACTIVE_JUNCTIONS] > REBASE_ACTIVE else 0
+        if si[VERSION] != si[MEASURED_VERSION]:  # the first accepted step on a new refactor
+            si[AFTER_REFACTOR] = si[ACTIVE_JUNCTIONS]
+            si[MEASURED_VERSION] = si[VERSION]
+        wanted = rebase_wanted(si[ACTIVE_JUNCTIONS], si[AFTER_REFACTOR])
+        stale_streak = stale_streak + 1 if wanted else 0
         t = next_break if landing else t + h
         for i in range(n + 1):
             x_prev_ext[i] = x_ext[i]
