@@ -32,7 +32,7 @@ def nrmsd_percent(ours, theirs):
 
 
 def test_every_shipped_model_loads_by_name():
-    assert {"wheelset", "bogie", "wheelset_creep"} <= set(shipped_models())
+    assert {"wheelset", "bogie", "wheelset_creep", "quarter_car"} <= set(shipped_models())
     for name in shipped_models():
         assert load_model(name).name == name
 
@@ -130,3 +130,55 @@ def test_shipped_models_critical_speeds(name):
     # wheelset_creep's linear part is MODEL.md's derived set (55.626 m/s, 8.470 Hz)
     expected = {"wheelset_creep": (55.626, 8.470), "bogie": (67.161, 5.251)}[name]
     assert (speed, frequency) == pytest.approx(expected, abs=1.5e-3)
+
+
+def quarter_car_reference(v=10.0, t_stop=3.0, progressive=True):
+    ms, mu, ks, cs, kt, d0 = 400.0, 40.0, 2.0e4, 1.5e3, 2.0e5, 0.1
+    cubic = ks / d0**2 if progressive else 0.0
+    gap_c, gap_r, k_bs, k_rb = 0.04, 0.06, 10 * ks, 5 * ks
+    # the road of the file: distance (m), elevation (mm); run over at v
+    road = np.array([[0, 0], [5, 0], [6, 60], [9, 60], [10, 0], [20, 0], [20.5, -40],
+                     [21.5, -40], [22, 0], [40, 0]], dtype=float)  # fmt: skip
+    times, heights = road[:, 0] / v, road[:, 1] / 1000
+
+    def bump_stops(d):  # compression below -gap_c, rebound above gap_r
+        return k_bs * np.minimum(d + gap_c, 0) + k_rb * np.maximum(d - gap_r, 0)
+
+    def rhs(t, x):
+        zs, zu, vs, vu = x
+        d = zs - zu
+        suspension = cs * (vs - vu) + ks * d + cubic * d**3 + bump_stops(d)  # smooth
+        zr = np.interp(t, times, heights)
+        return np.array([vs, vu, -suspension / ms, (suspension - kt * (zu - zr)) / mu])
+
+    # one solve_ivp per stretch between the road's corners (a step across one loses order)
+    edges = [0.0, *[c for c in times if 0 < c < t_stop], t_stop]
+    x0, pieces = np.zeros(4), []
+    for start, stop in zip(edges[:-1], edges[1:], strict=True):
+        piece = solve_ivp(rhs, (start, stop), x0, method="DOP853", rtol=1e-11, atol=1e-13,
+                          max_step=5e-4, dense_output=True)  # fmt: skip
+        pieces.append((start, stop, piece.sol))
+        x0 = piece.y[:, -1]
+
+    def sol(t):
+        return np.column_stack([next(s for a, b, s in pieces if a <= ti <= b)(ti) for ti in t])
+
+    return sol
+
+
+def test_quarter_car_matches_its_equations_solved_by_scipy():
+    system = load_model("quarter_car").system()
+    ours = solve(system, (0, 3.0))
+    t = np.linspace(0, 3.0, 3001)
+    x_ours, x_theirs = ours.sol(t), quarter_car_reference()(t)
+    # the progression is fitted within 0.5 % of ks d0 (10 N): that much force, all through
+    for k, state in enumerate(system.states):
+        assert nrmsd_percent(x_ours[k], x_theirs[k]) < 0.2, state  # measured 0.029-0.101
+    deflection = x_theirs[0] - x_theirs[1]
+    assert deflection.min() < -0.04 and deflection.max() > 0.06  # both stops are struck
+    # without the progression nothing is fitted: the rest of the equations agree exactly
+    linear_spring = load_model("quarter_car").system(nonlinear={"progression": False})
+    x_ours = solve(linear_spring, (0, 3.0)).sol(t)
+    x_theirs = quarter_car_reference(progressive=False)(t)
+    for k, state in enumerate(system.states):
+        assert nrmsd_percent(x_ours[k], x_theirs[k]) < 1e-5, state
