@@ -9,7 +9,10 @@ abs``), and the wheelset. Both engines run the same netlist file, side by side i
   parsed and the operating point solved outside it) against our ``simulate()`` on the parsed
   Circuit (assembly, operating point and transient: more than ngspice's figure counts);
 - whole process: ``ngspice -b deck`` against ``python -m circuitsim simulate deck --csv``
-  (start-up, imports, parsing, compiled-kernel loading, output of the probed states).
+  (start-up, imports, parsing, compiled-kernel loading, output of the probed states);
+- CPU time (user + system), which a loaded machine disturbs far less than wall time: the
+  whole ngspice process (its parse and operating point included) against our in-process
+  ``simulate()``.
 
 Accuracy is the %NRMSD of each engine's traces of the probed states (x1 and xN, through the
 scale file) against the direct ODE solution at rtol 1e-10, the worst of them. The growth
@@ -19,6 +22,7 @@ exponent of an engine is the slope of log(time) against log(N) over the chains w
 from __future__ import annotations
 
 import re
+import resource
 import shutil
 import subprocess
 import sys
@@ -118,6 +122,7 @@ def ngspice_run(netlist: Path) -> dict:
         deck = Path(tmp) / "deck.cir"
         deck.write_text(body + f"\n.control\nrun\nrusage trantime\nwrite {raw}\n.endc\n.end\n")
         started = time.perf_counter()
+        children = resource.getrusage(resource.RUSAGE_CHILDREN)
         done = subprocess.run(
             [shutil.which("ngspice") or "ngspice", "-b", str(deck)],
             cwd=str(netlist.parent),
@@ -126,19 +131,21 @@ def ngspice_run(netlist: Path) -> dict:
             stdin=subprocess.DEVNULL,
         )
         process = time.perf_counter() - started
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = (after.ru_utime - children.ru_utime) + (after.ru_stime - children.ru_stime)
         found = re.search(r"Transient analysis time\s*=\s*([0-9.eE+-]+)", done.stdout)
         if not found or not raw.exists():
             tail = (done.stdout + done.stderr).strip().splitlines()[-3:]
             return {"error": "ngspice: " + " / ".join(tail), "process_s": process}
         waves = parse_rawfile(raw.read_bytes())
-    return {"solve_s": float(found.group(1)), "process_s": process, "waves": waves}
+    return {"solve_s": float(found.group(1)), "process_s": process, "cpu_s": cpu, "waves": waves}
 
 
 def ours_in_process(case: dict) -> dict:
     """simulate() on the parsed netlist (kernel=auto), timed without the parse."""
     circuit = read_netlist(case["netlist"])
     options = SimulationOptions.from_circuit(circuit)
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.process_time()
     try:
         waves = simulate(circuit, options)
     except Exception as exc:  # noqa: BLE001 - a failing engine is a result to report
@@ -147,6 +154,7 @@ def ours_in_process(case: dict) -> dict:
     stats = waves.stats
     return {
         "solve_s": seconds,
+        "cpu_s": time.process_time() - cpu,
         "waves": waves,
         "kernel": stats.get("kernel"),
         "steps": stats.get("accepted"),
@@ -199,6 +207,8 @@ def measure(case: dict, log) -> dict:
         ngspice_s=ngspice.get("solve_s"),
         ngspice_process_s=ngspice_process,
         ngspice_error=ngspice.get("error"),
+        ngspice_cpu_s=ngspice.get("cpu_s"),
+        ours_cpu_s=ours.get("cpu_s"),
         ours_s=ours.get("solve_s"),
         ours_process_s=process["process_s"],
         ours_error=ours.get("error") or process["error"],
@@ -215,6 +225,7 @@ def measure(case: dict, log) -> dict:
     if row["ours_s"] and row["ngspice_s"] and not row["ours_error"]:
         row["ratio"] = row["ours_s"] / row["ngspice_s"]
         row["ratio_process"] = row["ours_process_s"] / row["ngspice_process_s"]
+        row["ratio_cpu"] = row["ours_cpu_s"] / row["ngspice_cpu_s"]
     log(
         f"  {row['label']} ({row['opamp']}): ours {_g(row['ours_s'])} s "
         f"({_g(row['ours_process_s'])} s process, {row['kernel']}, "
@@ -277,6 +288,8 @@ def run(folder: Path, quick: bool, log, sizes=None, opamps=("ideal", "tl074")) -
             "ngspice": growth(rows, "ngspice_s"),
             "ours_process": growth(rows, "ours_process_s"),
             "ngspice_process": growth(rows, "ngspice_process_s"),
+            "ours_cpu": growth(rows, "ours_cpu_s"),
+            "ngspice_cpu": growth(rows, "ngspice_cpu_s"),
         }
     return out
 
@@ -286,7 +299,8 @@ def report(data: dict) -> str:
     headers = [
         "case", "op-amps", "unknowns", "diodes", "kernel", "factorizations",
         "ours (s)", "ngspice (s)", "ratio", "ours process (s)", "ngspice process (s)",
-        "ratio (process)", "%NRMSD ours", "%NRMSD ngspice", "failure",
+        "ratio (process)", "ours CPU (s)", "ngspice CPU (s)", "ratio (CPU)", "%NRMSD ours",
+        "%NRMSD ngspice", "failure",
     ]  # fmt: skip
     rows = []
     for r in data["cases"]:
@@ -296,6 +310,7 @@ def report(data: dict) -> str:
                 r["label"], r["opamp"], r.get("unknowns"), elements.get("D"), r.get("kernel"),
                 r.get("factorizations"), r.get("ours_s"), r.get("ngspice_s"), r.get("ratio"),
                 r.get("ours_process_s"), r.get("ngspice_process_s"), r.get("ratio_process"),
+                r.get("ours_cpu_s"), r.get("ngspice_cpu_s"), r.get("ratio_cpu"),
                 r.get("ours_nrmsd"), r.get("ngspice_nrmsd"),
                 r.get("ours_error") or r.get("ngspice_error") or "",
             ]
@@ -313,6 +328,7 @@ def report(data: dict) -> str:
     for opamp, fit in data["growth"].items():
         lines.append(
             f"- {opamp}: ours {_g(fit['ours'])} (process {_g(fit['ours_process'])}), "
-            f"ngspice {_g(fit['ngspice'])} (process {_g(fit['ngspice_process'])})"
+            f"ngspice {_g(fit['ngspice'])} (process {_g(fit['ngspice_process'])}); CPU time: "
+            f"ours {_g(fit['ours_cpu'])}, ngspice {_g(fit['ngspice_cpu'])}"
         )
     return "\n".join(lines)
