@@ -32,7 +32,7 @@ _MAX_CONDITION = 1e12
 
 
 def load_model(path: str | Path | None = None) -> Model:
-    """Load a model file; ``None`` loads the built-in wheelset.
+    """Load a model file; ``None`` loads the built-in wheelset, ``"bogie"`` a shipped model.
 
     The file is checked completely, including an evaluation of every coefficient set at the
     default parameters, so later calls to :meth:`Model.system` with the defaults cannot fail.

@@ -191,7 +191,8 @@ def _check_identifier(reader: _Reader, name: str, key: str) -> None:
 
 
 def read_model(path: str | Path | None = None) -> ModelSpec:
-    """Read and check a model file; ``None`` reads the built-in wheelset.
+    """Read and check a model file; ``None`` reads the built-in wheelset, a name without a
+    file of that name a shipped model (``"bogie"``, see :func:`model_path`).
 
     Raises
     ------
