@@ -314,6 +314,23 @@ def _switch_help() -> str:
     )
 
 
+def _forcing_help() -> str:
+    """Help of --forcing: the model's forcing groups by name, when there is a model."""
+    model = HELP_MODEL
+    if model is None:
+        return (
+            "switch on only this forcing group of the model (repeatable), the others off; "
+            "default: as the model file says (the built-in wheelset: track on; --forcing "
+            "irregularity runs its random track profile instead)"
+        )
+    groups = ", ".join(f"{name} ({'on' if on else 'off'})" for name, on in
+                       model.forcing_terms.items())  # fmt: skip
+    return (
+        f"switch on only this forcing group of {model.name} (repeatable), the others off; "
+        f"default as the file says: {groups or 'it has none'}"
+    )
+
+
 def _parameter_help() -> str:
     """Help of --param: the parameters of the model asked about, with units, when there is one."""
     model = HELP_MODEL
@@ -341,9 +358,7 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
         "--forcing",
         action="append",
         metavar="NAME",
-        help="switch on only this forcing group of the model (repeatable), the others off; "
-        "e.g. the wheelset's --forcing irregularity runs its random track profile instead of "
-        "the sinusoid; default: as the model file says",
+        help=_forcing_help(),
     )
     parser.add_argument(
         "--param",
