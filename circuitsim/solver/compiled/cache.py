@@ -32,6 +32,7 @@ PACKAGE = "circuitsim."
 KERNEL_PACKAGES = ("circuitsim.solver.compiled", "circuitsim.solver.devices")
 
 _LOCK = threading.Lock()
+_WRITABLE: set[str] = set()  # cache folders found writable in this process
 _PREPARED: list[bool] = []
 
 
@@ -64,6 +65,12 @@ def _locator_classes():
 
         def get_cache_path(self):
             return self._cache_path
+
+        def ensure_cache_path(self):
+            # numba writes and deletes a test file per function; once per folder is enough
+            if self._cache_path not in _WRITABLE:
+                super().ensure_cache_path()
+                _WRITABLE.add(self._cache_path)
 
     return [KernelCacheLocator, *caching.CompileResultCacheImpl._locator_classes]
 
