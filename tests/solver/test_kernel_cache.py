@@ -1,0 +1,72 @@
+"""Where the kernels' machine code is kept, the compile announcement and the fallback warning."""
+
+import warnings
+from pathlib import Path
+
+import pytest
+
+from circuitsim.netlist.reader import parse_netlist
+from circuitsim.solver import SimulationOptions, simulate
+from circuitsim.solver.errors import KernelCompileWarning, KernelFallbackWarning
+
+pytest.importorskip("numba")
+
+RECTIFIER = """* cache
+V1 in 0 SIN(0 1 1k)
+R1 in a 1k
+D1 a b DX
+C1 b 0 1u
+.model DX D(is=1e-14)
+.tran 10u 2m
+.end
+"""
+
+
+def test_cache_directory_follows_the_environment(monkeypatch, tmp_path):
+    from circuitsim.solver.compiled.cache import cache_root
+
+    monkeypatch.delenv("CIRCUITSIM_CACHE_DIR", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert cache_root() == tmp_path / "xdg" / "circuitsim"
+    monkeypatch.setenv("XDG_CACHE_HOME", "relative/ignored")  # the spec: absolute paths only
+    assert cache_root() == Path.home() / ".cache" / "circuitsim"
+    monkeypatch.setenv("CIRCUITSIM_CACHE_DIR", str(tmp_path / "mine"))
+    assert cache_root() == tmp_path / "mine"
+
+
+def test_kernels_are_cached_outside_the_package():
+    import circuitsim
+    from circuitsim.solver.compiled import port_loop
+    from circuitsim.solver.compiled.cache import cache_root, is_cold
+
+    simulate(parse_netlist(RECTIFIER))
+    folder = Path(port_loop.run._cache._cache_path)
+    assert folder.is_relative_to(cache_root())
+    assert not folder.is_relative_to(Path(circuitsim.__file__).parent)
+    assert list(folder.glob("port_loop.run-*.nbi"))
+    assert not is_cold(port_loop.run)
+
+
+def test_a_cold_compile_is_announced_once(monkeypatch):
+    from circuitsim.solver.compiled import runner
+
+    monkeypatch.setattr(runner, "is_cold", lambda dispatcher: True)
+    monkeypatch.setattr(runner, "_ANNOUNCED", set())
+    monkeypatch.setattr(runner, "record_compile_seconds", lambda kind, seconds: None)
+    circuit = parse_netlist(RECTIFIER)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        simulate(circuit)
+        simulate(circuit)
+    notices = [w for w in caught if issubclass(w.category, KernelCompileWarning)]
+    assert len(notices) == 1
+    assert "compiling the ports kernel" in str(notices[0].message)
+    assert "cached in" in str(notices[0].message)
+
+
+def test_falling_back_to_the_numpy_loop_says_why():
+    circuit = parse_netlist(RECTIFIER)
+    options = SimulationOptions.from_circuit(circuit, bypass=1)  # no compiled bypass
+    with pytest.warns(KernelFallbackWarning, match="numpy reference loop"):
+        waves = simulate(circuit, options)
+    assert waves.stats["kernel"].startswith("python (")
