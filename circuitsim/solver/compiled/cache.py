@@ -42,8 +42,14 @@ def cache_root() -> Path:
     if override:
         return Path(override).expanduser()
     xdg = os.environ.get("XDG_CACHE_HOME")
-    base = Path(xdg) if xdg and os.path.isabs(xdg) else Path.home() / ".cache"
-    return base / "circuitsim"
+    if xdg and os.path.isabs(xdg):
+        return Path(xdg) / "circuitsim"
+    try:
+        return Path.home() / ".cache" / "circuitsim"
+    except RuntimeError:  # no home directory to be found (a bare service account)
+        import tempfile
+
+        return Path(tempfile.gettempdir()) / "circuitsim-cache"
 
 
 def numba_folder() -> Path:
