@@ -8,7 +8,7 @@ each rule (and which rules could not be tried here) are listed in docs/netlists.
   writer spells it ``ln``; ``.subckt ... params: a=1`` with defaults; ``.control`` blocks.
 - LTspice (published help, not run here): ``^`` is Boolean XOR, ``**`` is the power operator;
   ``ln``/``log`` natural, ``log10``; switch model parameters written ``Ron Roff Vt Vh``; no
-  ``.control`` blocks.
+  ``.control`` blocks; ``.options plotwinsize=0`` (no lossy waveform compression).
 - Multisim (SPICE3f5/XSPICE based, not run here; NI's "Compatibility Modes" help): ``**`` is
   the power operator in its default mode (``^`` too, but ``^`` turns into XOR under
   ``.SYNTAX PS``), ``log`` is natural in ``.param`` but base 10 in B sources and in MS/XS mode,
@@ -45,6 +45,9 @@ class Dialect:
         Regular expression a node name must match in full; others are renamed.
     width : int
         Longest line written before breaking onto a ``+`` continuation line (characters).
+    options : tuple of (str, str)
+        ``.options`` the dialect always writes (unless the circuit sets them itself), such as
+        LTspice's ``plotwinsize=0``, which turns off its lossy waveform compression.
     """
 
     name: str
@@ -54,6 +57,7 @@ class Dialect:
     instance_params_keyword: bool = False
     node_pattern: str = r"[A-Za-z0-9_.\-+:#!<>\[\]/]+"
     width: int = 80
+    options: tuple[tuple[str, str], ...] = ()
 
 
 DIALECTS: dict[str, Dialect] = {
@@ -68,6 +72,10 @@ DIALECTS: dict[str, Dialect] = {
             ("SW", "vt"): "Vt",
             ("SW", "vh"): "Vh",
         },
+        # LTspice compresses waveforms lossily unless plotwinsize=0 (its help, .OPTIONS:
+        # "Number of data points to compress in one window. Set to zero to disable
+        # compression"); our results are post-processed, so compression is off.
+        options=(("plotwinsize", "0"),),
     ),
     "multisim": Dialect(
         name="multisim",

@@ -5,9 +5,11 @@ The writer is the reader's inverse: ``parse_netlist(write_netlist(c))`` has the 
 same float). Lines are broken onto ``+`` continuation lines before ``dialect.width``
 characters; a token (a number, ``{expression}``) is never split.
 
-Order of the output: title, notes (``* circuitsim: ...`` comments about what a dialect could
-not take), ``.param``, ``.model``, ``.subckt`` definitions, elements, ``.ic``, ``.options``,
-analyses, ``.control`` blocks (ngspice only), ``.end``.
+Order of the output: title (a ``*`` comment line, see :func:`title_line`), notes
+(``* circuitsim: ...`` comments about what a dialect could not take), ``.param``, ``.model``,
+``.subckt`` definitions, elements, ``.ic``, ``.options`` (with the dialect's own, such as
+LTspice's ``plotwinsize=0``), analyses, ``.control`` blocks (ngspice only), ``.end``. The mega
+suffix is written ``Meg`` (spicelib reads ``meg`` as milli).
 """
 
 from __future__ import annotations
@@ -74,6 +76,18 @@ def save_netlist(circuit: Circuit, path: str | os.PathLike, dialect: str = "ngsp
     write_text_atomic(path, write_netlist(circuit, dialect))
 
 
+def title_line(title: str) -> str:
+    """The first line written for ``title``: a ``*`` comment line.
+
+    Every SPICE takes the first line as the title whatever it holds, but tools that edit
+    netlists (spicelib's SpiceEditor) read a bare first line as a component; a comment line
+    is a title to both. A title that already starts with ``*`` (one read back from our own
+    file) is kept as it is, so writing what was read gives the same text.
+    """
+    title = " ".join(title.splitlines()).strip()
+    return title if title.startswith("*") else f"* {title}".rstrip()
+
+
 class _Writer:
     """One writing pass: the dialect, the node renames, the lines written so far."""
 
@@ -109,6 +123,8 @@ class _Writer:
                 ]
             )
         options = [self.option(k, v) for k, v in circuit.options.items()]
+        given = {fold(k) for k in circuit.options}
+        options += [f"{k}={v}" for k, v in self.dialect.options if fold(k) not in given]
         if any(options):
             self.emit([".options"] + [o for o in options if o])
         for analysis in circuit.analyses:
@@ -119,8 +135,7 @@ class _Writer:
             else:
                 self.notes.append(f".control block dropped ({self.dialect.name} has none)")
         body.append(".end")
-        title = " ".join(circuit.title.splitlines()).strip()
-        head = [title] + [NOTE + note for note in self.notes]
+        head = [title_line(circuit.title)] + [NOTE + note for note in self.notes]
         return "\n".join(head + body) + "\n"
 
     # --- pieces ---
@@ -142,7 +157,10 @@ class _Writer:
         number = float(value)
         if not math.isfinite(number):
             raise NetlistError(f"cannot write the value {number!r}: SPICE has no such number")
-        return format_value(number)
+        text = format_value(number)
+        # Every SPICE reads the suffix in any case, but spicelib's number parser (1.6.4) reads
+        # a lower-case "10meg" as 10 milli; "Meg" reads as mega everywhere.
+        return text[:-3] + "Meg" if text.endswith("meg") else text
 
     def node(self, name: str) -> str:
         return self.renames.get(name, name)

@@ -37,6 +37,7 @@ from circuitsim.netlist.circuit import (
     Transient,
     VoltageSource,
 )
+from circuitsim.netlist.tidy import round_derived
 from circuitsim.synthesis.blocks import BomEntry, Builder
 from circuitsim.synthesis.bounds import check_buildable
 from circuitsim.synthesis.errors import SynthesisError
@@ -215,6 +216,7 @@ def synthesize(
             for i, s in enumerate(states)
         },
     )
+    round_derived(circuit)  # SIN(0 13.2 3), not 13.200000000000001 (float noise of K * a)
     return Synthesis(circuit, scale_map, builder.bom, warnings, t_stop, node_peaks, step)
 
 
