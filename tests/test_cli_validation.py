@@ -200,7 +200,7 @@ def test_stability_speed_message_is_a_plain_number(no_long_work, capsys):
         ["simulate", str(ROOT / "tests/solver/golden/rc.cir"), "--csv", "{missing}/w.csv"],
         ["simulate", str(ROOT / "tests/solver/golden/rc.cir"), "--plot", "{missing}/w.svg"],
         ["compare", "--plot", "{missing}/c.png"],
-        ["compare", "--netlist", "{missing}/c.cir"],
+        ["compare", "--write-netlist", "{missing}/c.cir"],
     ],
     ids=["ode-csv", "ode-plot", "simulate-csv", "simulate-plot", "compare-plot", "compare-netlist"],
 )

@@ -43,6 +43,7 @@ COMMANDS = [*model_verbs.COMMANDS, *netlist_verbs.COMMANDS, *circuit_verbs.COMMA
 EXIT_OK, EXIT_FINDING, EXIT_BAD_INPUT, EXIT_RUN_FAILED = 0, 1, 2, 3
 EXIT_INTERRUPTED, EXIT_CLOSED_OUTPUT, EXIT_TERMINATED = 130, 141, 143
 
+
 class _Parser(argparse.ArgumentParser):
     """argparse's parser, its usage errors with long words cut (see :func:`shown`)."""
 

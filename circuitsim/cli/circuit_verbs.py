@@ -197,7 +197,6 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--engine",
         choices=("builtin", "ngspice"),
-        default="builtin",
         help="circuit simulator (default builtin, our MNA solver; ngspice, the referee, if "
         "installed)",
     )
@@ -208,6 +207,27 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:
         help=TSTOP_HELP,
     )
     _add_time_scale(parser)
+    given = parser.add_argument_group(
+        "a circuit or results made elsewhere (instead of generating the circuit)"
+    )
+    given.add_argument(
+        "--netlist",
+        metavar="FILE.cir",
+        help="simulate this netlist (hand-edited, or with a vendor op-amp model) instead of "
+        "generating one; its .tran sets the time; the model options still set the ODE side",
+    )
+    given.add_argument(
+        "--raw",
+        metavar="FILE.raw",
+        help="compare these results (an ngspice raw file, binary or ASCII) instead of "
+        "simulating; needs --scale",
+    )
+    given.add_argument(
+        "--scale",
+        metavar="FILE.scale.json",
+        help="the scale file of --netlist (default: FILE.scale.json beside it) or of the "
+        "netlist that made --raw",
+    )
     parser.add_argument(
         "--max-nrmsd",
         type=float,
@@ -222,7 +242,9 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:
         help="allowed |peak ratio - 1| and |frequency ratio - 1|, > 0 (default 0.01)",
     )
     parser.add_argument(
-        "--netlist", metavar="FILE.cir", help="also write the netlist, scale file and BOM here"
+        "--write-netlist",
+        metavar="FILE.cir",
+        help="also write the generated netlist, scale file and BOM here",
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument(
@@ -242,16 +264,45 @@ def _check_compare(args: argparse.Namespace) -> None:
     require_positive("--max-nrmsd", args.max_nrmsd)
     require_positive("--tolerance", args.tolerance)
     require_figure_path("--plot", args.plot)
-    if args.netlist is not None:
+    if args.write_netlist is not None:
         from circuitsim.synthesis.generate import companion_paths
 
-        require_writable(args.netlist)  # first: "." or a folder has no companion files
-        require_writable(*companion_paths(args.netlist))
+        require_writable(args.write_netlist)  # first: "." or a folder has no companion files
+        require_writable(*companion_paths(args.write_netlist))
     require_writable(args.plot)
+    _check_given_inputs(args)
+
+
+def _check_given_inputs(args: argparse.Namespace) -> None:
+    """--netlist / --raw: one of them, with a scale file, and no options of the generator."""
+    if args.netlist is None and args.raw is None:
+        if args.scale is not None:
+            raise UsageError("--scale goes with --netlist or --raw")
+        return
+    if args.netlist is not None and args.raw is not None:
+        raise UsageError("give --netlist (simulated here) or --raw (results made elsewhere)")
+    if args.raw is not None and args.scale is None:
+        raise UsageError("--raw needs --scale FILE.scale.json (the scale file of its netlist)")
+    if args.raw is not None and args.engine is not None:
+        raise UsageError("--raw results are compared as they are: --engine does not apply")
+    generator = [
+        name
+        for name, value in (
+            ("--series", args.series != "exact"),
+            ("--tstop", args.tstop is not None),
+            ("--time-scale", args.time_scale is not None),
+            ("--write-netlist", args.write_netlist is not None),
+        )
+        if value
+    ]
+    if generator:
+        raise UsageError(
+            f"{', '.join(generator)}: options of the generated circuit; with --netlist or "
+            "--raw the netlist's own .tran and values are used"
+        )
 
 
 def _run_compare(args: argparse.Namespace) -> int:
-    import json
     from dataclasses import replace
 
     from circuitsim.compare import Thresholds
@@ -266,14 +317,56 @@ def _run_compare(args: argparse.Namespace) -> int:
     )
     if args.max_nrmsd is not None:
         thresholds = replace(thresholds, nrmsd_percent=args.max_nrmsd)
+    if args.netlist is not None or args.raw is not None:
+        return _compare_given(args, thresholds)
+    args.engine = args.engine or "builtin"
     options = SynthesisOptions(
         opamp=args.opamp, series=args.series, t_stop=args.tstop, time_scale=args.time_scale
     )
     label = f"{args.engine}, {args.opamp}, {args.series}"
     system = scenario_system(args)
-    case = run_case(system, options, args.engine, thresholds, args.netlist, label=label)
+    case = run_case(system, options, args.engine, thresholds, args.write_netlist, label=label)
     _print_warnings(case.synthesis)
     _print_fits(system, sys.stderr if args.json else sys.stdout)
+    return _print_case(args, case, label)
+
+
+def _compare_given(args: argparse.Namespace, thresholds) -> int:
+    """compare --netlist F.cir [--scale] or --raw F.raw --scale: no circuit generated."""
+    from pathlib import Path
+
+    from circuitsim.compare.external import compare_waveforms, run_netlist_case
+    from circuitsim.synthesis.generate import companion_paths
+    from circuitsim.synthesis.scalemap import ScaleMap
+
+    source = args.netlist if args.netlist is not None else args.raw
+    scale = args.scale if args.scale is not None else companion_paths(args.netlist)[0]
+    if not Path(scale).is_file():
+        raise UsageError(f"no scale file {scale} (give --scale FILE.scale.json)")
+    scale_map = ScaleMap.load(scale)
+    system = scenario_system(args)
+    if args.netlist is not None:
+        args.engine = args.engine or "builtin"
+        label = f"{args.engine}, {Path(source).name}"
+        case = run_netlist_case(system, source, scale_map, args.engine, thresholds, label=label)
+    else:
+        from circuitsim.interop.errors import NgspiceError
+        from circuitsim.interop.rawfile import read_rawfile
+
+        try:
+            waves = read_rawfile(source)
+        except NgspiceError as exc:  # a file that is not a rawfile: the user's input
+            raise UsageError(str(exc)) from None
+        label = f"{waves.engine or 'raw'}, {Path(source).name}"
+        case = compare_waveforms(system, waves, scale_map, thresholds, waves.engine, label=label)
+    _print_fits(system, sys.stderr if args.json else sys.stdout)
+    return _print_case(args, case, label)
+
+
+def _print_case(args: argparse.Namespace, case, label: str) -> int:
+    """The comparison as a table (or JSON), the plot; exit code 0 pass, 1 fail."""
+    import json
+
     comparison = case.comparison
     if args.plot:
         from circuitsim.compare.plots import plot_overlay
@@ -287,7 +380,7 @@ def _run_compare(args: argparse.Namespace) -> int:
             errors=True,
         )
     written = [str(args.plot)] if args.plot else []
-    if case.netlist is not None:
+    if case.netlist is not None and case.synthesis is not None:  # generated and written here
         from circuitsim.synthesis.generate import companion_paths
 
         written[:0] = [str(case.netlist), *map(str, companion_paths(case.netlist))]
@@ -295,7 +388,7 @@ def _run_compare(args: argparse.Namespace) -> int:
     if args.json:
         data = comparison.to_json()
         data.update(
-            engine=args.engine,
+            engine=case.engine or args.engine,
             opamp=args.opamp,
             series=args.series,
             netlist=None if case.netlist is None else str(case.netlist),

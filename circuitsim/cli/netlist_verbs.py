@@ -7,6 +7,7 @@ import sys
 
 from circuitsim.cli.common import (
     MAX_STEP_COUNT,
+    UsageError,
     progress_after,
     read_netlist_reporting_warnings,
     require_count,
@@ -87,7 +88,10 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         description=(
             "Simulate FILE.cir: its first .tran, or its .op if it has no .tran, with the "
             "built-in MNA engine (default) or ngspice. Writes every node voltage and every "
-            "voltage-source current (or only --probe signals) on the engine's own time points."
+            "voltage-source current (or only --probe signals) on the engine's own time points, "
+            "with the same column names and order from both engines; or, with --states, the "
+            "physical states through the netlist's scale file. Probes are checked before the "
+            "run."
         ),
     )
     parser.add_argument("netlist", metavar="FILE.cir", help="netlist to simulate")
@@ -95,9 +99,9 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         "--engine",
         choices=("builtin", "ngspice"),
         default="builtin",
-        help="builtin (default: our MNA solver) or ngspice (the referee, if installed; its CSV "
-        "columns come in ngspice's order and include the macromodels' internal source "
-        "currents)",
+        help="builtin (default: our MNA solver) or ngspice (the referee, if installed; its "
+        "columns are the builtin engine's: node voltages and voltage-source currents, in the "
+        "same order; a netlist only ngspice can read keeps ngspice's own columns)",
     )
     parser.add_argument(
         "--kernel",
@@ -127,6 +131,13 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         help="only these signals, e.g. v(out) i(v1) (the builtin engine records only these)",
     )
     parser.add_argument(
+        "--states",
+        metavar="FILE.scale.json",
+        help="write the physical states instead of node voltages: time in model seconds and "
+        "each state of the scale file in its unit (state = v(node) / volts_per_unit at "
+        "t / time_scale); the engine records only the state nodes",
+    )
+    parser.add_argument(
         "--max-steps",
         type=int,
         metavar="N",
@@ -150,10 +161,17 @@ def _run_simulate(args: argparse.Namespace) -> int:
     require_count("--max-steps", args.max_steps, MAX_STEP_COUNT)
     require_positive("--max-wall-time", args.max_wall_time)
     require_writable(args.csv, args.plot)
-    if args.engine == "ngspice":
-        from circuitsim.interop.ngspice import run_ngspice
+    scale_map = None
+    probes = args.probe
+    if args.states is not None:
+        from circuitsim.synthesis.scalemap import ScaleMap
 
-        waves = run_ngspice(Path(args.netlist), probes=args.probe, timeout=args.ngspice_timeout)
+        if args.probe:
+            raise UsageError("--states writes the scale file's states; give it or --probe")
+        scale_map = ScaleMap.load(args.states)
+        probes = [state.node for state in scale_map.states.values()]
+    if args.engine == "ngspice":
+        waves = _simulate_ngspice(args, probes)
     else:
         from circuitsim.solver import SimulationOptions, simulate
         from circuitsim.solver.errors import SolverError
@@ -169,10 +187,12 @@ def _run_simulate(args: argparse.Namespace) -> int:
         }
         try:
             options = SimulationOptions.from_circuit(circuit, kernel=args.kernel, **limits)
-            waves = simulate(circuit, options, progress=progress_after(1.0), probes=args.probe)
+            waves = simulate(circuit, options, progress=progress_after(1.0), probes=probes)
         except SolverError as exc:  # about the circuit ("D1: no .model ..."): say which file
             exc.args = (f"{args.netlist}: {exc}",)
             raise
+    if scale_map is not None:
+        waves = _physical_states(waves, scale_map)
     stats = waves.stats
     engine = args.engine
     if "kernel" in stats:  # "ports", or "python (why the compiled kernels do not apply)"
@@ -199,6 +219,64 @@ def _run_simulate(args: argparse.Namespace) -> int:
         for name in waves.names:
             print(f"  {name} = {waves[name][-1]:.6g}  (at t = {waves.time[-1]:.6g} s)")
     return 0
+
+
+def _builtin_signals(netlist: str, probes: list[str] | None) -> tuple[list[str] | None, str]:
+    """The signals the builtin engine writes for ``netlist`` (``probes`` checked against
+    them, a CircuitInputError naming an unknown one), or None and why for a netlist only
+    ngspice can take (a vendor model with POLY sources, say)."""
+    import warnings
+
+    from circuitsim.netlist.errors import NetlistError
+    from circuitsim.netlist.reader import read_netlist
+    from circuitsim.solver.engine import build_system, probe_names
+    from circuitsim.solver.errors import SolverError
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # ngspice reads the file itself; its log tells
+            system = build_system(read_netlist(netlist), None)
+    except (NetlistError, SolverError) as exc:
+        return None, str(exc)
+    return probe_names(system, probes), ""
+
+
+def _simulate_ngspice(args: argparse.Namespace, probes: list[str] | None):
+    """ngspice's waveforms with the builtin engine's columns, probes checked before the run."""
+    from pathlib import Path
+
+    from circuitsim.interop.errors import NgspiceError
+    from circuitsim.interop.ngspice import run_ngspice
+
+    names, why = _builtin_signals(args.netlist, probes)
+    if names is None:
+        print(
+            f"{args.netlist}: ngspice's own columns (the builtin engine cannot take this "
+            f"netlist: {why}); probes are checked after the run",
+            file=sys.stderr,
+        )
+        return run_ngspice(Path(args.netlist), probes=probes, timeout=args.ngspice_timeout)
+    waves = run_ngspice(Path(args.netlist), timeout=args.ngspice_timeout)
+    missing = [name for name in names if name not in waves]
+    if missing:
+        raise NgspiceError(
+            f"{args.netlist}: ngspice wrote no {', '.join(missing)} (the builtin engine has it)"
+        )
+    stats = waves.stats
+    waves = waves.select(names)
+    waves.stats = stats
+    return waves
+
+
+def _physical_states(waves, scale_map):
+    """Waveforms of the scale map's states: model seconds, each state in its own unit."""
+    from circuitsim.compare.mapping import map_waveforms
+    from circuitsim.solver.waveforms import Waveforms
+
+    traces = map_waveforms(waves, scale_map)
+    time = next(iter(traces.values()))[0] if traces else scale_map.model_time(waves.time)
+    signals = {state: values for state, (_, values) in traces.items()}
+    return Waveforms(time=time, signals=signals, engine=waves.engine, stats=waves.stats)
 
 
 COMMANDS = [_add_convert, _add_check, _add_simulate]

@@ -1,4 +1,4 @@
-"""ngspice rawfiles (``write out.raw``), binary or ASCII, to :class:`Waveforms`.
+"""ngspice and LTspice rawfiles, binary or ASCII, to :class:`Waveforms`.
 
 Layout (both kinds): text header lines ``Key: value`` (``Plotname``, ``Flags: real|complex``,
 ``No. Variables``, ``No. Points``), then ``Variables:`` with one ``index name type`` line per
@@ -14,9 +14,18 @@ Only the first plot of a file is read. Names are turned into ours: ``v(node)``,
 ``i(vname)`` (``vname#branch`` -> ``i(vname)``), lower case. Complex vectors (an ``.ac``
 sweep) become magnitude and phase in degrees, ``vm(node)``/``vp(node)`` and
 ``im(vname)``/``ip(vname)``, over the frequency axis, which takes the place of ``time``.
+
+LTspice writes the same layout in UTF-16 (little endian), and its binary section differs:
+the time axis is float64 (its sign bit is a marker LTspice sets on some points, so the
+absolute value is taken), every other vector float32 unless ``Flags`` says ``double``;
+``fastaccess`` files store vector after vector instead of point after point. Only real
+(transient, operating point) LTspice plots are read.
 """
 
 from __future__ import annotations
+
+import os
+from pathlib import Path
 
 import numpy as np
 
@@ -27,14 +36,36 @@ _BINARY = b"Binary:\n"
 _VALUES = b"Values:\n"
 
 
+def read_rawfile(path: str | os.PathLike) -> Waveforms:
+    """The first plot of an ngspice or LTspice rawfile (binary or ASCII) as Waveforms.
+
+    ``engine`` is ``"ngspice"`` or ``"ltspice"``.
+
+    Raises
+    ------
+    NgspiceError
+        Not a rawfile, or cut short (the message names the file).
+    OSError
+        The file cannot be read.
+    """
+    data = Path(path).read_bytes()
+    try:
+        return parse_rawfile(data)
+    except NgspiceError as exc:
+        exc.args = (f"{path}: {exc.args[0]}", *exc.args[1:])
+        raise
+
+
 def parse_rawfile(data: bytes) -> Waveforms:
-    """The first plot of an ngspice rawfile (binary or ASCII) as Waveforms.
+    """The first plot of an ngspice or LTspice rawfile (binary or ASCII) as Waveforms.
 
     Raises
     ------
     NgspiceError
         Not a rawfile, or cut short.
     """
+    if _is_utf16(data):
+        return _parse_ltspice(data)
     binary_at, values_at = data.find(_BINARY), data.find(_VALUES)
     starts = [at for at in (binary_at, values_at) if at >= 0]
     if not starts:
@@ -55,6 +86,57 @@ def parse_rawfile(data: bytes) -> Waveforms:
     else:
         table = _ascii_values(data[body:].decode("ascii", errors="replace"), points, count)
     return _waveforms(names, kinds, table, is_complex, plotname)
+
+
+def _is_utf16(data: bytes) -> bool:
+    """LTspice's UTF-16LE text: every second byte of the ASCII header is zero."""
+    head = data[:64].removeprefix(b"\xff\xfe")
+    return len(head) >= 8 and head[1::2][:4] == b"\0\0\0\0" and head[0::2][:4].isascii()
+
+
+def _parse_ltspice(data: bytes) -> Waveforms:
+    bom = 2 if data.startswith(b"\xff\xfe") else 0
+    marks = {kind: data.find(kind.encode("utf_16_le"), bom) for kind in ("Binary:\n", "Values:\n")}
+    found = {kind: at for kind, at in marks.items() if at >= 0 and (at - bom) % 2 == 0}
+    if not found:
+        raise NgspiceError("not an LTspice rawfile: no Binary: or Values: section")
+    kind, start = min(found.items(), key=lambda item: item[1])
+    header = data[bom:start].decode("utf_16_le", errors="replace")
+    names, kinds, points, is_complex, plotname = _header(header)
+    if is_complex:
+        raise NgspiceError("an LTspice rawfile of complex values (.ac) is not read here")
+    flags = header.lower().split("flags:", 1)[-1].splitlines()[0].split()
+    body = start + len(kind.encode("utf_16_le"))
+    count = len(names)
+    if kind == "Values:\n":
+        text = data[body:].decode("utf_16_le", errors="replace")
+        table = _ascii_values(text, points, count)
+    else:
+        table = _ltspice_binary(data[body:], points, count, "double" in flags,
+                                "fastaccess" in flags)  # fmt: skip
+    table[:, 0] = np.abs(table[:, 0])
+    waves = _waveforms(names, kinds, table, False, plotname)
+    waves.engine = "ltspice"
+    return waves
+
+
+def _ltspice_binary(body: bytes, points: int, count: int, double: bool, fast: bool) -> np.ndarray:
+    """The (points, count) table: time float64, the others float32 (float64 if ``double``)."""
+    other = np.dtype("<f8" if double else "<f4")
+    size = 8 + (count - 1) * other.itemsize
+    if len(body) < points * size:
+        raise _cut_short(points, count)
+    table = np.empty((points, count))
+    if fast:  # vector after vector
+        table[:, 0] = np.frombuffer(body, "<f8", points)
+        for column in range(1, count):
+            offset = points * 8 + (column - 1) * points * other.itemsize
+            table[:, column] = np.frombuffer(body, other, points, offset)
+        return table
+    rows = np.frombuffer(body, np.dtype([("t", "<f8"), ("v", other, (count - 1,))]), points)
+    table[:, 0] = rows["t"]
+    table[:, 1:] = rows["v"]
+    return table
 
 
 def parse_ascii_raw(text: str) -> Waveforms:

@@ -48,7 +48,7 @@ def test_compare_bad_scenario_is_an_error_with_exit_code_2(capsys):
 
 def test_compare_says_what_it_wrote_and_keeps_json_alone_on_stdout(capsys, tmp_path):
     netlist, plot = tmp_path / "c.cir", tmp_path / "o.png"
-    argv = ["compare", "--tstop", "0.3", "--netlist", str(netlist), "--plot", str(plot)]
+    argv = ["compare", "--tstop", "0.3", "--write-netlist", str(netlist), "--plot", str(plot)]
     main(argv)
     out = capsys.readouterr().out
     assert f"wrote {netlist}, {tmp_path / 'c.scale.json'}, {tmp_path / 'c.bom.csv'}, {plot}" in out
