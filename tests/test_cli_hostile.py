@@ -72,7 +72,10 @@ def test_more_jobs_than_variants_runs(tmp_path, capsys):
         (["ode", "--tstop", "0.1", "--max-steps", "1" * 400], "--max-steps must be at most"),
         (["simulate", str(ROOT / "tests/solver/golden/rc.cir"), "--max-wall-time", "nan"],
          "--max-wall-time must be a positive finite number"),
-        (["compare", "--write-netlist", ".", "--tstop", "0.1"], "cannot write .: it is a directory"),
+        (
+            ["compare", "--write-netlist", ".", "--tstop", "0.1"],
+            "cannot write .: it is a directory",
+        ),
     ],
     ids=["simulate-steps", "ode-steps", "simulate-wall-time", "compare-netlist-folder"],
 )  # fmt: skip

@@ -300,6 +300,11 @@ def _check_given_inputs(args: argparse.Namespace) -> None:
             f"{', '.join(generator)}: options of the generated circuit; with --netlist or "
             "--raw the netlist's own .tran and values are used"
         )
+    from pathlib import Path
+
+    for option, path in (("--netlist", args.netlist), ("--raw", args.raw)):
+        if path is not None and not Path(path).is_file():
+            raise UsageError(f"{option} {path}: no such file")
 
 
 def _run_compare(args: argparse.Namespace) -> int:
@@ -385,6 +390,8 @@ def _print_case(args: argparse.Namespace, case, label: str) -> int:
 
         written[:0] = [str(case.netlist), *map(str, companion_paths(case.netlist))]
     report = case.report
+    synthesis = case.synthesis  # None for a netlist or results made elsewhere
+    step = None if synthesis is None else synthesis.step.describe(synthesis.scale_map.time_scale)
     if args.json:
         data = comparison.to_json()
         data.update(
@@ -395,7 +402,7 @@ def _print_case(args: argparse.Namespace, case, label: str) -> int:
             critical_speed_model=getattr(report, "critical_speed_model", None),
             critical_speed_circuit=getattr(report, "critical_speed_realized", None),
             timings_s=case.timings,
-            time_step=case.synthesis.step.describe(case.synthesis.scale_map.time_scale),
+            time_step=step,
         )
         print(json.dumps(data, indent=1))
         if written:  # stdout holds the JSON alone
@@ -403,8 +410,7 @@ def _print_case(args: argparse.Namespace, case, label: str) -> int:
     else:
         if written:
             print(f"wrote {', '.join(written)}")
-        step = case.synthesis.step.describe(case.synthesis.scale_map.time_scale)
-        print(f"circuit ({label}) against the ODE; {step}")
+        print(f"circuit ({label}) against the ODE" + (f"; {step}" if step else ""))
         print(comparison.table())
         if report is not None:
             print(report.summary())

@@ -123,13 +123,22 @@ def test_a_given_netlist_runs_in_the_builtin_engine(wheelset, capsys):
         (["--scale", "s.json"], "--scale goes with"),
         (["--netlist", "a.cir", "--series", "E96"], "--series"),
         (["--raw", "x.raw", "--scale", "s.json", "--engine", "ngspice"], "--engine"),
-        (["--netlist", "{tmp}/none.cir"], "no scale file"),
+        (["--netlist", "{tmp}/none.cir"], "no such file"),
+        (["--netlist", "."], "--netlist .: no such file"),
+        (["--raw", "{tmp}/none.raw", "--scale", "s.json"], "no such file"),
     ],
 )
 def test_given_inputs_refused_with_a_reason(argv, words, tmp_path, capsys):
     argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
     assert main(["compare", *argv]) == 2
     assert words in capsys.readouterr().err
+
+
+def test_a_netlist_without_its_scale_file_is_refused(wheelset, tmp_path, capsys):
+    lone = tmp_path / "lone.cir"
+    shutil.copy(wheelset[0], lone)
+    assert main(["compare", "--netlist", str(lone)]) == 2
+    assert "no scale file" in capsys.readouterr().err
 
 
 def test_a_raw_file_that_is_not_one_is_named(wheelset, tmp_path, capsys):
