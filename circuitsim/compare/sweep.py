@@ -80,8 +80,7 @@ def _same_except_a(a: System, b: System) -> bool:
     ):
         return False
     for fa, fb in zip(a.forcing, b.forcing, strict=True):
-        same = fa.amplitude == fb.amplitude and fa.frequency == fb.frequency
-        if not (same and fa.phase == fb.phase and np.array_equal(fa.direction, fb.direction)):
+        if not fa.same_as(fb):  # a sinusoid, time series or bump: same numbers, same direction
             return False
     if len(a.nonlinear) != len(b.nonlinear):
         return False
