@@ -350,7 +350,10 @@ class Model:
             for piece in term.abs_terms:
                 parts.append((key, "an abs term", [piece.gain, piece.offset, *piece.row]))
         for source in sources:
-            parts.append((f"forcing.{source.name}", "its direction", source.direction))
+            amplitude = getattr(source, "amplitude", 1.0)  # a sinusoid's; other inputs: 1
+            with np.errstate(over="ignore", invalid="ignore"):
+                scaled = np.asarray(source.direction, dtype=float) * amplitude
+            parts.append((f"forcing.{source.name}", "its direction times amplitude", scaled))
         for key, what, values in parts:
             if not np.all(np.isfinite(np.asarray(values, dtype=float))):
                 raise self._fail(

@@ -244,10 +244,22 @@ class _Phase:
         return sides, biases
 
     def rhs(self, t: float, x: np.ndarray) -> np.ndarray:
-        """dx/dt on this piece, shape (n,)."""
+        """dx/dt on this piece, shape (n,).
+
+        Raises
+        ------
+        IntegrationError
+            The derivative is not finite: the states or the forcing overflowed. scipy's
+            step-size control would go on with a NaN step for ever.
+        """
         dx = self.A @ x + self.b
         if self.forcing is not None:
             dx += self.forcing(t)
+        if not math.isfinite(dx.sum()):
+            raise IntegrationError(
+                f"the derivative is not finite at t = {t:.6g} s (largest |state| "
+                f"{float(np.max(np.abs(x))):.3g}): the model overflows"
+            )
         return dx
 
 

@@ -87,7 +87,7 @@ def direct_solution(
     budget = Budget(MAX_SCALING_STEPS, max_wall_time or MAX_SCALING_WALL_TIME)
     try:
         result = solve_ivp(
-            system.rhs,
+            _finite(system.rhs),
             (0.0, t_stop),
             x0,
             method=guarded_method("RK45", budget),
@@ -110,6 +110,21 @@ def direct_solution(
     if not result.success:
         raise SynthesisError(f"direct solution for the scaling failed: {result.message}")
     return result.t, result.y
+
+
+def _finite(rhs):
+    """``rhs`` refusing a non-finite derivative (scipy would step on with a NaN step size)."""
+
+    def checked(t: float, x: np.ndarray) -> np.ndarray:
+        dx = rhs(t, x)
+        if not math.isfinite(float(np.sum(dx))):
+            raise SynthesisError(
+                f"the direct solution that sets the scales overflows at t = {t:.6g} s: give "
+                "every state's range (--range STATE=PEAK) or --scaling unity"
+            )
+        return dx
+
+    return checked
 
 
 MAX_SCALING_STEPS = 200_000

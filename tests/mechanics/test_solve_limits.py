@@ -1,6 +1,7 @@
 """The direct solution ends: a step-count and a wall-time limit, each a named error saying at
 what model time it stopped and what to try (issue 21: `ode --freq 1e9 --tstop 1` ran for ever)."""
 
+import numpy as np
 import pytest
 
 from circuitsim.cli import main
@@ -83,3 +84,17 @@ def test_the_help_states_the_library_defaults(capsys):
         main(["ode", "--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert f"(default {MAX_STEPS:,})" in text and f"(default {MAX_WALL_TIME:g} s)" in text
+
+
+def test_states_that_overflow_end_in_a_named_error(tmp_path):
+    # x' = 700 x from 1: exp(700 t) passes the float range near t = 1 s; a NaN derivative once
+    # made scipy step on for ever with a NaN step size
+    path = tmp_path / "up.toml"
+    path.write_text(
+        '[model]\nname = "up"\nkind = "first_order"\n[states]\nnames = ["x"]\n'
+        "[matrices]\nA = [[700]]\n[initial]\nx = 1\n"
+    )
+    with pytest.raises(IntegrationError, match="the derivative is not finite at t = ") as caught:
+        with np.errstate(all="ignore"):
+            solve(load_model(path).system(), (0.0, 2.0))
+    assert "the model overflows" in str(caught.value)

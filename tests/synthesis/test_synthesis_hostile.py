@@ -88,7 +88,7 @@ def test_a_forcing_too_fast_for_the_scaling_solve_is_refused_at_once(tmp_path):
 
 def test_a_state_that_blows_up_in_the_scaling_solve_is_named(tmp_path):
     system = model(tmp_path, "[matrices]\nA = [[300]]\n[initial]\nx = 1\n").system()
-    with pytest.raises(SynthesisError, match="direct solution for the scaling failed"):
+    with pytest.raises(SynthesisError, match="sets the scales overflows at t = "):
         with np.errstate(all="ignore"):
             choose_scaling(system, SynthesisOptions(), 5.0)
     # a trajectory that overflowed without failing gives an infinite peak: named, not a crash
@@ -152,3 +152,19 @@ def test_a_200_state_chain_with_extreme_scales_generates_or_refuses_cleanly(tmp_
     code = main(["generate", "--model", str(path), "-o", str(tmp_path / "c.cir")])
     assert code in (0, 1, 2)
     assert np.isfinite(load_model(path).system().A).all()
+
+
+def test_a_forcing_whose_amplitude_times_direction_overflows_is_a_model_error(tmp_path):
+    # found by gen_models (seed 4): enters = { x = 1e308 } with F0 = 4 made scipy step with a
+    # NaN step size for ever
+    body = """
+    [matrices]
+    A = [[-1]]
+    [forcing.drive]
+    amplitude = 4
+    frequency = 1
+    enters = { x = 1e308 }
+    """
+    with pytest.raises(ModelError, match="direction times amplitude is not finite") as caught:
+        model(tmp_path, body)
+    assert caught.value.key == "forcing.drive"
