@@ -110,10 +110,13 @@ def test_help_texts_come_from_the_model(capsys):
     with pytest.raises(SystemExit):
         main(["ode", "--model", GAP, "--help"])
     text = " ".join(capsys.readouterr().out.split())
-    # the description and --model name the built-in default; the options' texts do not
+    # the description and --model name the built-in default (and other options may give it
+    # as an example); the scenario options' texts do not
     options = text[text.index("--coeffs SET coefficient set") :]
-    for words in ("wheelset", "lateral", "flange force", "eta=", "psi", "paper"):
+    for words in ("lateral", "flange force", "eta=", "psi", "paper"):
         assert words not in options
+    scenario = text[text.index("--speed V not used") : text.index("gap (on)")]
+    assert "wheelset" not in scenario
     assert "--speed V not used by gap_oscillator" in text
     assert "switch all the piecewise-linear terms of gap_oscillator on or off" in text
     assert "gap (on)" in text

@@ -221,8 +221,10 @@ def _number(reader, text, where: str, what: str) -> float:
         value = float(text)
     except (TypeError, ValueError):
         raise reader.fail(where, f"{what}: expected a number, got {text!r}") from None
+    except OverflowError:  # an integer of hundreds of digits
+        value = math.inf
     if not math.isfinite(value):
-        raise reader.fail(where, f"{what}: must be finite, got {text!r}")
+        raise reader.fail(where, f"{what}: must be finite, got {str(text)[:40]!r}")
     return value
 
 
@@ -249,13 +251,17 @@ def _csv_points(reader, value, key: str) -> list[tuple[float, float, str]]:
         beside = Path(reader.file).parent / path
         # a copy of a shipped model still finds the shipped profile it names
         shipped = Path(str(resources.files("circuitsim.mechanics") / "models")) / path
-        path = beside if beside.exists() or not shipped.exists() else shipped
+        try:
+            path = beside if beside.exists() or not shipped.exists() else shipped
+        except (OSError, ValueError) as exc:  # a name too long for the file system, a NUL
+            reason = getattr(exc, "strerror", None) or str(exc)
+            raise reader.fail(key, f"cannot read: {reason}") from None
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise reader.fail(key, f"{path}: file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise reader.fail(key, f"{path}: cannot read: {exc}") from None
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise reader.fail(key, f"{str(path)[:200]}: cannot read: {exc}") from None
     out: list[tuple[float, float, str]] = []
     header_allowed = True
     for number, line in enumerate(text.splitlines(), start=1):

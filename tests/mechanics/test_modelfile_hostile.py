@@ -2,6 +2,7 @@
 the key and the fault: never a RecursionError, OverflowError or tomllib's ValueError."""
 
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -137,3 +138,28 @@ def test_help_with_an_unreadable_model_is_the_generic_help(tmp_path, capsys):
         main(["ode", "--model", str(tmp_path / ("x" * 5000)), "--help"])
     assert caught.value.code == 0
     assert "the built-in wheelset" in capsys.readouterr().out
+
+
+MODELS = Path(__file__).resolve().parents[1] / "synthesis" / "models"
+SHIPPED = Path(__file__).resolve().parents[2] / "circuitsim" / "mechanics" / "models"
+
+
+@pytest.mark.parametrize(
+    "source, old, new, key, words",
+    [
+        (MODELS / "driven_oscillator.toml", "[0.5, 10]", "[0.5, " + "1" * 401 + "]",
+         "forcing.road.points", "must be finite"),
+        (SHIPPED / "wheelset.toml", '"track_irregularity.csv"', '"' + "a" * 5000 + '"',
+         "forcing.irregularity.file", "cannot read: File name too long"),
+    ],
+    ids=["401-digit point", "5000-character file name"],
+)  # fmt: skip
+def test_time_series_forcing_found_by_the_fuzzer(tmp_path, source, old, new, key, words):
+    # gen_models seed 5: an OverflowError and an OSError escaped the forcing reader
+    text = source.read_text()
+    assert old in text
+    path = tmp_path / "m.toml"
+    path.write_text(text.replace(old, new, 1))
+    with pytest.raises(ModelError, match=words) as caught:
+        load_model(path)
+    assert caught.value.key == key
