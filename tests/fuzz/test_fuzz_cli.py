@@ -5,7 +5,7 @@ time bound. The long campaign: ``python -m tests.fuzz.campaign --only gen_cli --
 from tests.fuzz import gen_cli
 from tests.fuzz.harness import run_cases
 
-SEED, COUNT, BOUND = 21, 60, 20.0
+SEED, COUNT, BOUND = 21, 60, 60.0  # generous: a loaded machine is not a hang
 
 
 def test_hostile_command_lines_end_in_an_exit_code_and_one_line():
