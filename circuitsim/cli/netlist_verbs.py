@@ -108,8 +108,8 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         choices=("auto", "ports", "compiled", "python"),
         default="auto",
         help="builtin engine's transient loop: ports (compiled, Newton on the junction "
-        "voltages), compiled (numba, every unknown), python (the reference), or auto (ports up "
-        "to 64 junctions, compiled above, where the circuit allows; default)",
+        "voltages), compiled (numba, every unknown), python (the reference), or auto (ports "
+        "where the circuit allows, at any size; default)",
     )
     parser.add_argument(
         "--ngspice-timeout",
