@@ -162,7 +162,7 @@ def _run_generate(args: argparse.Namespace) -> int:
     )
     result = generate(system, args.output, options, args.dialect)
     _print_warnings(result.synthesis)
-    print(f"wrote {result.netlist}, {result.scale_file}, {result.bom_file}")
+    print(f"wrote {result.netlist}, {result.scale_file}, {result.bom_file}, {result.order_file}")
     _print_fits(system)
     print(result.synthesis.step.describe(result.synthesis.scale_map.time_scale))
     print(result.report.summary())

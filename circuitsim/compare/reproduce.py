@@ -261,7 +261,7 @@ def reproduce(
     ----------
     out_dir : path-like
         Created if missing: ``report.md``, ``metrics.json``, ``figures/*.png``,
-        ``netlists/<scenario>-<opamp>-<series>.{cir,scale.json,bom.csv}``.
+        ``netlists/<scenario>-<opamp>-<series>.{cir,scale.json,bom.csv,order.csv}``.
     progress : callable, optional
         Called with one line per finished step.
     scenarios, opamps, series, engines : tuples

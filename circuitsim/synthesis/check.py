@@ -114,8 +114,12 @@ def check_mapping(
     if bom is not None and not isinstance(bom, list):
         bom = load_bom(bom)
     errors = {e.part.lower(): abs(e.error) for e in (bom or []) if not math.isnan(e.error)}
-    # the rounded series the resistors come from, named in advice (inverter pairs are "exact")
-    rounded = sorted({e.series for e in (bom or []) if e.unit == "ohm" and e.series != "exact"})
+    # the series the coefficient resistors were rounded to, named in advice: only parts whose
+    # rounding moved a coefficient (fixed 10 kOhm parts are labelled E24 by membership)
+    rounded = sorted(
+        {e.series for e in (bom or []) if e.unit == "ohm" and e.series != "exact"
+         and abs(e.error) > 1e-9}
+    )  # fmt: skip
     return _Checker(circuit, scale_map, system, errors, tolerance, "/".join(rounded)).run()
 
 

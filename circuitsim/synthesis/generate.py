@@ -1,4 +1,5 @@
-"""Generate the three files of a circuit: ``FILE.cir``, ``FILE.scale.json``, ``FILE.bom.csv``.
+"""Generate the files of a circuit: ``FILE.cir``, ``FILE.scale.json``, ``FILE.bom.csv`` (every
+part) and ``FILE.order.csv`` (what to order, grouped).
 
 The three texts are rendered first (the netlist in the chosen dialect), then parsed back exactly
 as a reader of the files would parse them and checked against the model
@@ -19,7 +20,7 @@ from circuitsim.atomic import check_writable, write_files_atomic
 from circuitsim.mechanics.system import System
 from circuitsim.netlist.reader import parse_netlist
 from circuitsim.netlist.writer import write_netlist
-from circuitsim.synthesis.bom import bom_text, parse_bom
+from circuitsim.synthesis.bom import bom_text, order_text, parse_bom
 from circuitsim.synthesis.check import MappingReport, check_mapping
 from circuitsim.synthesis.options import SynthesisOptions
 from circuitsim.synthesis.scalemap import ScaleMap
@@ -35,6 +36,7 @@ class Generated:
     scale_file: Path
     bom_file: Path
     report: MappingReport
+    order_file: Path | None = None
 
     @property
     def warnings(self) -> list[str]:
@@ -42,10 +44,11 @@ class Generated:
         return self.synthesis.warnings + self.report.warnings
 
 
-def companion_paths(netlist: str | os.PathLike) -> tuple[Path, Path]:
-    """``FILE.scale.json`` and ``FILE.bom.csv`` for ``FILE.cir`` (any suffix is replaced)."""
+def companion_paths(netlist: str | os.PathLike) -> tuple[Path, Path, Path]:
+    """``FILE.scale.json``, ``FILE.bom.csv`` and ``FILE.order.csv`` for ``FILE.cir`` (any
+    suffix is replaced)."""
     stem = Path(netlist).with_suffix("")
-    return Path(f"{stem}.scale.json"), Path(f"{stem}.bom.csv")
+    return Path(f"{stem}.scale.json"), Path(f"{stem}.bom.csv"), Path(f"{stem}.order.csv")
 
 
 def switch_at(system: System, t_on: float | None) -> System:
@@ -62,7 +65,7 @@ def generate(
     options: SynthesisOptions | None = None,
     dialect: str = "ngspice",
 ) -> Generated:
-    """Translate ``system``, check the circuit, and write the netlist, scale file and BOM.
+    """Translate ``system``, check the circuit, and write the netlist, scale file and BOMs.
 
     The files are written only if everything before succeeded, and then all together: on any
     error no file has changed. A mapping check that finds mismatches is not an error: the files
@@ -73,7 +76,7 @@ def generate(
     system : System
         The model to realize.
     path : path-like
-        The netlist file (``.cir``); the scale file and BOM are written beside it (see
+        The netlist file (``.cir``); the scale file and both BOMs are written beside it (see
         :func:`companion_paths`).
     options : SynthesisOptions, optional
         Translator options (op-amp model, scaling, resistor series ...).
@@ -95,14 +98,15 @@ def generate(
     # The output paths first: a bad one fails at once, not after the translation.
     check_writable(path)
     netlist = Path(path)
-    scale_file, bom_file = companion_paths(netlist)
-    check_writable(scale_file)
-    check_writable(bom_file)
+    scale_file, bom_file, order_file = companion_paths(netlist)
+    for companion in (scale_file, bom_file, order_file):
+        check_writable(companion)
     synthesis = synthesize(system, options)
     texts = {
         netlist: write_netlist(synthesis.circuit, dialect),
         scale_file: synthesis.scale_map.to_text(),
-        bom_file: bom_text(synthesis.bom),
+        bom_file: bom_text(synthesis.circuit, synthesis.bom),
+        order_file: order_text(synthesis.circuit, synthesis.bom),
     }
     # Parsed from the very texts the files will hold, as read_netlist and the loaders would
     # (same names in messages, includes looked up beside the netlist): nothing of the
@@ -114,4 +118,4 @@ def generate(
     bom = parse_bom(texts[bom_file], source=str(bom_file))
     report = check_mapping(circuit, scale_map, system, bom=bom)
     write_files_atomic(texts)
-    return Generated(synthesis, netlist, scale_file, bom_file, report)
+    return Generated(synthesis, netlist, scale_file, bom_file, report, order_file)

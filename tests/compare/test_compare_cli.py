@@ -51,7 +51,10 @@ def test_compare_says_what_it_wrote_and_keeps_json_alone_on_stdout(capsys, tmp_p
     argv = ["compare", "--tstop", "0.3", "--write-netlist", str(netlist), "--plot", str(plot)]
     main(argv)
     out = capsys.readouterr().out
-    assert f"wrote {netlist}, {tmp_path / 'c.scale.json'}, {tmp_path / 'c.bom.csv'}, {plot}" in out
+    assert (
+        f"wrote {netlist}, {tmp_path / 'c.scale.json'}, {tmp_path / 'c.bom.csv'}, "
+        f"{tmp_path / 'c.order.csv'}, {plot}"
+    ) in out
     assert netlist.exists() and plot.exists()
     main([*argv, "--json"])
     captured = capsys.readouterr()

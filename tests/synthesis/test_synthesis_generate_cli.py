@@ -68,7 +68,7 @@ def test_committed_paper_netlists_are_current(tmp_path):
     paper_netlists(tmp_path)
     for case in CASES:
         name = file_name(*case)
-        for suffix in ("", ".scale.json", ".bom.csv"):
+        for suffix in ("", ".scale.json", ".bom.csv", ".order.csv"):
             fresh = tmp_path / (name[:-4] + suffix if suffix else name)
             committed = NETLISTS / fresh.name
             assert committed.exists(), f"{committed} missing: run python netlists/regenerate.py"
