@@ -64,7 +64,7 @@ def test_driven_oscillator_circuit_matches_the_ode(engine):
 def test_track_irregularity_end_to_end(tmp_path, capsys, engine):
     netlist = tmp_path / "track.cir"
     code = main(["compare", "--forcing", "irregularity", "--engine", engine,
-                 "--netlist", str(netlist)])  # fmt: skip
+                 "--write-netlist", str(netlist)])  # fmt: skip
     out = capsys.readouterr().out
     assert code == 0, out
     assert "PASS" in out and "time step 0.00027 s set by the mode of the region flange" in out
