@@ -10,12 +10,14 @@ node) are not reported.
 
 from __future__ import annotations
 
+import dataclasses
 import time as _time
 from collections.abc import Callable
 
 import numpy as np
 
 from circuitsim.netlist.circuit import Circuit, Expression, OperatingPoint, SubcircuitCall
+from circuitsim.netlist.names import fold
 from circuitsim.solver.dc import operating_point_solution
 from circuitsim.solver.errors import CircuitInputError
 from circuitsim.solver.options import SimulationOptions
@@ -43,8 +45,19 @@ def _needs_flatten(circuit: Circuit) -> bool:
     for element in circuit.elements:
         if isinstance(element, SubcircuitCall):
             return True
-        if any(isinstance(v, Expression) for v in vars(element).values()):
+        if any(_holds_expression(v) for v in vars(element).values()):
             return True
+    return False
+
+
+def _holds_expression(value) -> bool:
+    """An Expression, or a source waveform with one among its arguments (``SIN({a} 1 50)``)."""
+    if isinstance(value, Expression):
+        return True
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return any(_holds_expression(v) for v in vars(value).values())
+    if isinstance(value, tuple):
+        return any(_holds_expression(v) for v in value)
     return False
 
 
@@ -70,14 +83,16 @@ def probe_names(system: MnaSystem, probes: list[str] | None) -> list[str]:
         return list(system.signals)
     names, missing = [], []
     for probe in probes:
-        key = probe.lower()
+        key = fold(probe)
         key = key if key in system.signals else f"v({key})"
         if key in system.signals:
             names.append(key)
         else:
             missing.append(probe)
     if missing:
-        raise CircuitInputError(f"no signal {', '.join(missing)}; have {', '.join(system.signals)}")
+        have = list(system.signals)
+        shown = ", ".join(have[:20]) + (f", ... ({len(have)} in all)" if len(have) > 20 else "")
+        raise CircuitInputError(f"no signal {', '.join(missing)}; have {shown}")
     return list(dict.fromkeys(names))
 
 

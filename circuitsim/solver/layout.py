@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from circuitsim.netlist.names import fold
 from circuitsim.solver.errors import CircuitInputError
 
 GROUND = -1
@@ -39,8 +40,8 @@ class Layout:
         self.branches: dict[str, int] = {}
         self.n_charges = 0
         for name in node_names:
-            if name.lower() not in GROUND_NAMES and name not in self._nodes:
-                self._nodes[name] = self._new(f"v({name.lower()})", True)
+            if fold(name) not in GROUND_NAMES and name not in self._nodes:
+                self._nodes[name] = self._new(f"v({fold(name)})", True)
                 self.external_nodes.append(name)
 
     def _new(self, label: str, voltage: bool) -> int:
@@ -55,7 +56,7 @@ class Layout:
 
     def node(self, name: str) -> int:
         """Index of node ``name`` (``-1`` for ground)."""
-        if name.lower() in GROUND_NAMES:
+        if fold(name) in GROUND_NAMES:
             return GROUND
         try:
             return self._nodes[name]
@@ -68,11 +69,11 @@ class Layout:
 
     def add_internal_node(self, label: str) -> int:
         """A node private to a device (a diode's series-resistance node); not an output."""
-        return self._new(f"v({label.lower()})", True)
+        return self._new(f"v({fold(label)})", True)
 
     def add_branch(self, element_name: str) -> int:
         """A branch-current unknown owned by ``element_name`` (V, L, E, H)."""
-        key = element_name.lower()
+        key = fold(element_name)
         if key in self.branches:
             raise CircuitInputError(f"element {element_name} defined twice")
         self.branches[key] = self._new(f"i({key})", False)
@@ -81,7 +82,7 @@ class Layout:
     def branch(self, element_name: str, wanted_by: str) -> int:
         """Index of the branch current of ``element_name`` (for F and H controls)."""
         try:
-            return self.branches[element_name.lower()]
+            return self.branches[fold(element_name)]
         except KeyError:
             raise CircuitInputError(
                 f"{wanted_by}: controlling source {element_name!r} is not a voltage source "

@@ -15,6 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from circuitsim.netlist.circuit import Circuit
+from circuitsim.netlist.names import fold
 from circuitsim.solver.context import Stamps, StepContext
 from circuitsim.solver.devices import FAMILIES, DeviceFamily
 from circuitsim.solver.errors import CircuitInputError, SingularMatrixError
@@ -115,7 +116,7 @@ class MnaSystem:
             self._port_slices = [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
         self.port_rebuilds = 0
         self.factorizations = 0
-        self.signals = {f"v({name.lower()})": layout.node(name) for name in layout.external_nodes}
+        self.signals = {f"v({fold(name)})": layout.node(name) for name in layout.external_nodes}
         for family in self.families:
             self.signals.update(family.output_signals())
 

@@ -20,6 +20,7 @@ from typing import NamedTuple
 import numpy as np
 
 from circuitsim.netlist.circuit import Circuit, Resistor
+from circuitsim.netlist.names import fold
 from circuitsim.solver.engine import build_system
 from circuitsim.solver.errors import CircuitInputError
 from circuitsim.solver.threads import single_threaded_blas
@@ -69,7 +70,7 @@ def simulate_variants(
     """
     from circuitsim.solver.compiled import check_cache
 
-    probes = [p.lower() for p in probes]
+    probes = [fold(p) for p in probes]
     total = len(circuits)
     workers = max(1, min(int(workers or os.cpu_count() or 1), max(total, 1)))
     check_cache()  # once, here, before threads would race for it

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from circuitsim.atomic import write_atomic
+from circuitsim.netlist.names import fold
 
 
 @dataclass
@@ -39,7 +40,7 @@ class Waveforms:
 
     def __getitem__(self, name: str) -> np.ndarray:
         """The signal called ``name`` (case-insensitive; ``"out"`` means ``v(out)``)."""
-        key = name.lower()
+        key = fold(name)
         if key in self.signals:
             return self.signals[key]
         if f"v({key})" in self.signals:
@@ -47,7 +48,7 @@ class Waveforms:
         raise KeyError(f"no signal {name!r}; have {', '.join(self.signals)}")
 
     def __contains__(self, name: str) -> bool:
-        key = name.lower()
+        key = fold(name)
         return key in self.signals or f"v({key})" in self.signals
 
     @property
@@ -61,7 +62,7 @@ class Waveforms:
         chosen = names if names is not None else self.names
         return Waveforms(
             time=times,
-            signals={n.lower(): np.interp(times, self.time, self[n]) for n in chosen},
+            signals={fold(n): np.interp(times, self.time, self[n]) for n in chosen},
             engine=self.engine,
             stats=dict(self.stats),
         )
@@ -76,7 +77,7 @@ class Waveforms:
         )
 
     def _key(self, name: str) -> str:
-        key = name.lower()
+        key = fold(name)
         return key if key in self.signals else f"v({key})"
 
     def to_csv(self, path: str | os.PathLike) -> None:

@@ -205,6 +205,6 @@ def cases(seed: int, count: int, verbs: tuple[str, ...] = VERBS) -> Iterator[Cas
             f"cli-{verb}",
             f"{seed}-{index}-{verb}-{'+'.join(applied)}",
             "",
-            cli_call(argv),
+            cli_call(argv, work_folder()),
             argv=tuple(argv),
         )

@@ -42,6 +42,7 @@ import warnings
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 OUTCOMES = ("clean", "named", "traceback", "hang")
 """The four outcome kinds, in the order the summary prints them."""
@@ -124,18 +125,20 @@ class CliResult:
     stderr: str
 
 
-def cli_call(argv: Sequence[str]) -> Callable[[], CliResult]:
+def cli_call(argv: Sequence[str], folder: Path | None = None) -> Callable[[], CliResult]:
     """A callable that runs ``circuitsim <argv>`` in-process and captures its output.
 
     ``SystemExit`` (argparse's own exit) becomes the exit code; any other exception
-    propagates, and the harness classifies it as a traceback.
+    propagates, and the harness classifies it as a traceback. ``folder``: the working folder
+    of the call (relative outputs such as ``-o -`` land there, not in the repository).
     """
 
     def call() -> CliResult:
         from circuitsim.cli import main
 
         out, err = io.StringIO(), io.StringIO()
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        where = contextlib.chdir(folder) if folder is not None else contextlib.nullcontext()
+        with where, contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
             try:
                 code = main(list(argv))
             except SystemExit as exc:

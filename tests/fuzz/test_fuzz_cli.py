@@ -26,5 +26,5 @@ def test_the_base_command_of_every_verb_is_valid():
     rng = random.Random(SEED)
     for verb in ("ode", "stability", "generate", "check", "convert", "simulate"):
         argv = gen_cli.base_command(rng, verb)
-        outcome = run_case(Case("cli", verb, "", cli_call(argv)), BOUND)
+        outcome = run_case(Case("cli", verb, "", cli_call(argv, gen_cli.work_folder())), BOUND)
         assert outcome.kind == "clean", (argv, outcome.detail)

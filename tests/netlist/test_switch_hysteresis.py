@@ -1,6 +1,6 @@
 """A switch model with negative VH: what ngspice 39 does with it, and that we say so.
 
-ngspice (``swload.c``) reads VH < 0 as reversed hysteresis; the builtin engine uses ``|VH|``.
+ngspice (``swload.c``) reads VH < 0 as reversed hysteresis; the builtin engine refuses it.
 The reader warns and ``check`` reports a ``negative-hysteresis`` finding whose thresholds are
 the ones ngspice switches at, measured here on a control ramp 0 -> 1 -> 0 V.
 """
@@ -71,3 +71,14 @@ def test_zero_and_positive_vh_are_quiet():
             warnings.simplefilter("error", NetlistWarning)
             circuit = parse_netlist(RAMP.format(vh=vh))
         assert not [f for f in check_circuit(circuit) if f.kind == "negative-hysteresis"]
+
+
+def test_the_builtin_engine_refuses_negative_vh_rather_than_differ_from_ngspice():
+    from circuitsim.solver import simulate
+    from circuitsim.solver.errors import CircuitInputError
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NetlistWarning)
+        circuit = parse_netlist(RAMP.format(vh=-0.2))
+    with pytest.raises(CircuitInputError, match=r"switch S1: model VH < 0"):
+        simulate(circuit)

@@ -71,7 +71,16 @@ class SwitchFamily(DeviceFamily):
         par = model_params(models, defaults, self.names)
         if np.any(par["ron"] <= 0) or np.any(par["roff"] <= 0):
             raise CircuitInputError("switch model: RON and ROFF must be > 0")
-        self.vh = np.abs(par["vh"])
+        negative = [name for name, vh in zip(self.names, par["vh"], strict=True) if vh < 0]
+        if negative:
+            # ngspice 39 reverses the hysteresis band for VH < 0 (on at VT+VH rising, off at
+            # VT-VH falling: a switch that toggles at every time point inside the band); the
+            # reader warns and `check` reports it, and the engine refuses rather than guess.
+            raise CircuitInputError(
+                f"switch {', '.join(negative)}: model VH < 0 is not supported by the builtin "
+                "engine (ngspice 39 reverses the hysteresis band); give VH >= 0"
+            )
+        self.vh = par["vh"]
         self.on_above = par["vt"] + self.vh
         self.off_below = par["vt"] - self.vh
         self.g_on, self.g_off = 1.0 / par["ron"], 1.0 / par["roff"]
