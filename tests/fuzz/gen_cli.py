@@ -45,7 +45,13 @@ EXTRA_OPTIONS = [
     "--coeffs", "--model", "--max-steps", "--max-wall-time", "--values", "--window", "--jobs",
     "--max-nrmsd", "--tolerance", "--workers", "--flange", "--no-flange", "--json",
     "--eigenvalues", "--nosuch", "-o", "--csv", "--plot", "--netlist", "--out",
+    "--write-netlist", "--raw", "--scale", "--states", "--forcing", "--ngspice-timeout",
 ]  # fmt: skip
+
+PATH_OPTIONS = (
+    "-o", "--csv", "--plot", "--netlist", "--out", "--model", "--write-netlist", "--raw",
+    "--scale", "--states",
+)  # options whose value is a path: mutated with hostile paths
 
 
 @cache
@@ -132,7 +138,7 @@ def _value_for(rng: random.Random, option: str, verb: str) -> str:
     if option in LONG_RUNS and verb in ("ode", "generate", "compare", "sweep", "reproduce",
                                         "simulate"):  # fmt: skip
         return rng.choice(REFUSED)
-    if option in ("-o", "--csv", "--plot", "--netlist", "--out", "--model"):
+    if option in PATH_OPTIONS:
         return rng.choice(hostile_paths())
     return rng.choice(HOSTILE_VALUES)
 
