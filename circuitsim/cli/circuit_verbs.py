@@ -11,6 +11,7 @@ from circuitsim.cli.common import (
     MAX_WORKERS,
     UsageError,
     add_model_options,
+    add_ngspice_timeout,
     add_scenario_options,
     check_scenario_options,
     parameter_assignment,
@@ -200,6 +201,7 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:
         help="circuit simulator (default builtin, our MNA solver; ngspice, the referee, if "
         "installed)",
     )
+    add_ngspice_timeout(parser)
     parser.add_argument(
         "--tstop",
         type=float,
@@ -263,6 +265,7 @@ def _check_compare(args: argparse.Namespace) -> None:
     require_positive("--time-scale", args.time_scale)
     require_positive("--max-nrmsd", args.max_nrmsd)
     require_positive("--tolerance", args.tolerance)
+    require_positive("--ngspice-timeout", args.ngspice_timeout)
     require_figure_path("--plot", args.plot)
     if args.write_netlist is not None:
         from circuitsim.synthesis.generate import companion_paths
@@ -330,7 +333,15 @@ def _run_compare(args: argparse.Namespace) -> int:
     )
     label = f"{args.engine}, {args.opamp}, {args.series}"
     system = scenario_system(args)
-    case = run_case(system, options, args.engine, thresholds, args.write_netlist, label=label)
+    case = run_case(
+        system,
+        options,
+        args.engine,
+        thresholds,
+        args.write_netlist,
+        label=label,
+        ngspice_timeout=args.ngspice_timeout,
+    )
     _print_warnings(case.synthesis)
     _print_fits(system, sys.stderr if args.json else sys.stdout)
     return _print_case(args, case, label)
@@ -353,7 +364,15 @@ def _compare_given(args: argparse.Namespace, thresholds) -> int:
     if args.netlist is not None:
         args.engine = args.engine or "builtin"
         label = f"{args.engine}, {Path(source).name}"
-        case = run_netlist_case(system, source, scale_map, args.engine, thresholds, label=label)
+        case = run_netlist_case(
+            system,
+            source,
+            scale_map,
+            args.engine,
+            thresholds,
+            label=label,
+            ngspice_timeout=args.ngspice_timeout,
+        )
     else:
         from circuitsim.interop.errors import NgspiceError
         from circuitsim.interop.rawfile import read_rawfile
@@ -448,6 +467,7 @@ def _add_reproduce(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--workers", type=int, metavar="N", help="processes, at least 1 (default: every core)"
     )
+    add_ngspice_timeout(parser)
     parser.set_defaults(func=_run_reproduce)
 
 
@@ -455,6 +475,7 @@ def _run_reproduce(args: argparse.Namespace) -> int:
     from circuitsim.compare.reproduce import OPAMPS, SERIES, reproduce
 
     require_count("--workers", args.workers, MAX_WORKERS)
+    require_positive("--ngspice-timeout", args.ngspice_timeout)
     prepare_output_folder("--out", args.out, "report.md", "metrics.json")
     result = reproduce(
         args.out,
@@ -463,6 +484,7 @@ def _run_reproduce(args: argparse.Namespace) -> int:
         series=tuple(args.series or SERIES),
         engines=tuple(args.engine or ("builtin", "ngspice")),
         workers=args.workers,
+        ngspice_timeout=args.ngspice_timeout,
     )
     done = [r for r in result.rows if r.comparison is not None]
     passed = sum(r.comparison.passed for r in done)
@@ -530,6 +552,7 @@ def _add_sweep(sub: argparse._SubParsersAction) -> None:
         help="builtin (default: our MNA solver, each variant in a thread) or ngspice (one "
         "process per variant)",
     )
+    add_ngspice_timeout(parser)
     parser.add_argument(
         "--opamp", choices=("ideal", "tl074"), default="ideal", help="op-amp model (default ideal)"
     )
@@ -663,6 +686,7 @@ def _run_sweep(args: argparse.Namespace) -> int:
     require_count("--jobs", args.jobs, MAX_WORKERS)
     require_positive("--tstop", args.tstop)
     require_positive("--window", args.window)
+    require_positive("--ngspice-timeout", args.ngspice_timeout)
     check_scenario_options(args)
     try:
         values = parse_values(args.values)
@@ -700,6 +724,7 @@ def _run_sweep(args: argparse.Namespace) -> int:
             window=window,
             workers=min(args.jobs, len(values)),  # more would only make idle threads
             progress=bar,
+            ngspice_timeout=args.ngspice_timeout,
         )
     finally:
         bar.close()

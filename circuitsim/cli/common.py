@@ -199,6 +199,17 @@ def prepare_output_folder(option: str, folder: str | Path, *names: str) -> Path:
     return folder
 
 
+def add_ngspice_timeout(parser: argparse.ArgumentParser) -> None:
+    """``--ngspice-timeout SECONDS``: the limit of each ngspice run a verb starts."""
+    parser.add_argument(
+        "--ngspice-timeout",
+        type=float,
+        default=300.0,
+        metavar="SECONDS",
+        help="stop ngspice after this long and report it (default 300)",
+    )
+
+
 def progress(message: str) -> None:
     """Progress callback handed to long-running library calls: one line on stderr."""
     print(message, file=sys.stderr, flush=True)

@@ -8,6 +8,7 @@ import sys
 from circuitsim.cli.common import (
     MAX_STEP_COUNT,
     UsageError,
+    add_ngspice_timeout,
     progress_after,
     read_netlist_reporting_warnings,
     require_count,
@@ -111,13 +112,7 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         "voltages), compiled (numba, every unknown), python (the reference), or auto (ports "
         "where the circuit allows, at any size; default)",
     )
-    parser.add_argument(
-        "--ngspice-timeout",
-        type=float,
-        default=300.0,
-        metavar="SECONDS",
-        help="stop ngspice after this long and report it (default 300)",
-    )
+    add_ngspice_timeout(parser)
     parser.add_argument("--csv", metavar="FILE", help="write time,v(node),...,i(vsource),...")
     parser.add_argument(
         "--plot",

@@ -50,7 +50,12 @@ def engine_available(engine: str) -> str | None:
     return f"unknown engine {engine!r} (choose {', '.join(ENGINES)})"
 
 
-def run_engine(engine: str, circuit, netlist: str | os.PathLike | None = None) -> Waveforms:
+def run_engine(
+    engine: str,
+    circuit,
+    netlist: str | os.PathLike | None = None,
+    ngspice_timeout: float | None = None,
+) -> Waveforms:
     """Simulate with ``engine``: ``"builtin"`` (our MNA solver) or ``"ngspice"``.
 
     Parameters
@@ -61,6 +66,8 @@ def run_engine(engine: str, circuit, netlist: str | os.PathLike | None = None) -
     netlist : path, optional
         The written netlist; ngspice runs the file itself when given (what the file says is
         what is simulated), the builtin engine the Circuit object.
+    ngspice_timeout : float, optional
+        Seconds before ngspice is stopped (default: ``run_ngspice``'s, 300 s).
 
     Raises
     ------
@@ -71,9 +78,10 @@ def run_engine(engine: str, circuit, netlist: str | os.PathLike | None = None) -
     if reason is not None:
         raise EngineUnavailable(reason)
     if engine == "ngspice":
-        from circuitsim.interop.ngspice import run_ngspice
+        from circuitsim.interop.ngspice import DEFAULT_TIMEOUT, run_ngspice
 
-        return run_ngspice(Path(netlist) if netlist is not None else circuit)
+        timeout = DEFAULT_TIMEOUT if ngspice_timeout is None else ngspice_timeout
+        return run_ngspice(Path(netlist) if netlist is not None else circuit, timeout=timeout)
     from circuitsim.solver import simulate
 
     return simulate(circuit)
@@ -137,6 +145,7 @@ def run_case(
     netlist: str | os.PathLike | None = None,
     n_points: int = 4096,
     label: str = "",
+    ngspice_timeout: float | None = None,
 ) -> CaseResult:
     """Generate the circuit of ``system``, simulate it with ``engine``, compare with the ODE.
 
@@ -155,6 +164,8 @@ def run_case(
     n_points : int
         Common-grid points of the comparison.
     label : str
+    ngspice_timeout : float, optional
+        Seconds before ngspice is stopped (default 300).
 
     Raises
     ------
@@ -189,7 +200,7 @@ def run_case(
         if ready is not None:
             timings["kernels"] = ready
     started = time.perf_counter()
-    waves = run_engine(engine, synthesis.circuit, written)
+    waves = run_engine(engine, synthesis.circuit, written, ngspice_timeout)
     timings["simulation"] = time.perf_counter() - started
     circuit = map_waveforms(waves, synthesis.scale_map, list(system.states))
 

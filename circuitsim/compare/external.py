@@ -86,10 +86,12 @@ def run_netlist_case(
     thresholds: Thresholds | None = None,
     n_points: int = 4096,
     label: str = "",
+    ngspice_timeout: float | None = None,
 ) -> CaseResult:
     """Simulate the netlist file with ``engine`` and compare it with ``system``'s solution.
 
-    ngspice runs the file itself; the builtin engine the circuit our reader makes of it.
+    ngspice runs the file itself (stopped after ``ngspice_timeout`` seconds, default 300);
+    the builtin engine the circuit our reader makes of it.
 
     Raises
     ------
@@ -107,7 +109,7 @@ def run_netlist_case(
         if ready is not None:
             timings["kernels"] = ready
     started = time.perf_counter()
-    waves = run_engine(engine, circuit, netlist)
+    waves = run_engine(engine, circuit, netlist, ngspice_timeout)
     timings["simulation"] = time.perf_counter() - started
     result = compare_waveforms(
         system, waves, scale_map, thresholds, engine, n_points, label, timings

@@ -187,7 +187,11 @@ def _free_job(speed: float, t_stop: float = 10.0) -> tuple[float, Trace, float]:
 
 
 def _circuit_job(
-    scenario: Scenario, variant: Variant, netlist: str | None, skip_reason: str | None = None
+    scenario: Scenario,
+    variant: Variant,
+    netlist: str | None,
+    skip_reason: str | None = None,
+    ngspice_timeout: float | None = None,
 ) -> tuple[Variant, Scenario, str, dict | None, CircuitInfo | None, float, int]:
     """Synthesize (and, with ``netlist``, write and check) then simulate unless told to skip
     the simulation; never raises."""
@@ -231,7 +235,7 @@ def _circuit_job(
         if reason is not None:
             return variant, scenario, f"not available: {reason}", None, info, float("nan"), 0
         started = time.perf_counter()
-        waves = run_engine(variant.engine, synthesis.circuit, path)
+        waves = run_engine(variant.engine, synthesis.circuit, path, ngspice_timeout)
         elapsed = time.perf_counter() - started
         traces = map_waveforms(waves, synthesis.scale_map, list(system.states))
         return variant, scenario, "ok", traces, info, elapsed, len(waves.time)
@@ -254,6 +258,7 @@ def reproduce(
     workers: int | None = None,
     n_points: int = 4096,
     skip: dict[tuple[str, str], str] | None = None,
+    ngspice_timeout: float | None = None,
 ) -> Reproduction:
     """Run the paper's cases and write figures, netlists, report.md and metrics.json.
 
@@ -276,6 +281,9 @@ def reproduce(
     skip : dict of (engine, op-amp) to str, optional
         Pairs not run, each reported with its reason (default: none; a full run takes about
         a minute on two cores, docs/validation.md).
+    ngspice_timeout : float, optional
+        Seconds before each ngspice run is stopped (default 300); a run stopped is a
+        "failed" row naming the limit.
 
     Returns
     -------
@@ -318,7 +326,7 @@ def reproduce(
                     path = None
                     if engine == writer:
                         path = str(out / "netlists" / f"{scenario.name}-{opamp}-{s.lower()}.cir")
-                    jobs.append(("circuit", (scenario, variant, path, reason)))
+                    jobs.append(("circuit", (scenario, variant, path, reason, ngspice_timeout)))
     ode_jobs = [("ode", (sc, str(out / "figures" / f"fig4-{sc.name}.png"))) for sc in scenarios]
     free_jobs = [("free", (speed,)) for speed in free_speeds]
     functions = {"circuit": _circuit_job, "ode": _ode_job, "free": _free_job}

@@ -244,6 +244,7 @@ def run_sweep(
     workers: int | None = None,
     progress: Progress | None = None,
     keep: Sequence[int] = (),
+    ngspice_timeout: float | None = None,
 ) -> SweepResult:
     """Simulate the circuit of every system and measure the peak |state|.
 
@@ -270,6 +271,8 @@ def run_sweep(
     progress : callable(fraction, message), optional
     keep : sequence of int
         Indices of variants whose mapped state trace to keep in ``SweepResult.traces``.
+    ngspice_timeout : float, optional
+        Seconds before each variant's ngspice run is stopped (default 300).
 
     Raises
     ------
@@ -303,7 +306,7 @@ def run_sweep(
     if engine == "builtin":
         waves, stats = _run_builtin(variants.circuits, nodes, workers, progress)
     elif engine == "ngspice":
-        waves, stats = _run_ngspice(variants, nodes, workers, progress)
+        waves, stats = _run_ngspice(variants, nodes, workers, progress, ngspice_timeout)
     else:
         raise ComparisonError(f"unknown engine {engine!r} (choose builtin or ngspice)")
     timings["simulation"] = time.perf_counter() - started
@@ -370,9 +373,13 @@ def _run_builtin(circuits: list[Circuit], nodes: list[str], jobs: int, progress:
 
 
 def _run_ngspice(
-    variants: SweepCircuits, nodes: list[str], workers: int, progress: Progress | None
+    variants: SweepCircuits,
+    nodes: list[str],
+    workers: int,
+    progress: Progress | None,
+    timeout: float | None = None,
 ):
-    from circuitsim.interop.ngspice import run_ngspice
+    from circuitsim.interop.ngspice import DEFAULT_TIMEOUT, run_ngspice
     from circuitsim.interop.sandbox import private_folder
 
     probes = [f"v({node})" for node in nodes]
@@ -388,7 +395,8 @@ def _run_ngspice(
             save_netlist(circuit, path, "ngspice")
             paths.append(path)
         with ThreadPoolExecutor(max_workers=workers) as pool:
-            futures = {pool.submit(run_ngspice, p, probes): k for k, p in enumerate(paths)}
+            limit = DEFAULT_TIMEOUT if timeout is None else timeout
+            futures = {pool.submit(run_ngspice, p, probes, limit): k for k, p in enumerate(paths)}
             try:
                 for done, future in enumerate(as_completed(futures), start=1):
                     waves[futures[future]] = future.result()

@@ -34,7 +34,8 @@ class NgspiceTimeout(NgspiceError):
         super().__init__(
             f"ngspice did not finish within {seconds:g} s and was stopped; a longer .tran step "
             "or TMAX (fewer time points), a shorter TSTOP, or a longer limit (run_ngspice's "
-            "timeout=..., circuitsim simulate --ngspice-timeout SECONDS) may help",
+            "timeout=..., --ngspice-timeout SECONDS of circuitsim simulate, compare, sweep, "
+            "reproduce) may help",
             log,
         )
 

@@ -300,3 +300,49 @@ def test_other_verbs_run_ngspice_in_the_sandbox(argv, tmp_path, monkeypatch, cap
     for args, folder, title in calls:
         assert args == ["-b", "-n", "deck.cir"] and folder.startswith(FOLDER_PREFIX)
         assert title == "circuitsim deck for ngspice"
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+@pytest.mark.parametrize(
+    "verb",
+    [
+        ["compare", "--engine", "ngspice"],
+        ["sweep", "--param", "speed", "--values", "55", "--engine", "ngspice", "--out", "{out}"],
+    ],
+    ids=["compare", "sweep"],
+)
+def test_cli_ngspice_timeout_reaches_compare_and_sweep(verb, tmp_path, capsys):
+    """compare and sweep stop ngspice after --ngspice-timeout (not the 300 s default): the
+    wheelset's 5 s run takes ngspice well over 0.05 s, so the limit is what ends it."""
+    from circuitsim.cli import main
+
+    argv = [part.format(out=tmp_path) for part in verb]
+    assert main([*argv, "--ngspice-timeout", "0.05"]) == 3  # the run failed
+    err = capsys.readouterr().err
+    errors = [line for line in err.splitlines() if ": error:" in line]
+    assert len(errors) == 1  # one line says what happened; ngspice's last lines follow it
+    assert f"circuitsim {verb[0]}: error: ngspice did not finish within 0.05 s" in errors[0]
+    assert "--ngspice-timeout SECONDS" in errors[0]
+    assert main([*argv, "--ngspice-timeout", "0"]) == 2
+    assert "--ngspice-timeout must be a positive finite number, got 0" in capsys.readouterr().err
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+def test_reproduce_passes_ngspice_timeout(tmp_path):
+    """reproduce's ngspice rows are stopped at its ngspice_timeout, a failed row naming it."""
+    from circuitsim.compare.reproduce import PAPER_SCENARIOS, reproduce
+
+    result = reproduce(
+        tmp_path,
+        scenarios=PAPER_SCENARIOS[:1],
+        opamps=("ideal",),
+        series=("exact",),
+        engines=("ngspice",),
+        free_speeds=(),
+        workers=1,
+        ngspice_timeout=0.05,
+    )
+    [row] = result.rows
+    assert row.status.startswith("failed: NgspiceTimeout: ngspice did not finish within 0.05 s")
