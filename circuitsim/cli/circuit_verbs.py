@@ -24,6 +24,7 @@ from circuitsim.cli.common import (
     require_writable,
     scenario_system,
     state_range,
+    with_inputs,
 )
 
 if TYPE_CHECKING:
@@ -692,7 +693,7 @@ def _run_sweep(args: argparse.Namespace) -> int:
         values = parse_values(args.values)
     except ComparisonError as exc:  # a bad option value: exit code 2, not a failed run
         raise UsageError(str(exc)) from None
-    model = load_model(args.model)
+    model = with_inputs(args, load_model(args.model))
     name = _swept_parameter(model, swept[0])
     _refuse_fixed_swept(args, model, swept[0], name)
     fixed = [p for p in args.param if not isinstance(p, str)]

@@ -379,6 +379,43 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
         metavar="NAME=VALUE",
         help=_parameter_help(),
     )
+    parser.add_argument(
+        "--input",
+        type=input_assignment,
+        action="append",
+        default=[],
+        metavar="NAME=FILE.csv",
+        help="replace forcing group NAME's input by the time series of a CSV file (two "
+        "columns: time in s, value in the group's unit; one header line and # comments "
+        "allowed; linear interpolation) and switch the group on (repeatable; docs/model.md)",
+    )
+
+
+def input_assignment(text: str) -> tuple[str, str]:
+    """``--input NAME=FILE.csv``: the forcing group's name and the file name.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        No ``=``, no name or no file.
+    """
+    name, sep, path = text.partition("=")
+    if not sep or not name.strip() or not path.strip():
+        raise argparse.ArgumentTypeError(f"expected NAME=FILE.csv, got {text!r}")
+    return name.strip(), path.strip()
+
+
+def with_inputs(args: argparse.Namespace, model: Model) -> Model:
+    """``model`` with the ``--input NAME=FILE.csv`` time series of ``args`` in place.
+
+    Raises
+    ------
+    ModelError
+        An unknown group or a bad file (naming it and the line).
+    """
+    for name, path in getattr(args, "input", None) or ():
+        model = model.with_input_file(name, path)
+    return model
 
 
 def check_scenario_options(args: argparse.Namespace) -> None:
@@ -398,8 +435,9 @@ def scenario_system(args: argparse.Namespace, with_model: bool = False, model: M
 
     ``--y0`` (where the verb has it) sets the parameter the model's ``[options]`` table names
     for it, or else the first state's initial value. With ``with_model`` the loaded Model is
-    returned too, as ``(model, system)``. ``model``, when given, is used instead of loading
-    ``--model`` again (a sweep builds many systems of one model).
+    returned too, as ``(model, system)``, with its ``--input`` series. ``model``, when given,
+    is used instead of loading ``--model`` again (a sweep builds many systems of one model;
+    it applies ``--input`` with :func:`with_inputs` itself).
 
     Raises
     ------
@@ -411,7 +449,7 @@ def scenario_system(args: argparse.Namespace, with_model: bool = False, model: M
     from circuitsim.mechanics import load_model
 
     check_scenario_options(args)
-    model = load_model(args.model) if model is None else model
+    model = with_inputs(args, load_model(args.model)) if model is None else model
     parameters = model.option_parameters(
         {"speed": args.speed, "freq": args.freq, "amplitude": args.amplitude}
     )

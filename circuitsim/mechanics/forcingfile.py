@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 from importlib import resources
 from pathlib import Path
 
+from circuitsim.mechanics.errors import ModelError
 from circuitsim.mechanics.expressions import Item, parse
 
 #: Keys each forcing kind takes besides description, enabled, kind, unit, enters.
@@ -194,6 +195,55 @@ def series_points(reader, table: dict, key: str) -> tuple[tuple[float, float], .
         if t_a == t_b == t_c:
             raise reader.fail(where, f"{line}: three points at time {t_c:g} (a jump takes two)")
     return points
+
+
+class _InputFileReader:
+    """What :func:`series_points` needs of a model-file reader, for a CSV file named outside
+    any model file (``--input NAME=FILE.csv``): relative names from the working directory,
+    errors naming the option and the file."""
+
+    def __init__(self, option: str):
+        self.file = str(Path.cwd() / "input")  # series_points looks beside this name
+        self.option = option
+
+    def fail(self, key: str, message: str) -> ModelError:
+        return ModelError(message, key=self.option)
+
+
+def series_from_file(spec: ForcingSpec, path: str) -> ForcingSpec:
+    """``spec`` with its input replaced by the time series of a CSV file, switched on.
+
+    The file has the format of a ``series`` forcing's ``file`` (docs/model.md): two columns,
+    time in seconds and the value in the group's ``unit``, one header line and ``#``
+    comments allowed, at most ``MAX_POINTS`` points; linear interpolation between them.
+
+    Parameters
+    ----------
+    spec : ForcingSpec
+        The model file's ``[forcing.NAME]`` group (its ``enters`` and ``unit`` are kept).
+    path : str
+        The CSV file (relative to the working directory).
+
+    Raises
+    ------
+    ModelError
+        Keyed ``--input NAME=FILE``: a missing or unreadable file, a bad line (with its
+        number), fewer than two points, decreasing times.
+    """
+    reader = _InputFileReader(f"--input {spec.name}={path}")
+    points = series_points(reader, {"file": path, "unit": spec.unit}, spec.key)
+    return replace(
+        spec,
+        kind="series",
+        enabled=True,
+        points=points,
+        amplitude=Item(f"{spec.key}.amplitude", parse(1.0)),
+        speed=None,
+        components=(),
+        start=None,
+        duration=None,
+        rise=None,
+    )
 
 
 def _value_scale(reader, table: dict, key: str) -> float:

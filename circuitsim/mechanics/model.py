@@ -108,6 +108,32 @@ class Model:
         """Number of states."""
         return len(self.states)
 
+    def with_input_file(self, name: str, path: str) -> Model:
+        """This model with forcing group ``name``'s input read from the CSV file ``path``.
+
+        The group keeps its ``enters`` and ``unit``, becomes a ``series`` (time in s, value
+        in the group's unit; :func:`~circuitsim.mechanics.forcingfile.series_from_file`) and
+        is switched on.
+
+        Raises
+        ------
+        ModelError
+            No forcing group ``name``; a bad file (the error names it and the line).
+        """
+        from dataclasses import replace
+
+        from circuitsim.mechanics.forcingfile import series_from_file
+
+        if name not in self.spec.forcing:
+            known = ", ".join(self.spec.forcing) or "none"
+            raise ModelError(
+                f"model {self.name} has no forcing group {name!r} (known: {known})",
+                key=f"--input {name}",
+            )
+        forcing = dict(self.spec.forcing)
+        forcing[name] = series_from_file(forcing[name], path)
+        return Model(replace(self.spec, forcing=forcing))
+
     def option_parameters(self, values: Mapping[str, float | None]) -> dict[str, float]:
         """Translate command-line option values to parameter values through ``[options]``.
 
