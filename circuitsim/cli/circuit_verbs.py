@@ -8,8 +8,8 @@ import sys
 from typing import TYPE_CHECKING, TextIO
 
 from circuitsim.cli.common import (
-    MAX_WORKERS,
     UsageError,
+    add_jobs_option,
     add_model_options,
     add_ngspice_timeout,
     add_scenario_options,
@@ -18,8 +18,8 @@ from circuitsim.cli.common import (
     prepare_output_folder,
     print_warning,
     progress,
-    require_count,
     require_figure_path,
+    require_jobs,
     require_positive,
     require_writable,
     scenario_system,
@@ -465,9 +465,7 @@ def _add_reproduce(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--series", action="append", choices=("exact", "E96"), help="repeatable; default both"
     )
-    parser.add_argument(
-        "--workers", type=int, metavar="N", help="processes, at least 1 (default: every core)"
-    )
+    add_jobs_option(parser, "processes at a time, at least 1 (default: every core)", None)
     add_ngspice_timeout(parser)
     parser.set_defaults(func=_run_reproduce)
 
@@ -475,7 +473,7 @@ def _add_reproduce(sub: argparse._SubParsersAction) -> None:
 def _run_reproduce(args: argparse.Namespace) -> int:
     from circuitsim.compare.reproduce import OPAMPS, SERIES, reproduce
 
-    require_count("--workers", args.workers, MAX_WORKERS)
+    require_jobs(args)
     require_positive("--ngspice-timeout", args.ngspice_timeout)
     prepare_output_folder("--out", args.out, "report.md", "metrics.json")
     result = reproduce(
@@ -484,7 +482,7 @@ def _run_reproduce(args: argparse.Namespace) -> int:
         opamps=tuple(args.opamp or OPAMPS),
         series=tuple(args.series or SERIES),
         engines=tuple(args.engine or ("builtin", "ngspice")),
-        workers=args.workers,
+        workers=args.jobs,
         ngspice_timeout=args.ngspice_timeout,
     )
     done = [r for r in result.rows if r.comparison is not None]
@@ -524,7 +522,10 @@ def _add_sweep(sub: argparse._SubParsersAction) -> None:
             "sweep.csv and sweep.png (peak |y| over the last --window seconds and over the "
             "whole run, critical speed marked). With --opamp tl074 every state node is probed "
             "and a warning names the values where one reached the op-amp's output swing (the "
-            "scaling, set from the first, middle and last values, let it clip there)."
+            "scaling, set from the first, middle and last values, let it clip there). The "
+            "scenario options are generate's: --amplitude 0 --y0 0.005 sweeps the free "
+            "response from a push (growing above the critical speed, decaying below); --log "
+            "draws the peaks on a log axis."
         ),
     )
     add_model_options(parser)
@@ -536,7 +537,7 @@ def _add_sweep(sub: argparse._SubParsersAction) -> None:
             action.help = (
                 "NAME: the parameter to sweep (speed, freq, amplitude or any model parameter); "
                 "NAME=VALUE: set a fixed parameter in its SI unit (repeatable; not the swept "
-                "one, which --speed, --freq and --amplitude must not set either)"
+                "one, which --speed, --freq, --amplitude and --y0 must not set either)"
             )
     parser.add_argument(
         "--values",
@@ -570,13 +571,17 @@ def _add_sweep(sub: argparse._SubParsersAction) -> None:
         help="late window, s (> 0 and at most the simulated time; default 1, or the simulated "
         "time if shorter)",
     )
-    parser.add_argument(
-        "--jobs",
-        type=int,
-        default=os.cpu_count() or 1,
-        metavar="N",
-        help="variants simulated at a time, at least 1 (builtin: threads, ngspice: processes; "
+    add_jobs_option(
+        parser,
+        "variants simulated at a time, at least 1 (builtin: threads, ngspice: processes; "
         f"default: the CPU count, {os.cpu_count() or 1} here)",
+        os.cpu_count() or 1,
+    )
+    parser.add_argument(
+        "--log",
+        action="store_true",
+        help="log y axis on sweep.png (peaks of 0 cannot be drawn there: they are left out "
+        "of the figure with a warning; sweep.csv keeps every value)",
     )
     parser.add_argument(
         "--out",
@@ -656,11 +661,11 @@ def _swept_parameter(model: Model, swept: str) -> str:
 
 
 def _refuse_fixed_swept(args: argparse.Namespace, model: Model, swept: str, name: str) -> None:
-    """Refuse a --param NAME=VALUE, --speed, --freq or --amplitude that fixes the parameter
-    the sweep varies: its values would be silently overridden."""
+    """Refuse a --param NAME=VALUE, --speed, --freq, --amplitude or --y0 that fixes the
+    parameter the sweep varies: its values would be silently overridden."""
     sources = [
         (f"--{option} {getattr(args, option):g}", model.options[option])
-        for option in ("speed", "freq", "amplitude")
+        for option in ("speed", "freq", "amplitude", "y0")
         if getattr(args, option) is not None and option in model.options
     ]
     fixed = [item for item in args.param if not isinstance(item, str)]
@@ -684,7 +689,7 @@ def _run_sweep(args: argparse.Namespace) -> int:
     swept = [p for p in args.param if isinstance(p, str)]
     if len(swept) != 1:
         raise UsageError("name exactly one --param to sweep (a NAME without =VALUE)")
-    require_count("--jobs", args.jobs, MAX_WORKERS)
+    require_jobs(args)
     require_positive("--tstop", args.tstop)
     require_positive("--window", args.window)
     require_positive("--ngspice-timeout", args.ngspice_timeout)
@@ -737,7 +742,7 @@ def _run_sweep(args: argparse.Namespace) -> int:
         result.critical, _ = critical_speed(
             model, coefficients, parameter=name, parameters=dict(fixed) or None
         )
-    paths = save_sweep(result, args.out)
+    paths = save_sweep(result, args.out, log=args.log)
     per = result.timings["simulation"] / len(values)
     kernels = result.timings.get("kernels")
     ready = "" if kernels is None else f", compiled kernels ready {kernels:.3g} s"

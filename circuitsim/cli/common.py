@@ -88,8 +88,51 @@ def require_fraction(option: str, value: float | None) -> None:
 
 
 MAX_WORKERS = max(256, os.cpu_count() or 1)
-"""Most processes or threads ``--workers``/``--jobs`` may ask for (a 400-digit count once
-reached multiprocessing as an OverflowError)."""
+"""Most processes or threads ``--jobs`` may ask for (a 400-digit count once reached
+multiprocessing as an OverflowError)."""
+
+
+class _DeprecatedJobs(argparse.Action):
+    """``--workers N``: the old name of ``--jobs N``, still taken; says so on stderr.
+
+    The name typed is kept in ``jobs_option``, so that a bad count is reported under it.
+    """
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        print(
+            f"warning: {option_string} is deprecated, use --jobs (the same count)",
+            file=sys.stderr,
+            flush=True,
+        )
+        setattr(namespace, self.dest, values)
+        namespace.jobs_option = option_string
+
+
+def add_jobs_option(parser: argparse.ArgumentParser, what: str, default: int | None) -> None:
+    """``--jobs N`` (the one name every verb uses for how much runs at a time) and its
+    deprecated alias ``--workers N``. ``what`` says what runs at a time, with the default."""
+    parser.add_argument("--jobs", type=int, default=default, metavar="N", help=what)
+    parser.add_argument(
+        "--workers",
+        dest="jobs",
+        type=int,
+        action=_DeprecatedJobs,
+        metavar="N",
+        help="deprecated name of --jobs (still taken; a warning says so)",
+    )
+    parser.set_defaults(jobs_option="--jobs")
+
+
+def require_jobs(args: argparse.Namespace) -> None:
+    """Refuse a ``--jobs`` (or ``--workers``) count below 1 or above MAX_WORKERS, under the
+    name the user typed.
+
+    Raises
+    ------
+    UsageError
+        Naming the option and the value.
+    """
+    require_count(args.jobs_option, args.jobs, MAX_WORKERS)
 
 
 MAX_STEP_COUNT = 2**62
@@ -354,14 +397,16 @@ def _parameter_help() -> str:
 
 
 def add_scenario_options(parser: argparse.ArgumentParser) -> None:
-    """--speed, --freq, --amplitude, --flange/--no-flange, --forcing and --param: the run's
-    scenario.
+    """--speed, --freq, --amplitude, --y0, --flange/--no-flange, --forcing and --param: the
+    run's scenario.
 
-    Shared by the verbs that build a System from a model file (see ``scenario_system``).
+    Shared by the verbs that build a System from a model file (see ``scenario_system``):
+    ode, generate, compare and sweep take the same scenario with the same names.
     """
     parser.add_argument("--speed", type=float, metavar="V", help=scenario_help("speed"))
     parser.add_argument("--freq", type=float, metavar="F", help=scenario_help("freq"))
     parser.add_argument("--amplitude", type=float, metavar="A", help=scenario_help("amplitude"))
+    parser.add_argument("--y0", type=float, metavar="Y", help=scenario_help("y0"))
     parser.add_argument(
         "--flange", action=argparse.BooleanOptionalAction, default=None, help=_switch_help()
     )
@@ -433,7 +478,7 @@ def check_scenario_options(args: argparse.Namespace) -> None:
 def scenario_system(args: argparse.Namespace, with_model: bool = False, model: Model | None = None):
     """The System of ``--model``/``--coeffs`` and the scenario options.
 
-    ``--y0`` (where the verb has it) sets the parameter the model's ``[options]`` table names
+    ``--y0`` sets the parameter the model's ``[options]`` table names
     for it, or else the first state's initial value. With ``with_model`` the loaded Model is
     returned too, as ``(model, system)``, with its ``--input`` series. ``model``, when given,
     is used instead of loading ``--model`` again (a sweep builds many systems of one model;

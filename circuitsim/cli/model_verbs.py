@@ -18,7 +18,6 @@ from circuitsim.cli.common import (
     require_fraction,
     require_positive,
     require_writable,
-    scenario_help,
     scenario_system,
 )
 
@@ -227,12 +226,6 @@ def _add_ode(sub: argparse._SubParsersAction) -> None:
         type=float,
         metavar="SECONDS",
         help="stop with an error after this much wall time, > 0 (default 300 s)",
-    )
-    parser.add_argument(
-        "--y0",
-        type=float,
-        metavar="Y",
-        help=scenario_help("y0"),
     )
     parser.add_argument(
         "--rtol",

@@ -46,6 +46,7 @@ EXTRA_OPTIONS = [
     "--max-nrmsd", "--tolerance", "--workers", "--flange", "--no-flange", "--json",
     "--eigenvalues", "--nosuch", "-o", "--csv", "--plot", "--netlist", "--out",
     "--write-netlist", "--raw", "--scale", "--states", "--forcing", "--ngspice-timeout",
+    "--log",
 ]  # fmt: skip
 
 PATH_OPTIONS = (
@@ -112,7 +113,7 @@ def base_command(rng: random.Random, verb: str) -> list[str]:
         return ["sweep", "--param", "speed", "--values", "50,52", "--tstop", "0.05",
                 "--jobs", "1", "--out", str(out / "sweep")]  # fmt: skip
     if verb == "reproduce":
-        return ["reproduce", "--workers", rng.choice(["0", "-1"]), "--out", str(out / "r")]
+        return ["reproduce", "--jobs", rng.choice(["0", "-1"]), "--out", str(out / "r")]
     if verb == "check":
         return ["check", netlist]
     if verb == "convert":
@@ -130,7 +131,7 @@ VERBS = ("ode", "stability", "generate", "compare", "sweep", "reproduce", "check
 
 # options whose valid values make a run long: a mutation gives them only refused values
 LONG_RUNS = {"--tstop", "--values", "--window", "--max-steps", "--max-wall-time", "--workers",
-             "--dt", "--freq", "--speed", "--time-scale"}  # fmt: skip
+             "--jobs", "--dt", "--freq", "--speed", "--time-scale"}  # fmt: skip
 REFUSED = ["nan", "inf", "-1", "0", "", "abc", "1" * 400, "\x00", "-inf", "1e-320:1:1"]
 
 
