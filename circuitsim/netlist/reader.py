@@ -239,9 +239,11 @@ class _Reader:
         if not words:
             raise c.error("missing subcircuit name")
         name, ports = words[0], tuple(node_name(w) for w in words[1:])
-        duplicates = {p for p in ports if ports.count(p) > 1}
-        if duplicates:
-            raise c.error(f"port {sorted(duplicates)[0]!r} listed twice")
+        seen: set[str] = set()
+        for port in ports:  # linear: a fuzzed header had 50,000 ports
+            if port in seen:
+                raise c.error(f"port {port!r} listed twice")
+            seen.add(port)
         if "0" in ports:
             raise c.error("ground (0) cannot be a subcircuit port")
         scope = self.scopes[-1]

@@ -163,5 +163,7 @@ def choose_step(
 def bump_spacing(force, error: float) -> float:
     """Sample spacing (model s) of a bump so linear interpolation is within ``error`` of
     its peak: the interpolation error is at most h^2/8 max|u''|."""
-    curvature = (2.0 if force.shape == "haversine" else 1.0) * math.pi**2 / force.duration**2
-    return math.sqrt(8.0 * error / curvature)
+    # written as duration * sqrt(...) so a bump of any finite duration gives a finite spacing
+    # (pi^2 / duration^2 overflows for a duration past ~1e154 s)
+    shape_factor = (2.0 if force.shape == "haversine" else 1.0) * math.pi**2
+    return force.duration * math.sqrt(8.0 * error / shape_factor)

@@ -279,3 +279,10 @@ def test_include_names_the_filesystem_refuses_are_not_found(name):
     with pytest.raises(NetlistError, match="not found") as info:
         parse_netlist(f"t\n.include {name}\n")
     assert info.value.line == 2
+
+
+def test_a_subcircuit_header_with_many_ports_and_a_repeat_is_refused_naming_the_port():
+    # 50,000 ports: the duplicate check was quadratic (a fuzzed 100 kB header: minutes)
+    ports = " ".join(f"p{i}" for i in range(50_000)) + " p7"
+    with pytest.raises(NetlistError, match=r"port 'p7' listed twice"):
+        parse_netlist(f"* t\n.subckt big {ports}\nR1 p0 p1 1k\n.ends\n.end\n")

@@ -93,3 +93,19 @@ def test_impact_oscillator_circuit_matches_the_ode(engine):
     case = run_case(system, SynthesisOptions(series="exact"), engine)
     for state, metrics in case.comparison.states.items():
         assert metrics.nrmsd_percent <= 0.5, (engine, state, metrics.nrmsd_percent)
+
+
+@pytest.mark.parametrize("duration", [1e-3, 0.25, 1e200])
+def test_bump_sampling_bounds_the_interpolation_error_for_any_duration(duration):
+    """h^2/8 max|u''| equals the allowed error (haversine u = (1 - cos(2 pi s))/2, per unit
+    amplitude: max|u''| = 2 pi^2 / duration^2); a duration of 1e200 s gave an OverflowError
+    (found by the fuzz campaign, seed 20261203)."""
+    from types import SimpleNamespace
+
+    from circuitsim.synthesis.timestep import bump_spacing
+
+    bump = SimpleNamespace(shape="haversine", duration=duration)
+    h = bump_spacing(bump, 1e-3)
+    assert math.isfinite(h)
+    # the bound in relative form, (h/duration)^2 / 8 * 2 pi^2 = error, which cannot overflow
+    assert (h / duration) ** 2 / 8 * 2 * math.pi**2 == pytest.approx(1e-3, rel=1e-12)
