@@ -89,6 +89,14 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
         help="resistor values (default E96)",
     )
     parser.add_argument(
+        "--pair-tolerance",
+        type=float,
+        default=1e-3,
+        metavar="REL",
+        help="a coefficient resistor that one standard value misses by more than REL becomes "
+        "two in series, R33 -> R33A + R33B (default 0.001; inf: never a pair)",
+    )
+    parser.add_argument(
         "--dialect",
         choices=("ngspice", "ltspice", "multisim"),
         default="ngspice",
@@ -159,6 +167,7 @@ def _run_generate(args: argparse.Namespace) -> int:
         swing=args.swing,
         time_scale=args.time_scale,
         series=args.series,
+        pair_tolerance=args.pair_tolerance,
         t_stop=args.tstop,
         ranges=dict(args.range),
     )

@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass
 
 from circuitsim.netlist.circuit import Circuit, Resistor
-from circuitsim.synthesis.eseries import round_to_series
+from circuitsim.synthesis.eseries import round_to_series, series_pair
 from circuitsim.synthesis.opamps import add_opamp
 
 
@@ -57,10 +57,21 @@ class BomEntry:
 class Builder:
     """A circuit under construction plus its bill of materials."""
 
-    def __init__(self, circuit: Circuit, series: str, opamp_kind: str) -> None:
+    def __init__(
+        self,
+        circuit: Circuit,
+        series: str,
+        opamp_kind: str,
+        pair_tolerance: float = math.inf,
+        part_range: tuple[float, float] = (0.0, math.inf),
+    ) -> None:
         self.circuit = circuit
         self.series = series
         self.opamp_kind = opamp_kind
+        self.pair_tolerance = pair_tolerance  # see SynthesisOptions.pair_tolerance
+        # ohms: no series pair for a value outside (refused whole by the buildability
+        # check, under its own name), and no part of a pair below the low end
+        self.part_range = part_range
         self.bom: list[BomEntry] = []
 
     def place_resistor(
@@ -78,14 +89,37 @@ class Builder:
         ``series_extra``, e.g. a switch's on resistance); returns the realized total.
 
         The coefficient it sets is taken as proportional to 1/R: realized =
-        target * ideal / (rounded + series_extra).
+        target * ideal / (rounded + series_extra). A resistor that sets a coefficient
+        (``target`` given) and that one standard value misses by more than the pair tolerance
+        becomes a series pair ``{name}A`` (node_a side) + ``{name}B`` with the internal node
+        ``{name}_mid`` (:func:`~circuitsim.synthesis.eseries.series_pair`); the A line of the
+        bill of materials carries the pair's coefficient.
         """
         chosen = series or self.series
-        value = round_to_series(max(ideal - series_extra, 1e-3), chosen)
-        total = value + series_extra
-        self.circuit.add(Resistor(name, node_a, node_b, value))
+        wanted = max(ideal - series_extra, 1e-3)
+        low, high = self.part_range
+        if math.isnan(target) or not low <= wanted <= high:
+            values: tuple[float, ...] = (round_to_series(wanted, chosen),)
+        else:
+            values = series_pair(wanted, chosen, self.pair_tolerance, low)
+        total = sum(values) + series_extra
         realized = float(target * ideal / total) if not math.isnan(target) else math.nan
-        self.bom.append(BomEntry(name, value, "ohm", chosen, role, float(target), realized))
+        if len(values) == 1:
+            self.circuit.add(Resistor(name, node_a, node_b, values[0]))
+            self.bom.append(
+                BomEntry(name, values[0], "ohm", chosen, role, float(target), realized)
+            )
+            return total
+        first, second, middle = f"{name}A", f"{name}B", f"{name.lower()}_mid"
+        self.circuit.add(Resistor(first, node_a, middle, values[0]))
+        self.circuit.add(Resistor(second, middle, node_b, values[1]))
+        self.bom.append(
+            BomEntry(first, values[0], "ohm", chosen, f"{role}; series pair with {second}",
+                     float(target), realized)
+        )  # fmt: skip
+        self.bom.append(
+            BomEntry(second, values[1], "ohm", chosen, f"{role}; series pair with {first}")
+        )
         return total
 
     def summer(

@@ -152,7 +152,9 @@ class _Checker:
     # --- helpers ------------------------------------------------------------------------
 
     def allowed(self, parts) -> float:
-        return sum(self.errors.get(p.lower(), 0.0) for p in parts) + self.tol
+        # a series pair is named "R33A+R33B"; the bill of materials gives its error on R33A
+        names = [q for p in parts for q in p.lower().split("+")]
+        return sum(self.errors.get(q, 0.0) for q in names) + self.tol
 
     def resistors_at(self, node: str) -> list[Resistor]:
         return [e for e in self.by_node.get(node, []) if isinstance(e, Resistor)]
@@ -161,6 +163,19 @@ class _Checker:
     def far(element, node: str) -> str:
         a, b = (x.lower() for x in element.nodes[:2])
         return b if a == node else a
+
+    def through(self, r: Resistor, node: str) -> tuple[str, float, tuple[str, ...]]:
+        """Far node, total ohms and names of ``r`` seen from ``node``, continued through a
+        node that joins it to exactly one other resistor and nothing else (a series pair)."""
+        names, total, here, last = (r.name,), float(r.resistance), node, r
+        for _ in range(8):
+            far = self.far(last, here)
+            joined = self.by_node.get(far, [])
+            if far == "0" or len(joined) != 2 or not all(isinstance(e, Resistor) for e in joined):
+                return far, total, tuple(sorted(names))
+            last = joined[0] if joined[1] is last else joined[1]
+            names, total, here = names + (last.name,), total + float(last.resistance), far
+        raise SynthesisError(f"{r.name}: a chain of more than 8 resistors in series")
 
     def opamp_inputs(self, out: str) -> tuple[SubcircuitCall, str]:
         op = self.opamp_by_out.get(out)
@@ -240,13 +255,14 @@ class _Checker:
             raise SynthesisError(f"state {state}: no single integrator capacitor at {junction}")
         factor = ratio / (K * G * float(caps[0].capacitance))
         for r in self.resistors_at(junction):
-            node = self.far(r, junction)
-            gain = factor / float(r.resistance)
+            node, ohms, names = self.through(r, junction)
+            gain = factor / ohms
+            part = "+".join(names)  # R33A+R33B for a series pair
             if node in self.state_expr:
                 expr = self.state_expr[node]
                 A_real[i] += gain * expr.vec
                 for j in np.flatnonzero(expr.vec):
-                    self.parts_ij[(i, int(j))] = self.parts_ij.get((i, int(j)), ()) + (r.name,)
+                    self.parts_ij[(i, int(j))] = self.parts_ij.get((i, int(j)), ()) + names
                 continue
             source = self.source_at(node)
             if source is not None:
@@ -254,14 +270,14 @@ class _Checker:
                     w = source.waveform
                     self.forcing.append(
                         (i, gain * float(w.amplitude), float(w.frequency) / K,
-                         math.radians(float(w.phase)), r.name)
+                         math.radians(float(w.phase)), part)
                     )  # fmt: skip
                 elif isinstance(source.waveform, Pwl):
-                    self.inputs.append((i, gain, source.waveform, K, r.name))
+                    self.inputs.append((i, gain, source.waveform, K, part))
                 elif source.waveform is None:
-                    self.constants.append((i, gain * float(source.dc), r.name))
+                    self.constants.append((i, gain * float(source.dc), part))
                 else:
-                    self.problems.append(f"{r.name}: source {source.name} has an unknown waveform")
+                    self.problems.append(f"{part}: source {source.name} has an unknown waveform")
                 continue
             switches = [e for e in self.by_node.get(node, []) if isinstance(e, Switch)]
             if len(switches) == 1:
@@ -269,11 +285,11 @@ class _Checker:
                 signal = self.far(sw, node)
                 model = self.c.models.get(sw.model.lower())
                 ron = float(model.params.get("ron", 1.0)) if model else 1.0
-                total = float(r.resistance) + ron
-                expr = self.signal(signal).scaled(factor / total, (r.name,))
+                total = ohms + ron
+                expr = self.signal(signal).scaled(factor / total, names)
                 self.paths.append((i, expr, self.switch_time(sw, K), sw.name))
                 continue
-            self.problems.append(f"{r.name}: input node {node!r} of {state} is not recognized")
+            self.problems.append(f"{part}: input node {node!r} of {state} is not recognized")
 
     def source_at(self, node: str) -> VoltageSource | None:
         for e in self.by_node.get(node, []):
@@ -324,8 +340,9 @@ class _Checker:
         for r in rs:
             if r is fb[0]:
                 continue
-            part = self.signal(self.far(r, junction), depth + 1)
-            total = total.plus(part.scaled(-rf / float(r.resistance), (r.name,)))
+            node, ohms, names = self.through(r, junction)
+            part = self.signal(node, depth + 1)
+            total = total.plus(part.scaled(-rf / ohms, names))
         return total
 
     def block_of(self, op: SubcircuitCall):
@@ -450,15 +467,21 @@ class _Checker:
             _, gain, pwl, K, part = f
             times = np.array([float(t) for t, _ in pwl.points]) * K
             volts = np.array([float(v) for _, v in pwl.points])
-            # the gain at the input's largest point in the run (a point of the PWL)
-            p = int(np.argmax(np.abs(volts)))
+            jumps = getattr(force, "times", np.empty(0))
+            jumps = jumps[1:][np.diff(jumps) == 0]
+            # the gain at the input's largest point in the run (a point of the PWL), not the
+            # end of a ramp written for a jump if there is another: the input has moved on
+            # over the ramp (1.3e-6 of its value for a 0.63 us ramp on a 0.5 s segment)
+            after_ramp = np.zeros(times.size, dtype=bool)
+            for at in jumps:
+                after_ramp[1:] |= np.isclose(times[:-1], at, rtol=1e-9, atol=0.0)
+            size = np.where(after_ramp, 0.0, np.abs(volts))
+            p = int(np.argmax(size if size.any() else np.abs(volts)))
             model = float(force.direction[i]) * float(force.value(times[p]))
             report.entries.append(
                 Entry(f"{what} gain", model, gain * volts[p], self.allowed((part,)), (part,))
             )
             middle = 0.5 * (times[:-1] + times[1:])
-            jumps = getattr(force, "times", np.empty(0))
-            jumps = jumps[1:][np.diff(jumps) == 0]
             # the ramps written for the input's jumps are no part of the comparison
             ramp = np.zeros(middle.size, dtype=bool)
             for at in jumps:

@@ -71,6 +71,49 @@ def round_to_series(value: float, series: str) -> float:
     return _standard(best, decade, value)
 
 
+def series_pair(
+    value: float, series: str, tolerance: float, smallest: float = 0.0
+) -> tuple[float, ...]:
+    """One standard value for ``value``, or two in series where one misses by more than
+    ``tolerance``.
+
+    The pair is the one with the smallest error among: each member of ``series`` between
+    ``value / 2`` and ``value`` plus the member nearest the remainder. The floor member alone
+    leaves a remainder of at most one step (about 2.4 % of ``value`` in E96), rounded to within
+    half a step of itself, so the pair is within about 0.03 % (E96).
+
+    Parameters
+    ----------
+    value : float
+        Positive resistance (ohms).
+    series : str
+        ``"E96"``, ``"E24"`` or ``"exact"`` (always one value).
+    tolerance : float
+        Largest relative error |R/value - 1| accepted from one resistor (``inf``: never a pair).
+    smallest : float
+        No part of a pair below this (ohms): a pair that needs one is not considered.
+
+    Returns
+    -------
+    tuple of float
+        ``(R,)`` or ``(R_large, R_small)`` in ohms.
+    """
+    single = round_to_series(value, series)
+    if series.lower() == "exact" or abs(single / value - 1.0) <= tolerance:
+        return (single,)
+    decade, _ = _decade(value)
+    best = (single,)
+    for shift in (-1, 0):  # members of this decade and the one below, down to value / 2
+        for member in SERIES[series.upper()]:
+            large = _standard(member, decade + shift, value)
+            if not value / 2 <= large < value:
+                continue
+            pair = (large, round_to_series(value - large, series))
+            if pair[1] >= smallest and abs(sum(pair) / value - 1.0) < abs(sum(best) / value - 1.0):
+                best = pair
+    return best
+
+
 def floor_to_series(value: float, series: str = "E24") -> float:
     """The largest member of ``series`` not above ``value`` (for readable volts-per-unit).
 

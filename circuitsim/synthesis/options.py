@@ -32,6 +32,10 @@ class SynthesisOptions:
         model file's ``[circuit] time_scale``, else 1.
     series : str
         Resistor rounding: ``"E96"``, ``"E24"`` or ``"exact"``.
+    pair_tolerance : float
+        Largest relative error of a coefficient-setting resistor realized by one standard
+        value; beyond it the resistor is two standard values in series (``R33A`` + ``R33B``).
+        ``inf``: never a pair (every resistor one rounded value).
     t_stop : float or None
         Model seconds to simulate (and to take peaks over); None: the model's hint or 5 s.
     ranges : dict of str to float
@@ -55,6 +59,7 @@ class SynthesisOptions:
     swing: float = 5.0
     time_scale: float | None = None
     series: str = "E96"
+    pair_tolerance: float = 1e-3
     t_stop: float | None = None
     ranges: dict[str, float] = field(default_factory=dict)
     r_min: float = 1e3
@@ -87,6 +92,11 @@ class SynthesisOptions:
                 continue
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise SynthesisError(f"option {key}={value!r}: must be a positive number")
+        if not (isinstance(self.pair_tolerance, int | float) and self.pair_tolerance >= 0):
+            raise SynthesisError(
+                f"option pair_tolerance={self.pair_tolerance!r}: must be a number >= 0 (inf: "
+                "no series pairs)"
+            )
         if self.t_stop is not None and not (math.isfinite(self.t_stop) and self.t_stop > 0):
             raise SynthesisError(f"option t_stop={self.t_stop!r}: must be a positive number")
         if self.r_min >= self.r_max:

@@ -97,7 +97,8 @@ def test_wheelset_tl074_packages_and_counts(tmp_path):
 
 
 def test_series_labels_and_coefficient_columns(tmp_path):
-    circuit, parts, order = _generated(tmp_path, _wheelset())
+    # one rounded value per coefficient (no series pairs): R1 is a single 30.1 kOhm
+    circuit, parts, order = _generated(tmp_path, _wheelset(), pair_tolerance=math.inf)
     rows = {p["part"]: p for p in parts}
     assert rows["RI1A"]["series"] == "E24"  # 10 kOhm is standard, not "exact"
     assert rows["RFLANGE_ABS1_4"]["series"] == "exact"  # 5 kOhm is in neither series
@@ -110,6 +111,24 @@ def test_series_labels_and_coefficient_columns(tmp_path):
     assert by_value["10 kOhm"]["series"] == "E24" and by_value["30.1 kOhm"]["series"] == "E96"
     assert series_label(30100, "resistor") == "E96" and series_label(5000, "resistor") == "exact"
     assert series_label(4.7e-9, "capacitor") == "E6" and series_label(3.9e-6, "capacitor") == "E12"
+
+
+def test_series_pairs_in_the_bom(tmp_path):
+    """With pairs (the default), R1 = 30.1 kOhm (0.3 % off) becomes R1A + R1B; the A row
+    carries the pair's coefficient, the B row none, both say so."""
+    circuit, parts, order = _generated(tmp_path, _wheelset())
+    rows = {p["part"]: p for p in parts}
+    assert "R1" not in rows and {"R1A", "R1B"} <= set(rows)
+    first, second = rows["R1A"], rows["R1B"]
+    assert "series pair with R1B" in first["role"] and "series pair with R1A" in second["role"]
+    assert series_label(float(first["value"]), "resistor") in ("E24", "E96")
+    assert series_label(float(second["value"]), "resistor") in ("E24", "E96")
+    assert abs(float(first["error"])) <= 1e-3 and second["target"] == second["error"] == ""
+    # the written netlist has them in series through their own node
+    elements = {e.name.upper(): e for e in circuit.elements}
+    a, b = elements["R1A"], elements["R1B"]
+    assert set(a.nodes) & set(b.nodes) == {"r1_mid"}
+    _check_counts(circuit, parts, order, "TL074")
 
 
 def test_ideal_opamps_propose_a_real_quad(tmp_path):

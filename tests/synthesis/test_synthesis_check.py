@@ -1,5 +1,6 @@
 """The mapping proof: netlists read back from disk realize the model, and tampering is caught."""
 
+import math
 import re
 
 import numpy as np
@@ -98,9 +99,11 @@ def test_switch_closing_time_is_realized(tmp_path):
 
 def test_rounding_across_the_critical_speed_is_warned(tmp_path):
     # V = 55.5 m/s is 0.15 m/s below the model's critical speed; E96 values in unity scaling
-    # move the circuit's own critical speed below 55.5 (its linear part is then unstable)
+    # move the circuit's own critical speed below 55.5 (its linear part is then unstable) when
+    # each coefficient is one rounded value (no series pairs)
     system = wheelset(V=55.5, flange=False)
-    result = generate(system, tmp_path / "w.cir", SynthesisOptions(scaling="unity"))
+    options = SynthesisOptions(scaling="unity", pair_tolerance=math.inf)
+    result = generate(system, tmp_path / "w.cir", options)
     report = result.report
     assert report.ok
     assert report.critical_speed_realized < 55.5 < report.critical_speed_model
@@ -143,7 +146,9 @@ def test_other_models_pass(tmp_path):
 @pytest.mark.parametrize("series", ["E96", "E24"])
 def test_critical_speed_warning_names_the_series_and_both_spellings(tmp_path, series):
     system = load_model().system(parameters={"V": 55.5, "f": 3.0}, nonlinear={"flange": False})
-    result = generate(system, tmp_path / "w.cir", SynthesisOptions(scaling="unity", series=series))
+    # one rounded value per coefficient: series pairs would keep the critical speed above 55.5
+    options = SynthesisOptions(scaling="unity", series=series, pair_tolerance=math.inf)
+    result = generate(system, tmp_path / "w.cir", options)
     (warning,) = [w for w in result.report.warnings if "critical speed" in w]
     # independent: at 55.5 the model's linear part decays and the rounded circuit's grows
     assert np.max(np.linalg.eigvals(result.report.A_model).real) < 0
