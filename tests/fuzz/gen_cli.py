@@ -46,7 +46,7 @@ EXTRA_OPTIONS = [
     "--max-nrmsd", "--tolerance", "--workers", "--flange", "--no-flange", "--json",
     "--eigenvalues", "--nosuch", "-o", "--csv", "--plot", "--netlist", "--out",
     "--write-netlist", "--raw", "--scale", "--states", "--forcing", "--ngspice-timeout",
-    "--log",
+    "--log", "--pair-tolerance",
 ]  # fmt: skip
 
 PATH_OPTIONS = (
