@@ -36,7 +36,7 @@ def no_long_work(monkeypatch):
     ]:
         monkeypatch.setattr(importlib.import_module(module), name, _must_not_run)
     # building a sweep's systems is cheap per value, not for ten million of them
-    from circuitsim.cli import circuit_verbs
+    from circuitsim.cli import sweep_verbs
 
     built = []
 
@@ -46,8 +46,8 @@ def no_long_work(monkeypatch):
             raise AssertionError("a sweep built more than 100 systems before its checks")
         return scenario_system(*args, **kwargs)
 
-    scenario_system = circuit_verbs.scenario_system
-    monkeypatch.setattr(circuit_verbs, "scenario_system", few_systems)
+    scenario_system = sweep_verbs.scenario_system
+    monkeypatch.setattr(sweep_verbs, "scenario_system", few_systems)
 
 
 def _refused(argv, capsys) -> str:
@@ -282,7 +282,7 @@ class _Terminal(io.StringIO):
 
 
 def test_sweep_progress_is_plain_lines_off_a_terminal():
-    from circuitsim.cli.circuit_verbs import _SweepBar
+    from circuitsim.cli.sweep_verbs import _SweepBar
 
     stream = io.StringIO()
     bar = _SweepBar(stream)
@@ -297,7 +297,7 @@ def test_sweep_progress_is_plain_lines_off_a_terminal():
 
 
 def test_sweep_bar_on_a_terminal_is_redrawn_and_closed():
-    from circuitsim.cli.circuit_verbs import _SweepBar
+    from circuitsim.cli.sweep_verbs import _SweepBar
 
     stream = _Terminal()
     bar = _SweepBar(stream)

@@ -1,11 +1,11 @@
 """The ``circuitsim`` command line: parses options, calls the library, prints.
 
-The verbs live in three small modules, grouped by the room they drive: ``model_verbs``
-(stability, ode), ``netlist_verbs`` (convert, check, simulate) and ``circuit_verbs`` (generate,
-compare, reproduce, sweep); ``common`` holds the options several verbs share. Each verb is a pair
-``_add_<verb>(subparsers)`` / ``_run_<verb>(args) -> int``. Library errors become one readable
-line on stderr; warnings are printed as ``warning: <message>`` lines. Nothing in the library
-imports this package.
+The verbs live in small modules, grouped by the room they drive: ``model_verbs``
+(stability, ode), ``netlist_verbs`` (convert, check, simulate), ``circuit_verbs`` (generate,
+compare, reproduce) and ``sweep_verbs`` (sweep); ``common`` holds the options several verbs
+share. Each verb is a pair ``_add_<verb>(subparsers)`` / ``_run_<verb>(args) -> int``.
+Library errors become one readable line on stderr; warnings are printed as
+``warning: <message>`` lines. Nothing in the library imports this package.
 
 Exit codes, one convention for every verb (README.md, "Exit codes"):
 
@@ -34,10 +34,15 @@ import threading
 from collections.abc import Sequence
 
 from circuitsim import __version__
-from circuitsim.cli import circuit_verbs, common, model_verbs, netlist_verbs
+from circuitsim.cli import circuit_verbs, common, model_verbs, netlist_verbs, sweep_verbs
 from circuitsim.cli.common import UsageError, shown, warnings_as_lines
 
-COMMANDS = [*model_verbs.COMMANDS, *netlist_verbs.COMMANDS, *circuit_verbs.COMMANDS]
+COMMANDS = [
+    *model_verbs.COMMANDS,
+    *netlist_verbs.COMMANDS,
+    *circuit_verbs.COMMANDS,
+    *sweep_verbs.COMMANDS,
+]
 
 
 EXIT_OK, EXIT_FINDING, EXIT_BAD_INPUT, EXIT_RUN_FAILED = 0, 1, 2, 3
