@@ -2,10 +2,10 @@
 
 The verbs live in small modules, grouped by the room they drive: ``model_verbs``
 (stability, ode), ``netlist_verbs`` (convert, check, simulate), ``circuit_verbs`` (generate,
-compare, reproduce) and ``sweep_verbs`` (sweep); ``common`` holds the options several verbs
-share. Each verb is a pair ``_add_<verb>(subparsers)`` / ``_run_<verb>(args) -> int``.
-Library errors become one readable line on stderr; warnings are printed as
-``warning: <message>`` lines. Nothing in the library imports this package.
+compare, reproduce), ``sweep_verbs`` (sweep) and ``hunting_verbs`` (hunting); ``common`` holds
+the options several verbs share. Each verb is a pair ``_add_<verb>(subparsers)`` /
+``_run_<verb>(args) -> int``. Library errors become one readable line on stderr; warnings are
+printed as ``warning: <message>`` lines. Nothing in the library imports this package.
 
 Exit codes, one convention for every verb (README.md, "Exit codes"):
 
@@ -34,7 +34,14 @@ import threading
 from collections.abc import Sequence
 
 from circuitsim import __version__
-from circuitsim.cli import circuit_verbs, common, model_verbs, netlist_verbs, sweep_verbs
+from circuitsim.cli import (
+    circuit_verbs,
+    common,
+    hunting_verbs,
+    model_verbs,
+    netlist_verbs,
+    sweep_verbs,
+)
 from circuitsim.cli.common import UsageError, shown, warnings_as_lines
 
 COMMANDS = [
@@ -42,6 +49,7 @@ COMMANDS = [
     *netlist_verbs.COMMANDS,
     *circuit_verbs.COMMANDS,
     *sweep_verbs.COMMANDS,
+    *hunting_verbs.COMMANDS,
 ]
 
 

@@ -1,0 +1,551 @@
+"""The hunting bifurcation diagram: limit-cycle amplitude against speed, swept up then down.
+
+A roller rig turns its speed knob while the wheelset keeps moving. Here each speed step starts
+from the previous step's final state, on two paths side by side:
+
+    ode:     the direct solution (mechanics.solve: exact kink handling), state handed on;
+    circuit: the equivalent circuit (one translation, one scaling), each step a restamp of the
+             speed resistors (R33, R44 for the wheelset) started from the previous run's last
+             node voltages (solver.variants.simulate_from).
+
+Each step runs ``settle + record`` model seconds; its amplitude is max |y| over the last
+``record`` seconds (after the settling time). Comparing the two halves of that window says
+whether the response still decays, holds a steady cycle or grows. A limit cycle is *present*
+where the amplitude is at least ``threshold`` and the response neither decays nor passes
+``bound`` (unbounded: the flange-off wheelset above the critical speed, which has no limit
+cycle; the next step then starts again from the push).
+
+Without any disturbance, a wheelset at rest stays at rest above the critical speed (its
+growth starts from the integrator's round-off, slowly near the critical speed), so a step whose
+amplitude fell below ``repush * push`` hands the push itself to the next step: a rig's track
+keeps disturbing the wheelset. ``repush = 0`` is strict continuation.
+
+The nonlinear critical speed is read on each path: sweeping up, the first speed with a cycle;
+sweeping down, the lowest speed the cycle holds down to. A subcritical bifurcation shows as a
+vanishing speed below the appearing one (hysteresis).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from circuitsim.compare.errors import ComparisonError
+from circuitsim.compare.values import parse_values
+from circuitsim.mechanics.system import System
+
+Progress = Callable[[int, int, str], None]
+"""Called with (steps done, steps in all, a short message) after each speed step."""
+
+# the two halves of the record window differing by more than this tell growth or decay
+STEADY = 0.02
+DIRECTIONS = ("up", "down")
+PATHS = ("ode", "circuit")
+
+
+class HuntingError(ComparisonError):
+    """A hunting study that cannot run as asked (bad speeds, settings or model)."""
+
+
+@dataclass(frozen=True)
+class HuntingSettings:
+    """How each speed step runs and is measured.
+
+    Attributes
+    ----------
+    settle : float
+        Model seconds run before the amplitude is measured (> 0).
+    record : float
+        Model seconds over which the amplitude (max |state|) is measured (> 0).
+    threshold : float
+        Smallest amplitude counted as a limit cycle, in the state's unit.
+    bound : float
+        Amplitude past which the response counts as unbounded, the state's unit.
+    repush : float
+        A step whose amplitude is below ``repush * push`` hands the push to the next step
+        (0: strict continuation).
+    """
+
+    settle: float = 3.0
+    record: float = 1.0
+    threshold: float = 0.0
+    bound: float = math.inf
+    repush: float = 0.01
+
+    def check(self) -> None:
+        """Raise HuntingError naming the setting that is not a usable number."""
+        for name in ("settle", "record"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise HuntingError(f"{name} must be a positive number of seconds, got {value!r}")
+        if not self.threshold >= 0 or not self.bound > self.threshold:
+            raise HuntingError(
+                f"need 0 <= threshold < bound, got threshold {self.threshold!r}, bound "
+                f"{self.bound!r}"
+            )
+        if not (math.isfinite(self.repush) and 0 <= self.repush < 1):
+            raise HuntingError(f"repush must be in [0, 1), got {self.repush!r}")
+
+
+@dataclass
+class HuntingBranch:
+    """One sweep direction on one path with the flange on or off.
+
+    Attributes
+    ----------
+    path : {"ode", "circuit"}
+    direction : {"up", "down"}
+    flange : bool
+    speeds : ndarray, shape (k,)
+        In the order run (decreasing for ``down``).
+    amplitude : ndarray, shape (k,)
+        max |state| over each step's record window, the state's unit.
+    status : list of str
+        ``decaying``, ``steady``, ``growing`` or ``unbounded``.
+    pushed : ndarray of bool, shape (k,)
+        Steps that started from the push (the first, and those after a dead or unbounded
+        step) rather than from the previous final state.
+    wall : float
+        Wall seconds of the branch.
+    """
+
+    path: str
+    direction: str
+    flange: bool
+    speeds: np.ndarray
+    amplitude: np.ndarray
+    status: list[str]
+    pushed: np.ndarray
+    wall: float = 0.0
+
+    def cycle(self, threshold: float) -> np.ndarray:
+        """Steps holding a limit cycle: steady, amplitude >= threshold; bool, shape (k,)."""
+        steady = np.array([s == "steady" for s in self.status], dtype=bool)
+        return steady & (self.amplitude >= threshold)
+
+    def onset(self) -> float | None:
+        """Where the motion stops dying out: up, the lowest speed from which no later step
+        decays; down, the lowest speed the run of non-decaying steps from the top reaches
+        (None: the last step up, or the first step down, decays)."""
+        alive = np.array([s != "decaying" for s in self.status], dtype=bool)
+        edge = _edge(alive, self.direction)
+        return None if edge is None else float(self.speeds[edge])
+
+    def critical(self, threshold: float) -> float | None:
+        """The nonlinear critical speed on this branch: the :meth:`onset` when the run of
+        non-decaying steps it starts holds a limit cycle (:meth:`cycle`), else None (the
+        motion grows without a cycle: the flange-off wheelset)."""
+        alive = np.array([s != "decaying" for s in self.status], dtype=bool)
+        edge = _edge(alive, self.direction)
+        if edge is None:
+            return None
+        run = slice(edge, None) if self.direction == "up" else slice(0, edge + 1)
+        return float(self.speeds[edge]) if self.cycle(threshold)[run].any() else None
+
+
+def _edge(mask: np.ndarray, direction: str) -> int | None:
+    """Index where the run of True steps at the top speed ends (its lowest speed): for an up
+    branch the run ending the array, for a down branch the run starting it."""
+    if direction == "up":
+        if not mask.size or not mask[-1]:
+            return None
+        dead = np.flatnonzero(~mask)
+        return int(dead[-1] + 1) if dead.size else 0
+    if not mask.size or not mask[0]:
+        return None
+    dead = np.flatnonzero(~mask)
+    return int(dead[0] - 1) if dead.size else mask.size - 1
+
+
+@dataclass
+class HuntingResult:
+    """Both paths, both directions, flange on and off.
+
+    Attributes
+    ----------
+    parameter, unit : str
+        The speed-like parameter (``"V"``, ``"m/s"``).
+    state, state_unit : str
+        The state measured (``"y"``, ``"m"``).
+    push : float
+        The first state's start value, its unit.
+    settings : HuntingSettings
+    linear_critical : float or None
+        The linear critical speed (mechanics.stability), if the linear part loses stability
+        in the bracket searched.
+    branches : list of HuntingBranch
+    timings : dict of str to float
+        Wall seconds: ``ode``, ``synthesis``, ``circuit``, ``kernels`` (compiled loop ready).
+    changed : dict of bool to list of str
+        The elements restamped between speeds, per flange setting.
+    """
+
+    parameter: str
+    unit: str
+    state: str
+    state_unit: str
+    push: float
+    settings: HuntingSettings
+    linear_critical: float | None = None
+    branches: list[HuntingBranch] = field(default_factory=list)
+    timings: dict[str, float] = field(default_factory=dict)
+    changed: dict = field(default_factory=dict)
+
+    def branch(self, path: str, direction: str, flange: bool) -> HuntingBranch | None:
+        """The branch asked for, or None."""
+        for b in self.branches:
+            if (b.path, b.direction, b.flange) == (path, direction, flange):
+                return b
+        return None
+
+    def critical(self, path: str, flange: bool) -> tuple[float | None, float | None]:
+        """The nonlinear critical speeds (appearing sweeping up, vanishing sweeping down; see
+        :meth:`HuntingBranch.critical`)."""
+        found = []
+        for direction in DIRECTIONS:
+            b = self.branch(path, direction, flange)
+            found.append(None if b is None else b.critical(self.settings.threshold))
+        return found[0], found[1]
+
+    def onset(self, path: str, flange: bool) -> tuple[float | None, float | None]:
+        """Where the motion stops dying out, up and down (:meth:`HuntingBranch.onset`)."""
+        found = []
+        for direction in DIRECTIONS:
+            b = self.branch(path, direction, flange)
+            found.append(None if b is None else b.onset())
+        return found[0], found[1]
+
+    def agreement(self, direction: str, flange: bool) -> dict[str, float] | None:
+        """Circuit against ODE amplitudes on one branch, over the steps bounded on both:
+        ``max_abs`` (the state's unit), ``nrmsd`` (RMS difference over the ODE amplitudes'
+        range, a fraction) and ``steps`` compared; None without both paths."""
+        ode, circuit = (self.branch(p, direction, flange) for p in PATHS)
+        if ode is None or circuit is None:
+            return None
+        pairs = zip(ode.status, circuit.status, strict=True)
+        bounded = np.array([a != "unbounded" and b != "unbounded" for a, b in pairs])
+        if not bounded.any():
+            return {"max_abs": math.nan, "nrmsd": math.nan, "steps": 0}
+        a, b = ode.amplitude[bounded], circuit.amplitude[bounded]
+        spread = float(np.ptp(a)) or float(np.max(np.abs(a))) or 1.0
+        return {
+            "max_abs": float(np.max(np.abs(b - a))),
+            "nrmsd": float(np.sqrt(np.mean((b - a) ** 2)) / spread),
+            "steps": int(bounded.sum()),
+        }
+
+    def csv_text(self) -> str:
+        """Header and one row per step of every branch, full precision."""
+        unit = f" ({self.unit})" if self.unit else ""
+        state_unit = f" ({self.state_unit})" if self.state_unit else ""
+        header = (
+            f"{self.parameter}{unit},direction,path,flange,amplitude_{self.state}{state_unit},"
+            "status,cycle,pushed"
+        )
+        rows = [header]
+        for b in self.branches:
+            cycle = b.cycle(self.settings.threshold)
+            for k, speed in enumerate(b.speeds):
+                rows.append(
+                    f"{float(speed)!r},{b.direction},{b.path},{'on' if b.flange else 'off'},"
+                    f"{float(b.amplitude[k])!r},{b.status[k]},{int(cycle[k])},{int(b.pushed[k])}"
+                )
+        return "\n".join(rows) + "\n"
+
+
+def speed_grid(text: str, option: str = "--speeds") -> np.ndarray:
+    """The increasing speeds of ``START:STOP:STEP`` or ``v1,v2,...`` (at least two).
+
+    Raises
+    ------
+    HuntingError
+        Naming ``option``: unparsable text, fewer than two speeds, a list not increasing.
+    """
+    try:
+        speeds = parse_values(text, limit=2000)
+    except ComparisonError as exc:
+        raise HuntingError(str(exc).replace("--values", option, 1)) from None
+    if speeds.size < 2:
+        raise HuntingError(f"{option} {text!r}: at least two speeds are needed to sweep")
+    if np.any(np.diff(speeds) <= 0):
+        raise HuntingError(f"{option} {text!r}: list the speeds in increasing order, each once")
+    return speeds
+
+
+def measure(t: np.ndarray, y: np.ndarray, settings: HuntingSettings) -> tuple[float, str]:
+    """Amplitude (max |y| over the record window) and status of one step's samples.
+
+    Parameters
+    ----------
+    t : ndarray, shape (m,)
+        Model seconds from the step's start.
+    y : ndarray, shape (m,)
+        The state, its unit.
+    """
+    start, end = settings.settle, settings.settle + settings.record
+    middle = start + settings.record / 2
+    first = np.abs(y[(t >= start) & (t < middle)])
+    second = np.abs(y[(t >= middle) & (t <= end + 1e-12)])
+    if not first.size or not second.size:
+        raise HuntingError("the record window holds no sample: make --record longer")
+    return classify(float(first.max()), float(second.max()), settings)
+
+
+def classify(first: float, second: float, settings: HuntingSettings) -> tuple[float, str]:
+    """Amplitude and status from the peaks of the record window's two halves: unbounded past
+    ``bound``, else decaying or growing when they differ by more than :data:`STEADY`."""
+    amplitude = max(first, second)
+    if not math.isfinite(amplitude) or amplitude > settings.bound:
+        return amplitude, "unbounded"
+    if second < (1 - STEADY) * first:
+        return amplitude, "decaying"
+    if second > (1 + STEADY) * first:
+        return amplitude, "growing"
+    return amplitude, "steady"
+
+
+def _restart(amplitude: float, status: str, push: float, settings: HuntingSettings) -> bool:
+    """Whether the next step starts from the push rather than this step's final state."""
+    return status == "unbounded" or amplitude < settings.repush * abs(push)
+
+
+def ode_branch(
+    systems: Sequence[System],
+    speeds: np.ndarray,
+    direction: str,
+    settings: HuntingSettings,
+    state: str,
+    flange: bool,
+    start: np.ndarray | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> tuple[HuntingBranch, np.ndarray | None, np.ndarray]:
+    """One direction on the ODE path: each step ``solve`` from the previous final state.
+
+    Parameters
+    ----------
+    systems : sequence of System
+        One per speed, in the order run; their ``x0`` is the push.
+    speeds : ndarray, shape (k,)
+    direction : {"up", "down"}
+    settings : HuntingSettings
+    state : str
+        The state measured.
+    flange : bool
+        Whether the piecewise-linear terms are on (a label).
+    start : ndarray, shape (n,), optional
+        The state to start from (default: the push).
+    progress : callable(message), optional
+        Called after each step.
+
+    Returns
+    -------
+    branch : HuntingBranch
+    final : ndarray or None
+        The last step's final state, or None when the next step should start from the push.
+    peaks : ndarray, shape (n,)
+        Largest |x| of every state over the bounded steps (for the circuit's scaling).
+    """
+    from circuitsim.mechanics.solve import solve
+
+    began = time.perf_counter()
+    index = list(systems[0].states).index(state)
+    span = (0.0, settings.settle + settings.record)
+    amplitudes, statuses, pushed = [], [], []
+    peaks = np.zeros(systems[0].n)
+    x = start
+    for system, speed in zip(systems, speeds, strict=True):
+        pushed.append(x is None)
+        result = solve(system, span, x0=x)
+        middle = settings.settle + settings.record / 2  # peaks from the dense output
+        amplitude, status = classify(
+            result.max_abs(state, settings.settle, middle),
+            result.max_abs(state, middle, span[1]),
+            settings,
+        )
+        amplitudes.append(amplitude)
+        statuses.append(status)
+        if status != "unbounded":
+            peaks = np.maximum(peaks, np.max(np.abs(result.x), axis=1))
+        x = None if _restart(amplitude, status, system.x0[index], settings) else result.x[:, -1]
+        if progress:
+            progress(f"ode {direction} {speed:g}: {status}")
+    branch = HuntingBranch(
+        "ode", direction, flange, np.asarray(speeds, dtype=float),
+        np.array(amplitudes), statuses, np.array(pushed), time.perf_counter() - began,
+    )  # fmt: skip
+    return branch, x, peaks
+
+
+def circuit_branch(
+    circuits: Sequence,
+    scale_map,
+    speeds: np.ndarray,
+    direction: str,
+    settings: HuntingSettings,
+    state: str,
+    push: float,
+    flange: bool,
+    start: dict[str, float] | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> tuple[HuntingBranch, dict[str, float] | None]:
+    """One direction on the circuit path: each step the speed's circuit (its restamped
+    resistors) started from the previous run's last node voltages.
+
+    Returns
+    -------
+    branch : HuntingBranch
+    final : dict of str to float or None
+        The last run's node voltages, or None when the next step should start from the push.
+    """
+    from circuitsim.compare.mapping import map_waveforms
+    from circuitsim.solver.variants import simulate_from
+
+    began = time.perf_counter()
+    node = scale_map.states[state].node
+    amplitudes, statuses, pushed = [], [], []
+    voltages = start
+    for circuit, speed in zip(circuits, speeds, strict=True):
+        pushed.append(voltages is None)
+        run = simulate_from(circuit, [f"v({node})"], voltages)
+        t, y = map_waveforms(run.waves, scale_map, [state])[state]
+        amplitude, status = measure(t, y, settings)
+        amplitudes.append(amplitude)
+        statuses.append(status)
+        voltages = None if _restart(amplitude, status, push, settings) else run.final
+        if progress:
+            progress(f"circuit {direction} {speed:g}: {status}")
+    branch = HuntingBranch(
+        "circuit", direction, flange, np.asarray(speeds, dtype=float), np.array(amplitudes),
+        statuses, np.array(pushed), time.perf_counter() - began,
+    )  # fmt: skip
+    return branch, voltages
+
+
+def run_hunting(
+    system_at: Callable[[float, bool], System],
+    speeds: np.ndarray,
+    parameter: str,
+    unit: str = "",
+    settings: HuntingSettings | None = None,
+    flanges: Sequence[bool] = (True, False),
+    circuit: bool = True,
+    linear_critical: float | None = None,
+    progress: Progress | None = None,
+) -> HuntingResult:
+    """The bifurcation diagram: every flange setting, up then down, ODE then circuit.
+
+    Parameters
+    ----------
+    system_at : callable(speed, flange) -> System
+        The free-response scenario at one speed with the piecewise-linear terms on or off;
+        its ``x0`` is the push (the first state's start value must not be 0).
+    speeds : ndarray, shape (k,)
+        Increasing; the down sweep runs them in reverse from the up sweep's final state.
+    parameter, unit : str
+        The speed-like parameter's name and unit.
+    settings : HuntingSettings, optional
+        ``threshold`` 0 means the push; ``bound`` inf means 100 times the push.
+    flanges : sequence of bool
+        Flange (all piecewise-linear terms) on, off.
+    circuit : bool
+        Run the circuit path too (else the ODE path alone).
+    linear_critical : float, optional
+        The linear critical speed, carried into the result (for the figure).
+    progress : callable(done, total, message), optional
+
+    Returns
+    -------
+    HuntingResult
+
+    Raises
+    ------
+    HuntingError
+        Bad settings, a push of 0, or a model that cannot be built at one of the speeds.
+    IntegrationError, SolverError, SynthesisError
+        From the paths.
+    """
+    settings = settings or HuntingSettings()
+    speeds = np.asarray(speeds, dtype=float)
+    if speeds.size < 2 or np.any(np.diff(speeds) <= 0):
+        raise HuntingError("the speeds must increase, at least two of them")
+    probe = _system(system_at, float(speeds[0]), bool(flanges[0]), parameter, unit)
+    state, state_unit = probe.states[0], (probe.units[0] if probe.units else "")
+    push = 0.0 if probe.x0 is None else float(probe.x0[0])
+    if push == 0:
+        raise HuntingError(
+            f"the push is 0: start {state} away from rest (e.g. --y0 0.005) for a free response"
+        )
+    settings = replace(
+        settings,
+        threshold=settings.threshold or abs(push),
+        bound=settings.bound if math.isfinite(settings.bound) else 100 * abs(push),
+    )
+    settings.check()
+    result = HuntingResult(parameter, unit, state, state_unit, push, settings, linear_critical)
+    total = len(flanges) * 2 * speeds.size * (2 if circuit else 1)
+    done = [0]
+
+    def step(message: str) -> None:
+        done[0] += 1
+        if progress:
+            progress(done[0], total, message)
+
+    timings = {"ode": 0.0, "synthesis": 0.0, "circuit": 0.0}
+    for flange in flanges:
+        systems = [_system(system_at, float(v), flange, parameter, unit) for v in speeds]
+        peaks = np.zeros(systems[0].n)
+        final = None
+        for direction in DIRECTIONS:
+            order = slice(None) if direction == "up" else slice(None, None, -1)
+            branch, final, found = ode_branch(
+                systems[order], speeds[order], direction, settings, state, flange, final, step
+            )
+            peaks = np.maximum(peaks, found)
+            result.branches.append(branch)
+            timings["ode"] += branch.wall
+        if circuit:
+            _circuit_paths(result, systems, speeds, flange, peaks, timings, step)
+    result.timings = {k: v for k, v in timings.items() if v or k != "kernels"}
+    return result
+
+
+def _circuit_paths(result, systems, speeds, flange, peaks, timings, step) -> None:
+    """Both directions on the circuit path, scaled from the ODE path's peaks."""
+    from circuitsim.compare.sweep import sweep_circuits
+    from circuitsim.solver.compiled import warm_up
+    from circuitsim.synthesis.options import SynthesisOptions
+
+    settings = result.settings
+    began = time.perf_counter()
+    ranges = {s: float(p) if p > 0 else 1.0 for s, p in zip(systems[0].states, peaks, strict=True)}
+    options = SynthesisOptions(t_stop=settings.settle + settings.record, ranges=ranges)
+    variants = sweep_circuits(systems, options)
+    timings["synthesis"] += time.perf_counter() - began
+    result.changed[flange] = variants.changed
+    ready = warm_up()
+    if ready is not None:
+        timings["kernels"] = timings.get("kernels", 0.0) + ready
+    final = None
+    for direction in DIRECTIONS:
+        order = slice(None) if direction == "up" else slice(None, None, -1)
+        branch, final = circuit_branch(
+            variants.circuits[order], variants.scale_map, speeds[order], direction, settings,
+            result.state, result.push, flange, final, step,
+        )  # fmt: skip
+        result.branches.append(branch)
+        timings["circuit"] += branch.wall
+
+
+def _system(system_at, speed: float, flange: bool, parameter: str, unit: str) -> System:
+    from circuitsim.mechanics.errors import ModelError
+
+    try:
+        return system_at(speed, flange)
+    except ModelError as exc:
+        raise HuntingError(
+            f"{parameter} = {speed:g} {unit}: the model cannot be built there ({exc})"
+        ) from exc

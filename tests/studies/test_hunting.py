@@ -1,0 +1,190 @@
+"""The hunting study: ODE and circuit paths, continuation, critical speeds, bad input.
+
+References: the linear wheelset's exact solution (scipy's expm), a single circuit run over
+the chained time, MODEL.md's critical speed 55.6455 m/s.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+
+from circuitsim.mechanics import load_model
+from circuitsim.studies.hunting import (
+    HuntingBranch,
+    HuntingError,
+    HuntingSettings,
+    measure,
+    ode_branch,
+    run_hunting,
+    speed_grid,
+)
+
+ROOT = Path(__file__).resolve().parents[2]
+PUSH = 0.005
+MODEL = load_model()
+
+
+def free(speed: float, flange: bool):
+    """The wheelset's free response from a 5 mm push (MODEL.md, paper Fig. 3)."""
+    return MODEL.system(parameters={"V": speed, "a": 0.0, "y0": PUSH}, nonlinear={"flange": flange})
+
+
+def test_ode_branch_below_critical_flange_off_decays_as_the_exact_solution():
+    settings = HuntingSettings(settle=3.0, record=1.0, threshold=PUSH, bound=1.0, repush=0.0)
+    speeds = np.array([45.0, 50.0])
+    systems = [free(v, False) for v in speeds]
+    branch, final, _ = ode_branch(systems, speeds, "up", settings, "y", False)
+    # the exact solution x(t) = expm(A t) x0, the second step from the first's end
+    x = systems[0].x0
+    for k, system in enumerate(systems):
+        t = np.linspace(3.0, 4.0, 4001)
+        y = np.array([(expm(system.A * s) @ x)[0] for s in t])
+        assert branch.amplitude[k] == pytest.approx(np.max(np.abs(y)), rel=1e-6)
+        x = expm(system.A * 4.0) @ x
+    assert branch.status == ["decaying", "decaying"]
+    assert branch.amplitude[-1] < 1e-6 * PUSH  # ~0: 4.7e-9 m at 50 m/s after 8 s
+    np.testing.assert_allclose(final, x, rtol=1e-6, atol=1e-11)  # solve: atol 1e-12
+    assert list(branch.pushed) == [True, False]
+
+
+def test_ode_steps_continue_from_the_previous_final_state():
+    """Two steps at one speed equal one solve over both spans (strict continuation)."""
+    from circuitsim.mechanics import solve
+
+    settings = HuntingSettings(settle=1.0, record=0.5, threshold=PUSH, bound=1.0, repush=0.0)
+    system = free(58.0, True)
+    branch, final, _ = ode_branch([system, system], np.array([58.0, 58.0]), "up", settings,
+                                  "y", True)  # fmt: skip
+    whole = solve(system, (0.0, 3.0))
+    np.testing.assert_allclose(final, whole.x[:, -1], rtol=1e-6, atol=1e-9)
+    assert branch.amplitude[1] == pytest.approx(whole.max_abs("y", 2.5, 3.0), rel=1e-6)
+
+
+def test_circuit_run_continues_from_the_last_node_voltages():
+    """A run from another run's last point equals one run over both spans."""
+    from circuitsim.compare.mapping import map_waveforms
+    from circuitsim.compare.sweep import sweep_circuits
+    from circuitsim.solver.variants import continued, simulate_from
+    from circuitsim.synthesis.options import SynthesisOptions
+
+    ranges = {"y": 0.012, "psi": 0.012, "y_dot": 0.7, "psi_dot": 0.7}
+    one = sweep_circuits([free(58.0, True)], SynthesisOptions(t_stop=1.0, ranges=ranges))
+    two = sweep_circuits([free(58.0, True)], SynthesisOptions(t_stop=2.0, ranges=ranges))
+    node = one.scale_map.states["y"].node
+    first = simulate_from(one.circuits[0], [f"v({node})"])
+    second = simulate_from(one.circuits[0], [f"v({node})"], first.final)
+    whole = simulate_from(two.circuits[0], [f"v({node})"])
+    # the chained end equals the single run's end to the engine's tolerance
+    for name in (node, one.scale_map.states["psi"].node):
+        assert second.final[name] == pytest.approx(whole.final[name], rel=2e-3, abs=1e-3)
+    _, y2 = map_waveforms(second.waves, one.scale_map, ["y"])["y"]
+    _, y1 = map_waveforms(first.waves, one.scale_map, ["y"])["y"]
+    assert abs(y2[0] - y1[-1]) < 2e-2 * np.max(np.abs(y1))  # no jump at the restart
+    # continued() sets every capacitor to the voltage across it and leaves the input alone
+    start = continued(one.circuits[0], first.final)
+    for cap in (e for e in start.elements if type(e).__name__ == "Capacitor"):
+        expected = first.final.get(cap.positive, 0.0) - first.final.get(cap.negative, 0.0)
+        assert cap.ic == pytest.approx(expected, rel=1e-15)
+    assert one.circuits[0].initial_conditions != start.initial_conditions
+    assert start.transient.uic
+
+
+def test_continued_without_a_capacitor_voltage_is_refused():
+    from circuitsim.compare.sweep import sweep_circuits
+    from circuitsim.solver.errors import CircuitInputError
+    from circuitsim.solver.variants import continued
+    from circuitsim.synthesis.options import SynthesisOptions
+
+    ranges = {"y": 0.012, "psi": 0.012, "y_dot": 0.7, "psi_dot": 0.7}
+    circuit = sweep_circuits([free(58.0, True)], SynthesisOptions(t_stop=1.0, ranges=ranges))
+    with pytest.raises(CircuitInputError, match="no voltage for node"):
+        continued(circuit.circuits[0], {"y": 1.0})
+
+
+def test_circuit_and_ode_amplitudes_agree_and_the_critical_speeds_bracket_the_linear_one():
+    settings = HuntingSettings(settle=2.0, record=1.0)
+    speeds = np.array([54.0, 55.0, 56.0, 57.0, 58.0])
+    result = run_hunting(free, speeds, "V", "m/s", settings, flanges=(True,))
+    for direction in ("up", "down"):
+        agreement = result.agreement(direction, True)
+        # measured 2026-12-02: max 4.2e-6 m on 52:60:1 (settle 3); 1e-4 m = 1 % of the cycle
+        assert agreement["steps"] == speeds.size
+        assert agreement["max_abs"] < 1e-4
+    for path in ("ode", "circuit"):
+        up, down = result.critical(path, True)
+        assert up == 56.0 and down == 56.0  # the first grid speed above 55.6455 m/s
+    cycle = result.branch("ode", "down", True)
+    assert cycle.status[:3] == ["steady"] * 3
+    assert 0.009 < cycle.amplitude[0] < 0.0105  # flange-limited: just past eta = 9 mm
+    assert "V (m/s),direction,path,flange,amplitude_y (m)" in result.csv_text()
+
+
+def _branch(direction, speeds, amplitude, status):
+    speeds = np.array(speeds, dtype=float)
+    pushed = np.zeros(speeds.size, dtype=bool)
+    return HuntingBranch("ode", direction, True, speeds, np.array(amplitude), status, pushed)
+
+
+def test_critical_speeds_show_hysteresis_of_a_subcritical_branch():
+    up = _branch("up", [50, 51, 52, 53], [0, 0, 0.01, 0.01],
+                 ["decaying", "decaying", "growing", "steady"])  # fmt: skip
+    down = _branch("down", [53, 52, 51, 50], [0.01, 0.01, 0.01, 0],
+                   ["steady", "steady", "steady", "decaying"])  # fmt: skip
+    assert up.critical(0.005) == 52.0
+    assert down.critical(0.005) == 51.0  # the cycle holds below where it appeared
+    grows = _branch("up", [50, 51, 52], [0, 0.01, 1.0], ["decaying", "growing", "unbounded"])
+    assert grows.critical(0.005) is None and grows.onset() == 51.0
+
+
+def test_measure_tells_decay_growth_and_steady_cycles():
+    settings = HuntingSettings(settle=1.0, record=1.0, threshold=0.001, bound=1.0)
+    t = np.linspace(0, 2, 20001)
+    wave = np.sin(2 * np.pi * 8.5 * t)
+    assert measure(t, 0.01 * wave, settings) == (pytest.approx(0.01, rel=1e-3), "steady")
+    assert measure(t, 0.01 * np.exp(-t) * wave, settings)[1] == "decaying"
+    assert measure(t, 0.01 * np.exp(t) * wave, settings)[1] == "growing"
+    assert measure(t, 10 * wave, settings)[1] == "unbounded"
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("60:50:1", "STOP >= START"),
+        ("55", "at least two speeds"),
+        ("56,55", "increasing order"),
+        ("a:b:c", "START:STOP:STEP"),
+        ("50:60:0", "STEP > 0"),
+    ],
+)
+def test_bad_speed_ranges_are_refused(text, message):
+    with pytest.raises(HuntingError, match=message) as caught:
+        speed_grid(text)
+    assert "--speeds" in str(caught.value)
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        (["--speeds", "70:40:1"], "--speeds '70:40:1'"),
+        (["--speeds", "0,10"], "V = 0 m/s: the model cannot be built"),
+        (["--speeds", "50:60:1", "--speed", "55"], "V is swept"),
+        (["--speeds", "50:60:1", "--settle", "0"], "--settle"),
+        (["--speeds", "50:60:1", "--y0", "0"], "the push is 0"),
+    ],
+)
+def test_cli_bad_input_exits_2_with_one_clear_line(arguments, message, tmp_path):
+    run = subprocess.run(
+        [sys.executable, "-m", "circuitsim", "hunting", *arguments, "--no-circuit",
+         "--out", str(tmp_path)],
+        cwd=ROOT, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert run.returncode == 2, run.stderr
+    assert message in run.stderr
+    assert "Traceback" not in run.stderr
+    assert not (tmp_path / "hunting.csv").exists()
