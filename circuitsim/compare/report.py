@@ -73,6 +73,7 @@ def render_report(result) -> str:
     add("")
     _stability(result, add)
     _free(result, add)
+    _hunting(result, add)
     _forced(result, add)
     _metrics(result, add)
     _netlists(result, add)
@@ -128,6 +129,55 @@ def _free(result, add) -> None:
     add("")
     if "fig3" in result.figures:
         add(f"![free response]({result.figures['fig3']})")
+        add("")
+
+
+def _hunting(result, add) -> None:
+    summary = getattr(result, "hunting", None)
+    if not summary:
+        return
+    add("## Hunting: the bifurcation diagram")
+    add("")
+    speeds = summary["speeds"]
+    add(
+        f"Free response from a {1e3 * summary['push']:g} mm push, speed swept up "
+        f"{speeds[0]:g}-{speeds[-1]:g} m/s ({len(speeds)} speeds) and back down, each step "
+        "from the previous final state (`circuitsim hunting`, docs/hunting.md): "
+        f"{summary['settle_s']:g} s settling, amplitude max |y| over the next "
+        f"{summary['record_s']:g} s; ODE and builtin circuit; {summary['steps']} steps in "
+        f"{summary['wall_s']:.1f} s."
+    )
+    add("")
+    add(
+        "| flange | path | cycle appears, up (m/s) | cycle vanishes, down (m/s) "
+        "| stops decaying, up / down (m/s) |"
+    )
+    add("|---|---|---|---|---|")
+    for flange, entry in summary["flange"].items():
+        for path in ("ode", "circuit"):
+            found = entry.get(path)
+            if found is None:
+                continue
+            add(
+                f"| {flange} | {path} | {_fmt(found['cycle_appears_up'], 'g')} "
+                f"| {_fmt(found['cycle_vanishes_down'], 'g')} "
+                f"| {_fmt(found['stops_decaying_up'], 'g')} / "
+                f"{_fmt(found['stops_decaying_down'], 'g')} |"
+            )
+    add("")
+    add(f"Linear critical speed {_fmt(summary['linear_critical'], '.4f')} m/s. Circuit against ODE "
+        "amplitudes (steps bounded on both):")  # fmt: skip
+    for flange, entry in summary["flange"].items():
+        for direction, agreement in entry["circuit_vs_ode"].items():
+            if agreement:
+                add(
+                    f"- flange {flange}, {direction}: max abs difference "
+                    f"{1e3 * agreement['max_abs']:.3g} mm, NRMSD "
+                    f"{100 * agreement['nrmsd']:.3g} % ({agreement['steps']} steps)"
+                )
+    add("")
+    if "hunting" in result.figures:
+        add(f"![hunting bifurcation diagram]({result.figures['hunting']})")
         add("")
 
 
@@ -447,6 +497,7 @@ def reproduction_json(result) -> dict:
         "kernel_warm_up_s": getattr(result, "kernel_warm_up_s", None),
         "ode": result.ode_summary,
         "free_response_max_abs_y_9_10s_m": {f"{v:g}": p for v, p in result.free_summary.items()},
+        "hunting": getattr(result, "hunting", None),
         "rows": [
             {
                 "scenario": row.scenario.name,

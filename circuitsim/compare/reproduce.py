@@ -32,6 +32,9 @@ from circuitsim.compare.mapping import Trace, map_waveforms
 
 OPAMPS = ("ideal", "tl074")
 SERIES = ("exact", "E96")
+# the hunting diagram in the report: a coarse grid around the critical speed, short steps
+HUNTING_SPEEDS = (53.0, 54.0, 55.0, 56.0, 57.0, 58.0, 59.0)
+HUNTING_PUSH, HUNTING_SETTLE, HUNTING_RECORD = 0.005, 2.0, 1.0
 FREE_SPEEDS = (54.0, 57.0)
 
 
@@ -148,6 +151,7 @@ class Reproduction:
     workers: int = 1
     mode_frequency: dict[float, float] = field(default_factory=dict)
     kernel_warm_up_s: float | None = None  # the builtin engine's kernels made ready, s
+    hunting: dict | None = None  # the hunting diagram's summary (HuntingResult.summary)
 
 
 # --- jobs (module-level so the process pool can pickle them) ----------------------------------
@@ -256,6 +260,7 @@ def reproduce(
     engines: tuple[str, ...] = ("builtin", "ngspice"),
     free_speeds: tuple[float, ...] = FREE_SPEEDS,
     workers: int | None = None,
+    hunting_speeds: tuple[float, ...] = HUNTING_SPEEDS,
     n_points: int = 4096,
     skip: dict[tuple[str, str], str] | None = None,
     ngspice_timeout: float | None = None,
@@ -274,6 +279,9 @@ def reproduce(
         {builtin, ngspice}); an engine that cannot run here gives "not available" rows.
     free_speeds : tuple of float
         Speeds of the free-response figure (m/s); empty to skip it.
+    hunting_speeds : tuple of float
+        Increasing speeds of the hunting bifurcation diagram (m/s; ODE and builtin circuit,
+        flange on and off, up then down: :mod:`circuitsim.studies.hunting`); empty to skip it.
     workers : int, optional
         Processes (default: every core).
     n_points : int
@@ -410,6 +418,11 @@ def reproduce(
         realized.setdefault(f"{s} circuits", []).append(info.critical_speed_realized)
     plot_growth_rate(out / "figures" / "critical-speed.png", speeds, rates, v_c, realized)
     figures["critical-speed"] = "figures/critical-speed.png"
+    hunting = None
+    if hunting_speeds:
+        hunting = _hunting_diagram(model, v_c, hunting_speeds, out / "figures" / "hunting.png")
+        figures["hunting"] = "figures/hunting.png"
+        say(f"hunting diagram: {len(hunting_speeds)} speeds, {hunting['wall_s']:.1f} s")
     for scenario in scenarios:
         curves = {}
         for variant in _fig6_variants(engines):
@@ -452,11 +465,33 @@ def reproduce(
     )
     result.mode_frequency = modes
     result.kernel_warm_up_s = warm_up_s
+    result.hunting = hunting
     write_text_atomic(out / "metrics.json", json.dumps(reproduction_json(result), indent=1) + "\n")
     write_text_atomic(out / "report.md", render_report(result))
     result.wall_s = time.perf_counter() - started
     say(f"report and metrics written ({result.wall_s:.1f} s)")
     return result
+
+
+def _hunting_diagram(model, v_c: float, speeds, path: Path) -> dict:
+    """The hunting bifurcation diagram of the wheelset (free response from a 5 mm push), its
+    figure written to ``path``; returns its summary with ``wall_s``."""
+    from circuitsim.studies.hunting import HuntingSettings, run_hunting
+    from circuitsim.studies.hunting_plot import plot_hunting
+
+    started = time.perf_counter()
+
+    def free(speed: float, flange: bool):
+        return model.system(
+            parameters={"V": speed, "a": 0.0, "y0": HUNTING_PUSH},
+            nonlinear={name: flange for name in model.nonlinear_terms},
+        )
+
+    settings = HuntingSettings(settle=HUNTING_SETTLE, record=HUNTING_RECORD)
+    result = run_hunting(free, np.asarray(speeds, dtype=float), "V", "m/s", settings,
+                         linear_critical=v_c)  # fmt: skip
+    plot_hunting(result, path)
+    return {**result.summary(), "wall_s": time.perf_counter() - started}
 
 
 def _fig6_variants(engines: tuple[str, ...]) -> list[Variant]:

@@ -238,6 +238,39 @@ class HuntingResult:
             "steps": int(bounded.sum()),
         }
 
+    def summary(self) -> dict:
+        """The critical speeds, agreement and costs as JSON-ready data (None: not found)."""
+        flanges = {}
+        for flange in sorted({b.flange for b in self.branches}, reverse=True):
+            entry: dict = {}
+            for path in PATHS:
+                if self.branch(path, "up", flange) is None:
+                    continue
+                up, down = self.critical(path, flange)
+                grows_up, grows_down = self.onset(path, flange)
+                entry[path] = {
+                    "cycle_appears_up": up,
+                    "cycle_vanishes_down": down,
+                    "stops_decaying_up": grows_up,
+                    "stops_decaying_down": grows_down,
+                }
+            entry["circuit_vs_ode"] = {d: self.agreement(d, flange) for d in DIRECTIONS}
+            flanges["on" if flange else "off"] = entry
+        steps = sum(b.speeds.size for b in self.branches)
+        return {
+            "parameter": self.parameter,
+            "unit": self.unit,
+            "linear_critical": self.linear_critical,
+            "settle_s": self.settings.settle,
+            "record_s": self.settings.record,
+            "threshold": self.settings.threshold,
+            "push": self.push,
+            "speeds": sorted({float(v) for b in self.branches for v in b.speeds}),
+            "steps": steps,
+            "flange": flanges,
+            "timings_s": dict(self.timings),
+        }
+
     def csv_text(self) -> str:
         """Header and one row per step of every branch, full precision."""
         unit = f" ({self.unit})" if self.unit else ""

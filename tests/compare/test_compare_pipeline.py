@@ -85,6 +85,7 @@ def test_reproduce_one_short_scenario_writes_report_figures_and_honest_rows(tmp_
         free_speeds=(),
         workers=2,
         skip={("builtin", "tl074"): SKIP_REASON},
+        hunting_speeds=(55.0, 56.0, 57.0),
     )
     unknown = "not available: unknown engine 'no-such-engine' (choose builtin, ngspice)"
     statuses = [(r.variant.opamp, r.variant.engine, r.status) for r in result.rows]
@@ -110,7 +111,13 @@ def test_reproduce_one_short_scenario_writes_report_figures_and_honest_rows(tmp_
         ok.states["y"].nrmsd_percent
     )
     assert metrics["critical_speed_m_s"] == pytest.approx(55.6455, abs=1e-4)
-    for name in ("critical-speed", "fig4-f10-flange-on", "fig6-f10-flange-on"):
+    # the hunting diagram: the cycle appears and vanishes at 56 m/s on both paths (flange on)
+    hunting = metrics["hunting"]["flange"]["on"]
+    for path in ("ode", "circuit"):
+        assert hunting[path]["cycle_appears_up"] == 56.0
+        assert hunting[path]["cycle_vanishes_down"] == 56.0
+    assert "## Hunting: the bifurcation diagram" in report
+    for name in ("critical-speed", "fig4-f10-flange-on", "fig6-f10-flange-on", "hunting"):
         png = tmp_path / result.figures[name]
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (tmp_path / "netlists" / "f10-flange-on-ideal-exact.cir").exists()

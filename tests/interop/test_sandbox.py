@@ -341,6 +341,7 @@ def test_reproduce_passes_ngspice_timeout(tmp_path):
         series=("exact",),
         engines=("ngspice",),
         free_speeds=(),
+        hunting_speeds=(),
         workers=1,
         ngspice_timeout=0.05,
     )
