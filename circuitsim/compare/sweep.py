@@ -29,7 +29,14 @@ import numpy as np
 
 from circuitsim.atomic import write_figure_atomic, write_text_atomic
 from circuitsim.compare.errors import ComparisonError
-from circuitsim.compare.mapping import map_waveforms
+from circuitsim.compare.sweep_measure import (
+    Eta,
+    Executor,
+    InProcess,
+    VariantMeasure,
+    VariantOutcome,
+    summed_stats,
+)
 from circuitsim.mechanics.system import System
 from circuitsim.netlist.circuit import Circuit, Resistor
 from circuitsim.synthesis.options import SWING_LIMIT, SynthesisOptions
@@ -49,6 +56,8 @@ Progress = Callable[[float, str], None]
 # stays just below the swing: 12.87 V for the TL074 model's 13 V)
 CLIPPED = 0.95
 _A_ENTRY = re.compile(r"A\[(\w+), (\w+)\]")
+# a forcing input's resistor (synthesis/inputs.py: "forcing 1 -> y_dot integrator ...")
+_FORCING_ENTRY = re.compile(r"^forcing (\d+) -> \w+ integrator \(direction\[(\w+)\]\)")
 
 
 @dataclass
@@ -76,7 +85,21 @@ class SweepCircuits:
     rescaled: bool
 
 
+def _same_input(a, b) -> bool:
+    """Whether two forcing inputs make the same circuit up to their resistors: both absent
+    from it (a peak of 0 places no generator), or equal but for the size of their direction
+    entries (same signs: each entry is one resistor from the generator)."""
+    if a.peak == 0 and b.peak == 0:
+        return True
+    if type(a) is not type(b):
+        return False
+    da, db = np.asarray(a.direction, dtype=float), np.asarray(b.direction, dtype=float)
+    return np.array_equal(np.sign(da), np.sign(db)) and a.same_as(replace(b, direction=da))
+
+
 def _same_except_a(a: System, b: System) -> bool:
+    """Whether ``b``'s circuit is ``a``'s with other resistors: systems that differ only in
+    entries of A and in the size of forcing directions."""
     if a.states != b.states or len(a.forcing) != len(b.forcing):
         return False
     if not np.array_equal(np.asarray(a.b0), np.asarray(b.b0)):
@@ -85,24 +108,38 @@ def _same_except_a(a: System, b: System) -> bool:
         a.x0 is not None and not np.array_equal(np.asarray(a.x0), np.asarray(b.x0))
     ):
         return False
-    for fa, fb in zip(a.forcing, b.forcing, strict=True):
-        if not fa.same_as(fb):  # a sinusoid, time series or bump: same numbers, same direction
-            return False
+    if not all(_same_input(fa, fb) for fa, fb in zip(a.forcing, b.forcing, strict=True)):
+        return False
     if len(a.nonlinear) != len(b.nonlinear):
         return False
     return all(repr(ta) == repr(tb) for ta, tb in zip(a.nonlinear, b.nonlinear, strict=True))
 
 
+def _coefficient(role: str, system: System) -> float | None:
+    """The model coefficient a resistor's role names: an entry of A, or a forcing input's
+    direction entry; None for any other role."""
+    states = list(system.states)
+    found = _A_ENTRY.search(role)
+    if found is not None:
+        return float(system.A[states.index(found.group(1)), states.index(found.group(2))])
+    found = _FORCING_ENTRY.search(role)
+    if found is not None:
+        force = system.forcing[int(found.group(1)) - 1]
+        return float(np.asarray(force.direction)[states.index(found.group(2))])
+    return None
+
+
 def _rescaled(base, base_system: System, system: System) -> Circuit | None:
-    """Base circuit with each A-entry resistor scaled by A_base/A_new; None if not possible."""
+    """Base circuit with each coefficient resistor (A entry, forcing direction) scaled by
+    old/new coefficient; None if not possible."""
     circuit = copy.deepcopy(base.circuit)
-    states = list(base_system.states)
     for entry in base.bom:
-        found = _A_ENTRY.search(entry.role)
-        if entry.unit != "ohm" or found is None:
+        if entry.unit != "ohm":
             continue
-        i, j = states.index(found.group(1)), states.index(found.group(2))
-        old, new = float(base_system.A[i, j]), float(system.A[i, j])
+        old = _coefficient(entry.role, base_system)
+        if old is None:
+            continue
+        new = _coefficient(entry.role, system)
         if old == new:
             continue
         if new == 0 or np.sign(new) != np.sign(old):
@@ -232,12 +269,6 @@ class SweepResult:
         return "\n".join([header, *rows]) + "\n"
 
 
-def _peaks(waves, scale_map: ScaleMap, state: str, window: float) -> tuple[float, float]:
-    t, values = map_waveforms(waves, scale_map, [state])[state]
-    late = t >= t[-1] - window
-    return float(np.max(np.abs(values[late]))), float(np.max(np.abs(values)))
-
-
 def run_sweep(
     systems: Sequence[System],
     values: np.ndarray,
@@ -251,6 +282,8 @@ def run_sweep(
     progress: Progress | None = None,
     keep: Sequence[int] = (),
     ngspice_timeout: float | None = None,
+    executor: Executor | None = None,
+    describe: Callable[..., str] | None = None,
 ) -> SweepResult:
     """Simulate the circuit of every system and measure the peak |state|.
 
@@ -279,6 +312,14 @@ def run_sweep(
         Indices of variants whose mapped state trace to keep in ``SweepResult.traces``.
     ngspice_timeout : float, optional
         Seconds before each variant's ngspice run is stopped (default 300).
+    executor : Executor, optional
+        Runs the builtin engine's variants (default :class:`~circuitsim.compare.
+        sweep_measure.InProcess` with ``workers`` threads; :mod:`circuitsim.studies.
+        execution` has one for a Dask cluster). Every variant is run against the base
+        circuit (the middle value's), whichever executor runs it.
+    describe : callable(index[, last]), optional
+        Names variant ``index`` (or those from ``index`` to ``last``) in warnings (default:
+        by value, ``"61"`` and ``"V 50 to 61 m/s"``).
 
     Raises
     ------
@@ -302,6 +343,9 @@ def run_sweep(
     # with a finite swing every state node is probed, to tell where a variant clipped
     probed = list(systems[0].states) if math.isfinite(limit) else [state]
     nodes = [variants.scale_map.states[s].node for s in probed]
+    measure = VariantMeasure(
+        variants.scale_map, state, window, tuple(nodes), frozenset(int(k) for k in keep)
+    )
     if engine == "builtin":
         from circuitsim.solver.compiled import warm_up
 
@@ -310,23 +354,28 @@ def run_sweep(
             timings["kernels"] = ready
     started = time.perf_counter()
     if engine == "builtin":
-        waves, stats = _run_builtin(variants.circuits, nodes, workers, progress)
+        outcomes = _run_builtin(variants, measure, executor or InProcess(workers), progress)
+        stats = summed_stats(outcomes)
+        # an executor's own figures (a cluster's batches, workers, retries), or the threads
+        stats.update(getattr(executor, "stats", None) or {"threads": workers})
     elif engine == "ngspice":
-        waves, stats = _run_ngspice(variants, nodes, workers, progress, ngspice_timeout)
+        outcomes, stats = _run_ngspice(variants, measure, workers, progress, ngspice_timeout)
     else:
         raise ComparisonError(f"unknown engine {engine!r} (choose builtin or ngspice)")
     timings["simulation"] = time.perf_counter() - started
-    peaks = np.array([_peaks(w, variants.scale_map, state, window) for w in waves])
-    warnings = _clipped(waves, nodes, probed, values, parameter, unit, limit, options)
-    traces = {k: map_waveforms(waves[k], variants.scale_map, [state])[state] for k in keep}
+    node_peaks = np.array([o.node_peaks for o in outcomes], dtype=float).reshape(len(outcomes), -1)
+    warnings = _clipped(node_peaks, nodes, probed, limit, options, describe or _values_text(
+        values, parameter, unit
+    ))
+    traces = {k: outcomes[k].trace for k in keep}
     return SweepResult(
         parameter=parameter,
         unit=unit,
         values=np.asarray(values, dtype=float),
         state=state,
         state_unit=state_unit,
-        peak_late=peaks[:, 0],
-        peak_all=peaks[:, 1],
+        peak_late=np.array([o.peak_late for o in outcomes]),
+        peak_all=np.array([o.peak_all for o in outcomes]),
         engine=engine,
         window=window,
         changed=variants.changed,
@@ -337,50 +386,59 @@ def run_sweep(
     )
 
 
-def _clipped(waves, nodes, states, values, parameter, unit, limit, options) -> list[str]:
+def _values_text(values, parameter: str, unit: str) -> Callable[..., str]:
+    """Names variants by their value: ``(k)`` gives ``"61"``, ``(j, k)`` ``"V 50 to 61 m/s"``."""
+
+    def describe(first: int, last: int | None = None) -> str:
+        if last is None:
+            return f"{float(values[first]):g}"
+        return f"{parameter} {float(values[first]):g} to {float(values[last]):g} {unit}".rstrip()
+
+    return describe
+
+
+def _clipped(node_peaks, nodes, states, limit, options, describe) -> list[str]:
     """A warning per state whose node reached the op-amps' output swing ``limit`` (V; within
-    CLIPPED) in some variants: an output that clips stays just under it."""
+    CLIPPED) in some variants: an output that clips stays just under it. ``node_peaks``:
+    shape (variants, nodes), volts; ``describe(k)`` names variant k, ``describe(j, k)`` the
+    variants from j to k."""
     if not math.isfinite(limit):
         return []
     found = []
-    for state, node in zip(states, nodes, strict=True):
-        volts = np.array([float(np.max(np.abs(w[f"v({node})"]))) for w in waves])
+    for column, (state, node) in enumerate(zip(states, nodes, strict=True)):
+        volts = node_peaks[:, column]
         reached = np.flatnonzero(volts >= CLIPPED * limit)
         if reached.size:
             worst = int(np.argmax(volts))
             found.append(
                 f"state {state} ({node}) reached the {options.opamp} op-amp's output swing "
-                f"(about {limit:g} V) in {reached.size} of {len(waves)} variants ({parameter} "
-                f"{values[reached[0]]:g} to {values[reached[-1]]:g} {unit}; "
-                f"{volts[worst]:.3g} V at {values[worst]:g}): it clipped there. The scaling "
+                f"(about {limit:g} V) in {reached.size} of {len(volts)} variants "
+                f"({describe(int(reached[0]), int(reached[-1]))}; "
+                f"{volts[worst]:.3g} V at {describe(worst)}): it clipped there. The scaling "
                 "was set from the first, middle and last values: sweep a narrower range"
             )
     return found
 
 
-def _run_builtin(circuits: list[Circuit], nodes: list[str], jobs: int, progress: Progress | None):
+def _run_builtin(
+    variants: SweepCircuits, measure: VariantMeasure, executor: Executor, progress
+) -> list[VariantOutcome]:
     """Every variant as its own ports-kernel run (:func:`~circuitsim.solver.variants.
-    simulate_variants`: the steps of its single run), ``jobs`` threads at a time."""
-    from circuitsim.solver.variants import simulate_variants
+    simulate_variants`: the steps of its single run), resistor changes taken from the base
+    circuit (the middle one), run by ``executor``."""
+    eta = Eta(getattr(executor, "label", "builtin"))
 
     def advance(done: int, total: int) -> None:
         if progress:
-            progress(done / total, f"builtin: {done} of {total} variants")
+            progress(done / total, eta.message(done, total))
 
-    probes = [f"v({node})" for node in nodes]
-    waves = simulate_variants(circuits, probes, workers=jobs, progress=advance)
-    stats: dict = {"threads": jobs, "variants": len(waves)}
-    for key in ("accepted", "rejected", "newton_iterations"):
-        stats[key] = int(sum(w.stats.get(key, 0) for w in waves))
-    stats["time_points"] = int(sum(len(w.time) for w in waves))
-    stats["variant_wall_s"] = float(sum(w.stats.get("wall_time_s", 0.0) for w in waves))
-    stats["kernels"] = sorted({str(w.stats.get("kernel", "?")) for w in waves})
-    return waves, stats
+    base = variants.circuits[len(variants.circuits) // 2]
+    return executor(variants.circuits, base, measure, advance)
 
 
 def _run_ngspice(
     variants: SweepCircuits,
-    nodes: list[str],
+    measure: VariantMeasure,
     workers: int,
     progress: Progress | None,
     timeout: float | None = None,
@@ -388,7 +446,7 @@ def _run_ngspice(
     from circuitsim.interop.ngspice import DEFAULT_TIMEOUT, run_ngspice
     from circuitsim.interop.sandbox import private_folder
 
-    probes = [f"v({node})" for node in nodes]
+    probes = measure.probes
     total = len(variants.circuits)
     waves: list = [None] * total
     # a private folder: removed however the sweep ends, and by the next run after a SIGKILL
@@ -405,13 +463,14 @@ def _run_ngspice(
             futures = {pool.submit(run_ngspice, p, probes, limit): k for k, p in enumerate(paths)}
             try:
                 for done, future in enumerate(as_completed(futures), start=1):
-                    waves[futures[future]] = future.result()
+                    k = futures[future]
+                    waves[k] = measure(k, future.result())
                     if progress:
                         progress(done / total, f"ngspice: {done} of {total} variants")
             except BaseException:  # an error, Ctrl-C, SIGTERM: start no further variant
                 pool.shutdown(wait=True, cancel_futures=True)
                 raise
-    points = [len(w.time) for w in waves]
+    points = [o.stats["time_points"] for o in waves]
     return waves, {"processes": total, "workers": workers, "time_points": int(np.sum(points))}
 
 

@@ -30,20 +30,28 @@ from circuitsim.solver.waveforms import Waveforms
 Progress = Callable[[int, int], None]
 """Called with (variants done, variants in all) after each variant."""
 
+Reduce = Callable[[int, Waveforms], object]
+"""Called in the worker thread with (variant index, its waveforms); its value is kept instead."""
+
 
 def simulate_variants(
     circuits: Sequence[Circuit],
     probes: Sequence[str],
     workers: int | None = None,
     progress: Progress | None = None,
-) -> list[Waveforms]:
+    base: Circuit | None = None,
+    reduce: Reduce | None = None,
+) -> list:
     """The ``.tran`` of every circuit on the ports kernel, only ``probes`` recorded.
 
-    Variants that differ from the first circuit only in the values of top-level resistors,
-    with a ``uic`` transient (a sweep's), share its assembly, start and plan: each is run
-    with its own constant matrix G (``MnaSystem.conductances_with``, equal bit for bit to
-    assembling it), which saves the set-up that would otherwise hold the GIL for about as
-    long as a fifth of a short run. Any other variant is assembled on its own.
+    Variants that differ from the base circuit (``base``, else the first) only in the values
+    of top-level resistors, with a ``uic`` transient (a sweep's), share its assembly, start
+    and plan: each is run with its own constant matrix G (``MnaSystem.conductances_with``,
+    equal bit for bit to assembling it), which saves the set-up that would otherwise hold
+    the GIL for about as long as a fifth of a short run. Any other variant (one whose
+    capacitors, sources or analysis differ) is assembled on its own. With ``base`` given,
+    which of the two ways a variant runs depends on it and the base only, so that a study
+    split into batches (each with the same base) gives the values of one call for all.
 
     Parameters
     ----------
@@ -54,10 +62,16 @@ def simulate_variants(
     workers : int, optional
         Variants simulated at once (threads; default ``os.cpu_count()``).
     progress : callable(done, total), optional
+    base : Circuit, optional
+        The circuit the variants' resistor changes are taken from (default: the first).
+    reduce : callable(index, Waveforms), optional
+        Applied to each variant's waveforms in its worker thread as soon as it ends (the
+        index counts ``circuits`` from 0); its results are returned instead, so that a long
+        study need not hold every trace at once.
 
     Returns
     -------
-    list of Waveforms
+    list of Waveforms (or of ``reduce``'s results)
         In the order of ``circuits``; ``stats["wall_time_s"]`` is each variant's own time
         (its share of a shared start not included).
 
@@ -75,23 +89,26 @@ def simulate_variants(
     total = len(circuits)
     workers = max(1, min(int(workers or os.cpu_count() or 1), max(total, 1)))
     check_cache()  # once, here, before threads would race for it
-    changes = [resistor_changes(circuits[0], c) for c in circuits] if total else []
+    reference = base if base is not None else (circuits[0] if total else None)
+    changes = [resistor_changes(reference, c) for c in circuits] if total else []
     shared = None
-    if sum(c is not None for c in changes) > 1 and circuits[0].transient is not None:
-        if circuits[0].transient.uic:
+    enough = 1 if base is not None else 2  # the first circuit alone needs no shared start
+    if sum(c is not None for c in changes) >= enough and reference.transient is not None:
+        if reference.transient.uic:
             try:
-                shared = _shared_start(circuits[0], probes)
+                shared = _shared_start(reference, probes)
             except Exception as error:
-                error.add_note("in variant 0 (0-based)")
+                where = "the base circuit" if base is not None else "variant 0 (0-based)"
+                error.add_note(f"in {where}")
                 raise
     results: list = [None] * total
     with single_threaded_blas(), ThreadPoolExecutor(max_workers=workers) as pool:
         futures = {}
         for k, circuit in enumerate(circuits):
             if shared is not None and changes[k] is not None and shared.names >= changes[k].keys():
-                futures[pool.submit(_one_shared, shared, changes[k], probes, k)] = k
+                futures[pool.submit(_one_shared, shared, changes[k], probes, k, reduce)] = k
             else:
-                futures[pool.submit(_one, circuit, probes, k)] = k
+                futures[pool.submit(_one, circuit, probes, k, reduce)] = k
         for done, future in enumerate(as_completed(futures), start=1):
             k = futures[future]
             try:
@@ -173,7 +190,9 @@ def _shared_start(circuit: Circuit, probes: list[str]) -> _Shared:
     return _Shared(start, index, rows, names)
 
 
-def _one_shared(shared: _Shared, changes: dict[str, float], probes: list[str], k: int):
+def _one_shared(
+    shared: _Shared, changes: dict[str, float], probes: list[str], k: int, reduce: Reduce | None
+):
     """One variant of the first circuit's resistor values (in a worker thread)."""
     from circuitsim.solver.compiled import run_ports_from
 
@@ -182,10 +201,12 @@ def _one_shared(shared: _Shared, changes: dict[str, float], probes: list[str], k
     G = system.conductances_with(changes) if changes else None
     stats: dict = {"analysis": "tran", "newton_iterations": 0}
     times, values = run_ports_from(shared.start, G, shared.rows, stats)
-    return _waveforms(system, times, values, probes, shared.index, stats, started)
+    stats["shared_start"] = True
+    waves = _waveforms(system, times, values, probes, shared.index, stats, started)
+    return waves if reduce is None else reduce(k, waves)
 
 
-def _one(circuit: Circuit, probes: list[str], k: int) -> Waveforms:
+def _one(circuit: Circuit, probes: list[str], k: int, reduce: Reduce | None):
     """One variant's run (in a worker thread)."""
     from circuitsim.solver.compiled import run_ports
 
@@ -197,7 +218,9 @@ def _one(circuit: Circuit, probes: list[str], k: int) -> Waveforms:
         system, tran.tstep, tran.tstop, tran.tstart, tran.tmax, tran.uic, None, stats, rows=rows
     )
     stats["factorizations"] = system.factorizations
-    return _waveforms(system, times, values, probes, index, stats, started)
+    stats["shared_start"] = False
+    waves = _waveforms(system, times, values, probes, index, stats, started)
+    return waves if reduce is None else reduce(k, waves)
 
 
 def _waveforms(system, times, values, probes, index, stats, started) -> Waveforms:
