@@ -71,9 +71,19 @@ def _library_errors() -> tuple[type[BaseException], ...]:
     from circuitsim.mechanics.errors import ModelError
     from circuitsim.netlist.errors import NetlistError
     from circuitsim.solver.errors import SolverError
+    from circuitsim.studies.errors import ClusterError, StudyError
     from circuitsim.synthesis.errors import SynthesisError
 
-    return (ModelError, NetlistError, SolverError, SynthesisError, NgspiceError, ComparisonError)
+    return (
+        ModelError,
+        NetlistError,
+        SolverError,
+        SynthesisError,
+        NgspiceError,
+        ComparisonError,
+        StudyError,
+        ClusterError,
+    )
 
 
 def exit_code(error: BaseException) -> int:
@@ -85,11 +95,14 @@ def exit_code(error: BaseException) -> int:
     from circuitsim.mechanics.errors import IntegrationError, ModelError
     from circuitsim.netlist.errors import NetlistError
     from circuitsim.solver.errors import CircuitInputError, SingularMatrixError
+    from circuitsim.studies.errors import StudyError
     from circuitsim.synthesis.errors import SynthesisError
 
     if isinstance(error, IntegrationError):
         return EXIT_RUN_FAILED
-    bad_input = (ModelError, NetlistError, CircuitInputError, SingularMatrixError, SynthesisError)
+    bad_input = (
+        ModelError, NetlistError, CircuitInputError, SingularMatrixError, SynthesisError, StudyError
+    )  # fmt: skip
     return EXIT_BAD_INPUT if isinstance(error, bad_input) else EXIT_RUN_FAILED
 
 

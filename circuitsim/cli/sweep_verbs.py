@@ -1,4 +1,5 @@
-"""The sweep verb: one model parameter over many values, each variant's circuit simulated."""
+"""The sweep verb: model parameters over many values (one, a full grid of several, or sets from
+a CSV file), each variant's circuit simulated, in-process or on a Dask cluster."""
 
 from __future__ import annotations
 
@@ -23,6 +24,15 @@ from circuitsim.cli.common import (
     scenario_system,
     with_inputs,
 )
+from circuitsim.cli.study_options import (
+    add_scheduler_options,
+    check_scheduler_options,
+    critical_curve,
+    executor_for,
+    parameter_of,
+    report_grid,
+    swept_grid,
+)
 
 if TYPE_CHECKING:
     from circuitsim.mechanics.model import Model
@@ -44,19 +54,22 @@ def _add_sweep(sub: argparse._SubParsersAction) -> None:
         "sweep",
         help="peak |y| against a parameter: many circuit variants, one run each",
         description=(
-            "Sweep one model parameter (e.g. --param speed --values 40:70:0.5): the circuit is "
-            "translated once (exact resistors, one amplitude scaling for all values) and only "
-            "the parts the parameter sets change between variants (for the speed: R33 and "
-            "R44). Each variant is its own run (builtin: the steps and values of simulating that "
-            "variant's circuit alone, in threads; ngspice: one process per variant), --jobs at "
-            "a time. Writes "
-            "sweep.csv and sweep.png (peak |y| over the last --window seconds and over the "
-            "whole run, critical speed marked). With --opamp tl074 every state node is probed "
-            "and a warning names the values where one reached the op-amp's output swing (the "
-            "scaling, set from the first, middle and last values, let it clip there). The "
-            "scenario options are generate's: --amplitude 0 --y0 0.005 sweeps the free "
-            "response from a push (growing above the critical speed, decaying below); --log "
-            "draws the peaks on a log axis."
+            "Sweep model parameters (e.g. --param speed --values 40:70:0.5; several --param "
+            "NAME --values pairs make the full grid of their values, --grid FILE.csv lists "
+            "parameter sets): the circuit is translated once (exact resistors, one amplitude "
+            "scaling for all variants) and only the parts the parameters set change between "
+            "variants (for the speed: R33 and R44). Each variant is its own run (builtin: the "
+            "steps and values of simulating that variant's circuit alone, in threads, or in "
+            "batches on a Dask cluster with --scheduler; ngspice: one process per variant), "
+            "--jobs at a time. One parameter: writes sweep.csv and sweep.png (peak |y| over "
+            "the last --window seconds and over the whole run, critical speed marked); a grid: "
+            "sweep.csv with one row per variant and metric and, for two parameters, the map "
+            "sweep.png (with the linear critical speed when the speed is one of them). With "
+            "--opamp tl074 every state node is probed and a warning names the variants where "
+            "one reached the op-amp's output swing (the scaling, set from the first, middle "
+            "and last variants, let it clip there). The scenario options are generate's: "
+            "--amplitude 0 --y0 0.005 sweeps the free response from a push (growing above the "
+            "critical speed, decaying below); --log draws the peaks on a log axis."
         ),
     )
     add_model_options(parser)
@@ -66,17 +79,27 @@ def _add_sweep(sub: argparse._SubParsersAction) -> None:
             action.type = _sweep_param_item
             action.metavar = "NAME[=VALUE]"
             action.help = (
-                "NAME: the parameter to sweep (speed, freq, amplitude or any model parameter); "
-                "NAME=VALUE: set a fixed parameter in its SI unit (repeatable; not the swept "
-                "one, which --speed, --freq, --amplitude and --y0 must not set either)"
+                "NAME: a parameter to sweep (speed, freq, amplitude or any model parameter; "
+                "each followed by its --values; several make a grid); NAME=VALUE: set a fixed "
+                "parameter in its SI unit (repeatable; not a swept one, which --speed, --freq, "
+                "--amplitude and --y0 must not set either)"
             )
     parser.add_argument(
         "--values",
-        required=True,
+        action="append",
+        default=[],
         metavar="START:STOP:STEP",
-        help="values of the swept parameter: START, START+STEP, ... up to STOP (included when "
-        "on the grid; a STEP longer than STOP-START gives START alone), or a comma-separated "
-        f"list; finite numbers, at most {MAX_VALUES:,} of them",
+        help="values of a swept parameter, one --values per --param NAME, in the same order "
+        "(several: the full grid of their products): START, START+STEP, ... up to STOP "
+        "(included when on the grid; a STEP longer than STOP-START gives START alone), or a "
+        f"comma-separated list; finite numbers, at most {MAX_VALUES:,} variants in all",
+    )
+    parser.add_argument(
+        "--grid",
+        metavar="FILE.csv",
+        help="parameter sets instead of --param NAME --values: a header of parameter names "
+        "(model parameters or options such as speed; 'V (m/s)' checks the unit) and one row "
+        "of SI values per variant ('#' comments and blank lines skipped)",
     )
     parser.add_argument(
         "--engine",
@@ -108,11 +131,12 @@ def _add_sweep(sub: argparse._SubParsersAction) -> None:
         f"default: the CPU count, {os.cpu_count() or 1} here)",
         os.cpu_count() or 1,
     )
+    add_scheduler_options(parser)
     parser.add_argument(
         "--log",
         action="store_true",
         help="log y axis on sweep.png (peaks of 0 cannot be drawn there: they are left out "
-        "of the figure with a warning; sweep.csv keeps every value)",
+        "of the figure with a warning; sweep.csv keeps every value); a map's log colour scale",
     )
     parser.add_argument(
         "--out",
@@ -178,21 +202,8 @@ def _plural(count: int, noun: str) -> str:
     return f"{count} {noun}" if count == 1 else f"{count} {noun}s"
 
 
-def _swept_parameter(model: Model, swept: str) -> str:
-    """The model parameter ``--param swept`` names: an option's (speed: V) or its own."""
-    if swept in model.options:
-        return model.options[swept]
-    if swept in model.parameters:
-        return swept
-    options = ", ".join(model.options) or "none"
-    raise UsageError(
-        f"--param {swept}: model {model.name} has no parameter {swept!r}; "
-        f"known: {', '.join(model.parameters)} (or the options {options})"
-    )
-
-
-def _refuse_fixed_swept(args: argparse.Namespace, model: Model, swept: str, name: str) -> None:
-    """Refuse a --param NAME=VALUE, --speed, --freq, --amplitude or --y0 that fixes the
+def _refuse_fixed_swept(args: argparse.Namespace, model: Model, names: list[str]) -> None:
+    """Refuse a --param NAME=VALUE, --speed, --freq, --amplitude or --y0 that fixes a
     parameter the sweep varies: its values would be silently overridden."""
     sources = [
         (f"--{option} {getattr(args, option):g}", model.options[option])
@@ -201,43 +212,48 @@ def _refuse_fixed_swept(args: argparse.Namespace, model: Model, swept: str, name
     ]
     fixed = [item for item in args.param if not isinstance(item, str)]
     sources += [(f"--param {parameter}={value:g}", parameter) for parameter, value in fixed]
-    sweeps = f"--param {swept} sweeps" if swept == name else f"--param {swept} sweeps {name}"
+    swept = {parameter_of(model, s): s for s in args.param if isinstance(s, str)}
     for source, parameter in sources:
-        if parameter == name:
+        if parameter in names:
+            label = swept.get(parameter)
+            if label is None:
+                sweeps = f"--grid {args.grid} sweeps {parameter}"
+            elif label == parameter:
+                sweeps = f"--param {label} sweeps"
+            else:
+                sweeps = f"--param {label} sweeps {parameter}"
             raise UsageError(
-                f"{source} fixes {name}, which {sweeps}: a parameter is either swept or fixed, "
-                "drop one of the two"
+                f"{source} fixes {parameter}, which {sweeps}: a parameter is either swept or "
+                "fixed, drop one of the two"
             )
 
 
+def _variant_systems(args: argparse.Namespace, model: Model, grid) -> list:
+    """Each variant's System: the scenario options with the grid's values set."""
+    fixed = [p for p in args.param if not isinstance(p, str)]
+    systems = []
+    for k in range(len(grid)):
+        variant = argparse.Namespace(**vars(args))
+        variant.param = [*fixed, *grid.assignments(k)]
+        systems.append(scenario_system(variant, model=model))
+    return systems
+
+
 def _run_sweep(args: argparse.Namespace) -> int:
-    from circuitsim.compare.errors import ComparisonError
-    from circuitsim.compare.sweep import run_sweep, save_sweep
-    from circuitsim.compare.values import parse_values
     from circuitsim.mechanics import critical_speed, load_model
     from circuitsim.synthesis.options import SynthesisOptions
 
-    swept = [p for p in args.param if isinstance(p, str)]
-    if len(swept) != 1:
-        raise UsageError("name exactly one --param to sweep (a NAME without =VALUE)")
     require_jobs(args)
     require_positive("--tstop", args.tstop)
     require_positive("--window", args.window)
     require_positive("--ngspice-timeout", args.ngspice_timeout)
     check_scenario_options(args)
-    try:
-        values = parse_values(args.values)
-    except ComparisonError as exc:  # a bad option value: exit code 2, not a failed run
-        raise UsageError(str(exc)) from None
+    check_scheduler_options(args)
     model = with_inputs(args, load_model(args.model))
-    name = _swept_parameter(model, swept[0])
-    _refuse_fixed_swept(args, model, swept[0], name)
-    fixed = [p for p in args.param if not isinstance(p, str)]
-    systems = []
-    for value in values:
-        variant = argparse.Namespace(**vars(args))
-        variant.param = [*fixed, (name, float(value))]
-        systems.append(scenario_system(variant, model=model))
+    swept = [p for p in args.param if isinstance(p, str)]
+    grid = swept_grid(args, model, swept)
+    _refuse_fixed_swept(args, model, list(grid.names))
+    systems = _variant_systems(args, model, grid)
     middle = systems[len(systems) // 2]
     t_stop = args.tstop or float((middle.circuit_hints or {}).get("t_stop", 5.0))
     if args.window is not None and args.window > t_stop:
@@ -248,37 +264,54 @@ def _run_sweep(args: argparse.Namespace) -> int:
     window = min(1.0, t_stop) if args.window is None else args.window
     prepare_output_folder("--out", args.out, "sweep.csv", "sweep.png")
     options = SynthesisOptions(opamp=args.opamp, t_stop=args.tstop)
-    unit = model.parameter_info[name].unit
+    fixed = [p for p in args.param if not isinstance(p, str)]
+    one = len(grid.names) == 1 and grid.axes is not None  # a plain sweep: its CSV and plot
     bar = _SweepBar()
-    try:
-        result = run_sweep(
-            systems,
-            values,
-            name,
-            unit,
-            args.engine,
-            options,
-            window=window,
-            workers=min(args.jobs, len(values)),  # more would only make idle threads
-            progress=bar,
-            ngspice_timeout=args.ngspice_timeout,
-        )
-    finally:
-        bar.close()
+    with executor_for(args) as executor:
+        try:
+            run = dict(
+                engine=args.engine,
+                options=options,
+                window=window,
+                workers=min(args.jobs, len(grid)),  # more would only make idle threads
+                progress=bar,
+                ngspice_timeout=args.ngspice_timeout,
+                executor=executor,
+            )
+            if one:
+                from circuitsim.compare.sweep import run_sweep
+
+                name = grid.names[0]
+                result = run_sweep(systems, grid.axes[0], name, grid.units[0], **run)
+            else:
+                from circuitsim.studies.study import run_grid
+
+                result = run_grid(systems, grid, **run)
+        finally:
+            bar.close()
+    if not one:
+        from circuitsim.studies.study import save_grid
+
+        result.critical = critical_curve(args, model, grid, fixed)
+        report_grid(result, grid, save_grid(result, args.out, log=args.log), executor)
+        return 0
+    from circuitsim.compare.sweep import save_sweep
+
     for warning in result.warnings:
         print_warning(warning)
-    speed = model.options.get("speed")
-    if name == speed:
+    unit = grid.units[0]
+    if name == model.options.get("speed"):
         coefficients = args.coeffs or model.default_coefficients
         result.critical, _ = critical_speed(
             model, coefficients, parameter=name, parameters=dict(fixed) or None
         )
     paths = save_sweep(result, args.out, log=args.log)
-    per = result.timings["simulation"] / len(values)
+    per = result.timings["simulation"] / len(grid)
     kernels = result.timings.get("kernels")
     ready = "" if kernels is None else f", compiled kernels ready {kernels:.3g} s"
+    where = "" if executor is None else f", {executor.label}"
     print(
-        f"{_plural(len(values), 'variant')} of {name} ({result.engine}; changed: "
+        f"{_plural(len(grid), 'variant')} of {name} ({result.engine}{where}; changed: "
         f"{', '.join(result.changed) or 'none'}): synthesis {result.timings['synthesis']:.3g} s"
         f"{ready}, simulation {result.timings['simulation']:.3g} s ({per:.3g} s per variant)"
     )

@@ -58,22 +58,9 @@ a whole input line (a 1 MB line once produced a 2 MB message)."""
 def _project_errors() -> tuple[type[BaseException], ...]:
     """The typed errors of every room (the command line catches the same set)."""
     from circuitsim.atomic import WriteError
-    from circuitsim.compare.errors import ComparisonError
-    from circuitsim.interop.errors import NgspiceError
-    from circuitsim.mechanics.errors import ModelError
-    from circuitsim.netlist.errors import NetlistError
-    from circuitsim.solver.errors import SolverError
-    from circuitsim.synthesis.errors import SynthesisError
+    from circuitsim.cli import _library_errors
 
-    return (
-        ModelError,
-        NetlistError,
-        SolverError,
-        SynthesisError,
-        NgspiceError,
-        ComparisonError,
-        WriteError,
-    )
+    return (*_library_errors(), WriteError)
 
 
 NAMED_ERRORS: tuple[type[BaseException], ...] = _project_errors()
