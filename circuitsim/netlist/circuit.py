@@ -217,6 +217,85 @@ class Diode(Element):
 
 
 @dataclass
+class PolyVoltageControlled(TwoTerminal):
+    """Base of ``E``/``G`` ``POLY(n)``: a polynomial in n controlling voltages.
+
+    ``controls`` holds the n (nc+, nc-) node pairs, ``coefficients`` SPICE's p0 p1 ... in
+    SPICE's term order (constant, linear terms, then products x_i x_j with i <= j, ...).
+    """
+
+    controls: tuple[tuple[str, str], ...]
+    coefficients: tuple[Value, ...]
+
+    @property
+    def nodes(self) -> tuple[str, ...]:
+        return (self.positive, self.negative, *(n for pair in self.controls for n in pair))
+
+
+@dataclass
+class PolyVcvs(PolyVoltageControlled):
+    """``Ename n+ n- POLY(n) nc1+ nc1- ... p0 p1 ...``: v(n+, n-) = P(v(nc1), ...)."""
+
+
+@dataclass
+class PolyVccs(PolyVoltageControlled):
+    """``Gname n+ n- POLY(n) nc1+ nc1- ... p0 p1 ...``: current P(...) from n+ through it to n-."""
+
+
+@dataclass
+class PolyCurrentControlled(TwoTerminal):
+    """Base of ``F``/``H`` ``POLY(n)``: a polynomial in the currents of n voltage sources."""
+
+    controls: tuple[str, ...]
+    coefficients: tuple[Value, ...]
+
+
+@dataclass
+class PolyCccs(PolyCurrentControlled):
+    """``Fname n+ n- POLY(n) v1 ... p0 p1 ...``: current P(i(v1), ...) from n+ through it to n-."""
+
+
+@dataclass
+class PolyCcvs(PolyCurrentControlled):
+    """``Hname n+ n- POLY(n) v1 ... p0 p1 ...``: v(n+, n-) = P(i(v1), ...) (volts)."""
+
+
+@dataclass
+class Jfet(Element):
+    """``Jname drain gate source model [area]``; the model is ``.model name NJF|PJF(...)``."""
+
+    drain: str
+    gate: str
+    source: str
+    model: str
+    area: Value = 1.0
+
+    @property
+    def nodes(self) -> tuple[str, ...]:
+        return (self.drain, self.gate, self.source)
+
+
+@dataclass
+class Bjt(Element):
+    """``Qname collector base emitter [substrate] model [area]``; ``.model name NPN|PNP(...)``.
+
+    ``substrate`` is None when the line has three nodes (SPICE then ties it to ground).
+    """
+
+    collector: str
+    base: str
+    emitter: str
+    model: str
+    area: Value = 1.0
+    substrate: str | None = None
+
+    @property
+    def nodes(self) -> tuple[str, ...]:
+        own = (self.collector, self.base, self.emitter)
+        return own if self.substrate is None else (*own, self.substrate)
+
+
+@dataclass
 class Switch(VoltageControlled):
     """``Sname n+ n- nc+ nc- model [ON|OFF]``: a voltage-controlled switch, ``.model name SW(...)``.
 

@@ -17,10 +17,11 @@ Rules (ngspice's, where ngspice has one):
 - Models: a ``.model`` inside a ``.subckt`` is local to it (and to subcircuits defined inside
   it). Each instance gets its own copy under the name ``<instance path>.<model>``
   (``x2.xu1.dmod``, lower case) with its parameters evaluated in the instance's scope;
-  ``Diode.model`` and ``Switch.model`` are rewritten to it. Global models keep their names.
+  ``Diode.model``, ``Jfet.model``, ``Bjt.model`` and ``Switch.model`` are rewritten to it.
+  Global models keep their names.
   A model that no scope defines is left as written, for the topology checks to report.
-- F/H controls naming a voltage source of the same body are renamed with it; other names are
-  left alone (they refer to the top level).
+- F/H controls (also each of a POLY's) naming a voltage source of the same body are renamed
+  with it; other names are left alone (they refer to the top level).
 - Subcircuit lookup is lexical too: a body sees its own nested definitions, then those of the
   scopes around its definition.
 
@@ -64,7 +65,20 @@ __all__ = ["flatten", "evaluate_value", "ValueProblem", "MAX_ELEMENTS", "MAX_DEP
 MAX_ELEMENTS = 200_000
 MAX_DEPTH = 64
 
-_NODE_FIELDS = ("positive", "negative", "control_positive", "control_negative", "anode", "cathode")
+_NODE_FIELDS = (
+    "positive",
+    "negative",
+    "control_positive",
+    "control_negative",
+    "anode",
+    "cathode",
+    "drain",
+    "gate",
+    "source",
+    "collector",
+    "base",
+    "emitter",
+)
 
 
 @dataclass(frozen=True)
@@ -281,6 +295,18 @@ class _Flattener:
                 kwargs[f.name] = scope.models.get(fold(value), fold(value))
             elif f.name == "control":
                 kwargs[f.name] = local.get(fold(value), value)
+            elif f.name == "substrate":
+                kwargs[f.name] = None if value is None else node(value)
+            elif f.name == "controls":  # POLY: node pairs (E, G) or source names (F, H)
+                kwargs[f.name] = tuple(
+                    (node(c[0]), node(c[1])) if isinstance(c, tuple) else local.get(fold(c), c)
+                    for c in value
+                )
+            elif f.name == "coefficients":
+                kwargs[f.name] = tuple(
+                    self.value(c, scope.params, f"{what} coefficient {k}")
+                    for k, c in enumerate(value)
+                )
             elif f.name == "initial":
                 kwargs[f.name] = value
             else:

@@ -12,6 +12,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from circuitsim.netlist.circuit import (
+    Bjt,
     Capacitor,
     Cccs,
     Ccvs,
@@ -20,6 +21,11 @@ from circuitsim.netlist.circuit import (
     Element,
     Expression,
     Inductor,
+    Jfet,
+    PolyCccs,
+    PolyCcvs,
+    PolyVccs,
+    PolyVcvs,
     Pulse,
     Pwl,
     Resistor,
@@ -326,9 +332,58 @@ def _once(c: Cursor, fields: dict[str, object], key: str, value: object) -> None
 _NONLINEAR = ("poly", "value", "table", "vol", "cur", "laplace")
 
 
-def _voltage_controlled(cls: type, usage: str, value_name: str) -> Callable[..., Element]:
+def _is_poly(c: Cursor) -> bool:
+    token = c.peek()
+    following = c.tokens[c.pos + 1] if c.pos + 1 < len(c.tokens) else None
+    return (
+        token is not None
+        and token.kind == "word"
+        and fold(token.text) == "poly"
+        and following is not None
+        and following.kind == "("
+    )
+
+
+def _poly_dimension(c: Cursor) -> int:
+    """``POLY(n)``: the number of controlling quantities n (1 to 20)."""
+    c.take("POLY")
+    c.expect("(", "'(' after POLY")
+    text = c.word("POLY dimension")
+    c.expect(")", "')' after the POLY dimension")
+    if not text.isdigit() or not 1 <= int(text) <= 20:
+        raise c.error(f"POLY dimension must be a whole number from 1 to 20, found {text!r}")
+    return int(text)
+
+
+def _poly_coefficients(c: Cursor) -> tuple[Value, ...]:
+    coefficients = []
+    while not c.at_end():
+        coefficients.append(c.value("POLY coefficient"))
+    if not coefficients:
+        raise c.error("POLY needs at least one coefficient")
+    return tuple(coefficients)
+
+
+def _skip_parentheses(c: Cursor) -> None:
+    """PSpice writes a POLY's node pairs as ``(nc+, nc-)``; the parentheses mean nothing."""
+    while (token := c.peek()) is not None and token.kind in ("(", ")"):
+        c.pos += 1
+
+
+def _voltage_controlled(
+    cls: type, poly: type, usage: str, value_name: str
+) -> Callable[..., Element]:
     def parse(c: Cursor, name: str) -> Element:
         nodes = [c.node("node n+"), c.node("node n-")]
+        if _is_poly(c):
+            count = _poly_dimension(c)
+            controls = []
+            for k in range(1, count + 1):
+                _skip_parentheses(c)
+                pair = (c.node(f"node nc{k}+"), c.node(f"node nc{k}-"))
+                _skip_parentheses(c)
+                controls.append(pair)
+            return poly(name, *nodes, tuple(controls), _poly_coefficients(c))
         token = c.peek()
         following = c.tokens[c.pos + 1] if c.pos + 1 < len(c.tokens) else None
         if (
@@ -338,7 +393,9 @@ def _voltage_controlled(cls: type, usage: str, value_name: str) -> Callable[...,
             and following is not None
             and following.kind in ("(", "=")
         ):
-            raise c.error(f"nonlinear form {token.text.upper()} is not supported, only linear")
+            raise c.error(
+                f"nonlinear form {token.text.upper()} is not supported, only linear and POLY(n)"
+            )
         nodes += [c.node("node nc+"), c.node("node nc-")]
         gain = c.value(value_name)
         c.finish()
@@ -348,10 +405,21 @@ def _voltage_controlled(cls: type, usage: str, value_name: str) -> Callable[...,
     return parse
 
 
-def _current_controlled(cls: type, usage: str, value_name: str) -> Callable[..., Element]:
+def _current_controlled(
+    cls: type, poly: type, usage: str, value_name: str
+) -> Callable[..., Element]:
     def parse(c: Cursor, name: str) -> Element:
         positive = c.node("node n+")
         negative = c.node("node n-")
+        if _is_poly(c):
+            count = _poly_dimension(c)
+            controls = []
+            for k in range(1, count + 1):
+                control = c.word(f"controlling voltage source {k}")
+                if not control[:1].isalpha():
+                    raise c.error(f"expected the name of a voltage source, found {control!r}")
+                controls.append(control)
+            return poly(name, positive, negative, tuple(controls), _poly_coefficients(c))
         control = c.word("controlling voltage source name")
         if fold(control) == "poly" or not control[:1].isalpha():
             raise c.error(f"expected the name of a voltage source, found {control!r}")
@@ -363,22 +431,57 @@ def _current_controlled(cls: type, usage: str, value_name: str) -> Callable[...,
     return parse
 
 
+def _area_and_params(c: Cursor, allowed: tuple[str, ...]) -> tuple[Value, dict[str, Value]]:
+    """An optional positional area, then ``name=value`` pairs among ``allowed``."""
+    area: Value = 1.0
+    params: dict[str, Value] = {}
+    if not c.at_end():
+        following = c.tokens[c.pos + 1] if c.pos + 1 < len(c.tokens) else None
+        if not (following is not None and following.kind == "="):
+            area = c.value("area")
+        params = c.assignments("parameter")
+        unknown = sorted(set(params) - set(allowed))
+        if unknown:
+            raise c.error(f"unsupported parameter {unknown[0]!r}")
+        area = params.pop("area", area)
+    c.finish()
+    return area, params
+
+
 def _diode(c: Cursor, name: str) -> Element:
     anode = c.node("anode node")
     cathode = c.node("cathode node")
     model = fold(c.word("model name"))
-    area: Value = 1.0
-    if not c.at_end():
-        following = c.tokens[c.pos + 1] if c.pos + 1 < len(c.tokens) else None
-        if following is not None and following.kind == "=":
-            params = c.assignments("parameter")
-            if set(params) - {"area"}:
-                raise c.error(f"unsupported parameter {sorted(set(params) - {'area'})[0]!r}")
-            area = params["area"]
-        else:
-            area = c.value("area")
-    c.finish()
+    area, _ = _area_and_params(c, ("area",))
     return Diode(name, anode, cathode, model, area)
+
+
+def _jfet(c: Cursor, name: str) -> Element:
+    nodes = [c.node(w) for w in ("drain node", "gate node", "source node")]
+    model = fold(c.word("model name"))
+    area, _ = _area_and_params(c, ("area",))
+    return Jfet(name, *nodes, model, area)
+
+
+_jfet.usage = "Jname drain gate source model [area]"  # type: ignore[attr-defined]
+
+
+def _bjt(c: Cursor, name: str) -> Element:
+    nodes = [c.node(w) for w in ("collector node", "base node", "emitter node")]
+    words = []
+    while (token := c.peek()) is not None and token.kind == "word":
+        following = c.tokens[c.pos + 1] if c.pos + 1 < len(c.tokens) else None
+        if (following is not None and following.kind == "=") or looks_numeric(token.text):
+            break
+        words.append(c.word("model name"))
+    if not words or len(words) > 2:
+        raise c.error("expected [substrate node] and a model name after the three nodes")
+    substrate = node_name(words[0]) if len(words) == 2 else None
+    area, _ = _area_and_params(c, ("area",))
+    return Bjt(name, *nodes, fold(words[-1]), area, substrate)
+
+
+_bjt.usage = "Qname collector base emitter [substrate] model [area]"  # type: ignore[attr-defined]
 
 
 _diode.usage = "Dname anode cathode model [area]"  # type: ignore[attr-defined]
@@ -439,11 +542,27 @@ ELEMENT_PARSERS: dict[str, Callable[[Cursor, str], Element]] = {
     "L": _passive(Inductor, "Lname n+ n- value [IC=i]", with_ic=True),
     "V": _source(VoltageSource, "Vname n+ n- [[DC] v] [AC mag [phase]] [SIN|PULSE|PWL(...)]"),
     "I": _source(CurrentSource, "Iname n+ n- [[DC] i] [AC mag [phase]] [SIN|PULSE|PWL(...)]"),
-    "E": _voltage_controlled(Vcvs, "Ename n+ n- nc+ nc- gain", "gain"),
-    "G": _voltage_controlled(Vccs, "Gname n+ n- nc+ nc- transconductance", "transconductance"),
-    "F": _current_controlled(Cccs, "Fname n+ n- vcontrol gain", "gain"),
-    "H": _current_controlled(Ccvs, "Hname n+ n- vcontrol transresistance", "transresistance"),
+    "E": _voltage_controlled(
+        Vcvs, PolyVcvs, "Ename n+ n- nc+ nc- gain | POLY(n) nc1+ nc1- ... p0 p1 ...", "gain"
+    ),
+    "G": _voltage_controlled(
+        Vccs,
+        PolyVccs,
+        "Gname n+ n- nc+ nc- transconductance | POLY(n) nc1+ nc1- ... p0 p1 ...",
+        "transconductance",
+    ),
+    "F": _current_controlled(
+        Cccs, PolyCccs, "Fname n+ n- vcontrol gain | POLY(n) v1 ... p0 p1 ...", "gain"
+    ),
+    "H": _current_controlled(
+        Ccvs,
+        PolyCcvs,
+        "Hname n+ n- vcontrol transresistance | POLY(n) v1 ... p0 p1 ...",
+        "transresistance",
+    ),
     "D": _diode,
+    "J": _jfet,
+    "Q": _bjt,
     "S": _switch,
     "X": _call,
 }

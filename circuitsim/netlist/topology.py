@@ -10,8 +10,9 @@ Kinds of finding
 ``duplicate-name``
     Two elements of one scope (top level or one ``.subckt`` body) share a name, ignoring case.
 ``undefined-model`` / ``wrong-model-kind``
-    A diode or switch names a model that no enclosing scope defines, or one of another kind
-    (a diode needs ``D``, a switch ``SW``).
+    A diode, switch, JFET or BJT names a model that no enclosing scope defines, or one of
+    another kind (a diode needs ``D``, a switch ``SW``, a JFET ``NJF``/``PJF``, a BJT
+    ``NPN``/``PNP``).
 ``undefined-subcircuit`` / ``port-count``
     An ``X`` line names no known ``.subckt``, or passes another number of nodes than it has
     ports.
@@ -67,6 +68,7 @@ from dataclasses import dataclass
 import networkx as nx
 
 from circuitsim.netlist.circuit import (
+    Bjt,
     Capacitor,
     Cccs,
     Ccvs,
@@ -76,7 +78,14 @@ from circuitsim.netlist.circuit import (
     Diode,
     Element,
     Inductor,
+    Jfet,
     Model,
+    PolyCccs,
+    PolyCcvs,
+    PolyCurrentControlled,
+    PolyVccs,
+    PolyVcvs,
+    PolyVoltageControlled,
     Resistor,
     Subcircuit,
     SubcircuitCall,
@@ -195,7 +204,6 @@ def _hysteresis_findings(models: Mapping[str, Model]) -> list[Finding]:
     ]
 
 
-
 def _value_finding(problem: ValueProblem) -> Finding:
     kind = "undefined-parameter" if problem.undefined is not None else "bad-expression"
     elements = (problem.element,) if problem.element is not None else ()
@@ -248,22 +256,32 @@ def _check_scope(
         else:
             seen[key] = element.name
     for element in elements:
-        if isinstance(element, Diode | Switch):
+        if isinstance(element, Diode | Switch | Jfet | Bjt):
             _check_model(element, models, scope, findings)
         elif isinstance(element, SubcircuitCall):
             _check_call(element, subcircuits, scope, findings)
-        elif isinstance(element, CurrentControlled):
-            key = fold(element.control)
-            control = next((e for e in [*elements, *top] if fold(e.name) == key), None)
-            if not isinstance(control, VoltageSource):
-                what = "no voltage source" if control is None else f"{control.name}, not a V source"
-                findings.append(
-                    Finding(
-                        "undefined-control",
-                        f"{element.name} is controlled by {element.control}: {what}{scope}",
-                        (element.name,),
+        elif isinstance(element, CurrentControlled | PolyCurrentControlled):
+            names = (
+                element.controls
+                if isinstance(element, PolyCurrentControlled)
+                else (element.control,)
+            )
+            for name in names:
+                key = fold(name)
+                control = next((e for e in [*elements, *top] if fold(e.name) == key), None)
+                if not isinstance(control, VoltageSource):
+                    what = (
+                        "no voltage source"
+                        if control is None
+                        else f"{control.name}, not a V source"
                     )
-                )
+                    findings.append(
+                        Finding(
+                            "undefined-control",
+                            f"{element.name} is controlled by {name}: {what}{scope}",
+                            (element.name,),
+                        )
+                    )
     for table in subcircuits[:1]:
         for sub in table.values():
             _check_subcircuit(sub, models, subcircuits, findings, top)
@@ -306,10 +324,17 @@ def _lookup(name: str, tables: list[dict]) -> object | None:
     return None
 
 
+_MODEL_KINDS = {Diode: ("D",), Switch: ("SW",), Jfet: ("NJF", "PJF"), Bjt: ("NPN", "PNP")}
+
+
 def _check_model(
-    element: Diode | Switch, models: list[dict[str, Model]], scope: str, findings: list[Finding]
+    element: Diode | Switch | Jfet | Bjt,
+    models: list[dict[str, Model]],
+    scope: str,
+    findings: list[Finding],
 ) -> None:
-    wanted = "D" if isinstance(element, Diode) else "SW"
+    kinds = _MODEL_KINDS[type(element)]
+    wanted = " or ".join(kinds)
     model = _lookup(element.model, models)
     if model is None:
         findings.append(
@@ -319,7 +344,7 @@ def _check_model(
                 (element.name,),
             )
         )
-    elif model.kind.upper() != wanted:
+    elif model.kind.upper() not in kinds:
         findings.append(
             Finding(
                 "wrong-model-kind",
@@ -362,22 +387,22 @@ def _check_call(
 
 def _output_nodes(element: Element) -> tuple[str, ...]:
     """The nodes current flows through (controlling inputs excluded)."""
-    if isinstance(element, VoltageControlled):
+    if isinstance(element, VoltageControlled | PolyVoltageControlled):
         return (element.positive, element.negative)
     return element.nodes
 
 
 def _conducts_dc(element: Element) -> bool:
-    return not isinstance(element, Capacitor | CurrentSource | Vccs | Cccs)
+    return not isinstance(element, Capacitor | CurrentSource | Vccs | Cccs | PolyVccs | PolyCccs)
 
 
 def _is_current_source(element: Element) -> bool:
-    return isinstance(element, CurrentSource | Vccs | Cccs)
+    return isinstance(element, CurrentSource | Vccs | Cccs | PolyVccs | PolyCccs)
 
 
 def _fixes_voltage(element: Element) -> bool:
     """Elements that force a branch voltage at DC: V, E, H and (a short at DC) L."""
-    return isinstance(element, VoltageSource | Vcvs | Ccvs | Inductor)
+    return isinstance(element, VoltageSource | Vcvs | Ccvs | PolyVcvs | PolyCcvs | Inductor)
 
 
 def electrical_findings(elements: list[Element]) -> list[Finding]:

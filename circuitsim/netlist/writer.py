@@ -21,6 +21,7 @@ import re
 from circuitsim.atomic import write_text_atomic
 from circuitsim.netlist.circuit import (
     AcSweep,
+    Bjt,
     Capacitor,
     Cccs,
     Ccvs,
@@ -30,8 +31,15 @@ from circuitsim.netlist.circuit import (
     Element,
     Expression,
     Inductor,
+    Jfet,
     Model,
     OperatingPoint,
+    PolyCccs,
+    PolyCcvs,
+    PolyCurrentControlled,
+    PolyVccs,
+    PolyVcvs,
+    PolyVoltageControlled,
     Pulse,
     Pwl,
     Resistor,
@@ -242,6 +250,18 @@ class _Writer:
             tokens += [element.control, v(element.gain)]
         elif isinstance(element, Ccvs):
             tokens += [element.control, v(element.transresistance)]
+        elif isinstance(element, PolyVoltageControlled | PolyCurrentControlled):
+            tokens = [element.name, self.node(element.positive), self.node(element.negative)]
+            tokens.append(f"POLY({len(element.controls)})")
+            for control in element.controls:
+                tokens += (
+                    [self.node(c) for c in control] if isinstance(control, tuple) else [control]
+                )
+            tokens += [v(c) for c in element.coefficients]
+        elif isinstance(element, Jfet | Bjt):
+            tokens.append(element.model)
+            if isinstance(element.area, Expression) or element.area != 1.0:
+                tokens.append(v(element.area))
         elif isinstance(element, Diode):
             tokens.append(element.model)
             if isinstance(element.area, Expression) or element.area != 1.0:
@@ -341,6 +361,12 @@ _LETTERS: dict[type, str] = {
     Ccvs: "H",
     Diode: "D",
     Switch: "S",
+    PolyVcvs: "E",
+    PolyVccs: "G",
+    PolyCccs: "F",
+    PolyCcvs: "H",
+    Jfet: "J",
+    Bjt: "Q",
     SubcircuitCall: "X",
 }
 _NAME = re.compile(r"[^\s(){}=,;'\"]+")

@@ -9,6 +9,8 @@ from circuitsim.netlist.reader import NetlistWarning, parse_netlist, read_netlis
 
 V_USAGE = "(expected: Vname n+ n- [[DC] v] [AC mag [phase]] [SIN|PULSE|PWL(...)])"
 R_USAGE = "(expected: Rname n+ n- value)"
+E_USAGE = "(expected: Ename n+ n- nc+ nc- gain | POLY(n) nc1+ nc1- ... p0 p1 ...)"
+F_USAGE = "(expected: Fname n+ n- vcontrol gain | POLY(n) v1 ... p0 p1 ...)"
 TRAN = "(expected: .tran tstep tstop [tstart [tmax]] [uic])"
 
 # name: (netlist text, line number, exact message)
@@ -27,9 +29,9 @@ ERRORS = {
         "bad number for value: number out of range: '1e999' (beyond the float range)",
     ),
     "unsupported element": (
-        "t\nQ1 c b e qmod\n",
+        "t\nK1 l1 l2 0.9\n",
         2,
-        "unsupported element type 'Q' in 'Q1' (supported: C D E F G H I L R S V X)",
+        "unsupported element type 'K' in 'K1' (supported: C D E F G H I J L Q R S V X)",
     ),
     "unsupported directive": (
         "t\n.temp 27\n",
@@ -92,13 +94,18 @@ ERRORS = {
     ),
     "DC twice": ("t\nV1 a 0 DC 1 DC 2\n", 2, f"DC given twice {V_USAGE}"),
     "source junk": ("t\nV1 a 0 DC 1 foo\n", 2, f"unexpected 'foo' {V_USAGE}"),
-    "POLY": (
-        "t\nE1 a 0 poly(1) b 0 1\n",
+    "VALUE": (
+        "t\nE1 a 0 value={v(b)}\n",
         2,
-        "nonlinear form POLY is not supported, only linear (expected: Ename n+ n- nc+ nc- gain)",
+        f"nonlinear form VALUE is not supported, only linear and POLY(n) {E_USAGE}",
     ),
-    "E too short": ("t\nE1 a 0 b\n", 2, "missing node nc- (expected: Ename n+ n- nc+ nc- gain)"),
-    "F too short": ("t\nF1 a 0 V1\n", 2, "missing gain (expected: Fname n+ n- vcontrol gain)"),
+    "POLY without coefficients": (
+        "t\nE1 a 0 poly(2) b 0 c 0\n",
+        2,
+        f"POLY needs at least one coefficient {E_USAGE}",
+    ),
+    "E too short": ("t\nE1 a 0 b\n", 2, f"missing node nc- {E_USAGE}"),
+    "F too short": ("t\nF1 a 0 V1\n", 2, f"missing gain {F_USAGE}"),
     "diode without model": (
         "t\nD1 a b\n",
         2,

@@ -58,7 +58,7 @@ def test_check_findings_exit_1_with_names(tmp_path, capsys):
 
 @pytest.mark.parametrize(
     "text",
-    ["unreadable\nR1 a\n.end\n", "unreadable\nQ1 c b e npn\n.end\n"],
+    ["unreadable\nR1 a\n.end\n", "unreadable\nK1 l1 l2 0.5\n.end\n"],
     ids=["too-few-fields", "unsupported-element"],
 )
 def test_check_unreadable_exits_2(tmp_path, capsys, text):
