@@ -2,10 +2,11 @@
 
 The verbs live in small modules, grouped by the room they drive: ``model_verbs``
 (stability, ode), ``netlist_verbs`` (convert, check, simulate), ``circuit_verbs`` (generate,
-compare, reproduce), ``sweep_verbs`` (sweep) and ``hunting_verbs`` (hunting); ``common`` holds
-the options several verbs share. Each verb is a pair ``_add_<verb>(subparsers)`` /
-``_run_<verb>(args) -> int``. Library errors become one readable line on stderr; warnings are
-printed as ``warning: <message>`` lines. Nothing in the library imports this package.
+compare, reproduce), ``sweep_verbs`` (sweep), ``hunting_verbs`` (hunting) and ``bench_verbs``
+(bench); ``common`` holds the options several verbs share. Each verb is a pair
+``_add_<verb>(subparsers)`` / ``_run_<verb>(args) -> int``. Library errors become one readable
+line on stderr; warnings are printed as ``warning: <message>`` lines. Nothing in the library
+imports this package.
 
 Exit codes, one convention for every verb (README.md, "Exit codes"):
 
@@ -35,6 +36,7 @@ from collections.abc import Sequence
 
 from circuitsim import __version__
 from circuitsim.cli import (
+    bench_verbs,
     circuit_verbs,
     common,
     hunting_verbs,
@@ -50,6 +52,7 @@ COMMANDS = [
     *circuit_verbs.COMMANDS,
     *sweep_verbs.COMMANDS,
     *hunting_verbs.COMMANDS,
+    *bench_verbs.COMMANDS,
 ]
 
 
@@ -66,6 +69,7 @@ class _Parser(argparse.ArgumentParser):
 
 def _library_errors() -> tuple[type[BaseException], ...]:
     """The typed errors of every room, caught at the top and printed as one line."""
+    from circuitsim.bench.errors import BenchError
     from circuitsim.compare.errors import ComparisonError
     from circuitsim.interop.errors import NgspiceError
     from circuitsim.mechanics.errors import ModelError
@@ -83,6 +87,7 @@ def _library_errors() -> tuple[type[BaseException], ...]:
         ComparisonError,
         StudyError,
         ClusterError,
+        BenchError,
     )
 
 
@@ -92,6 +97,7 @@ def exit_code(error: BaseException) -> int:
     A model file, netlist or circuit that is wrong (or cannot be realized) is the user's input
     to fix; an integration, a Newton iteration or ngspice that failed on valid input is not.
     """
+    from circuitsim.bench.errors import BenchError
     from circuitsim.mechanics.errors import IntegrationError, ModelError
     from circuitsim.netlist.errors import NetlistError
     from circuitsim.solver.errors import CircuitInputError, SingularMatrixError
@@ -101,8 +107,14 @@ def exit_code(error: BaseException) -> int:
     if isinstance(error, IntegrationError):
         return EXIT_RUN_FAILED
     bad_input = (
-        ModelError, NetlistError, CircuitInputError, SingularMatrixError, SynthesisError, StudyError
-    )  # fmt: skip
+        ModelError,
+        NetlistError,
+        CircuitInputError,
+        SingularMatrixError,
+        SynthesisError,
+        StudyError,
+        BenchError,
+    )
     return EXIT_BAD_INPUT if isinstance(error, bad_input) else EXIT_RUN_FAILED
 
 

@@ -12,7 +12,10 @@ from circuitsim.cli.common import (
     add_model_options,
     add_ngspice_timeout,
     add_scenario_options,
+    add_time_scale,
+    add_translator_options,
     check_scenario_options,
+    check_translator_options,
     prepare_output_folder,
     print_warning,
     progress,
@@ -21,7 +24,7 @@ from circuitsim.cli.common import (
     require_positive,
     require_writable,
     scenario_system,
-    state_range,
+    translator_options,
 )
 
 if TYPE_CHECKING:
@@ -50,49 +53,7 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
     )
     add_model_options(parser)
     add_scenario_options(parser)
-    parser.add_argument(
-        "--opamp", choices=("ideal", "tl074"), default="ideal", help="op-amp model (default ideal)"
-    )
-    parser.add_argument(
-        "--nonlinear",
-        choices=("abs", "deadzone"),
-        default="abs",
-        help="piecewise-linear terms from |x| blocks (the paper's form, default) or one "
-        "dead-zone block",
-    )
-    parser.add_argument(
-        "--scaling",
-        choices=("auto", "unity"),
-        default="auto",
-        help="auto: volts per unit from the direct solution's peaks to --swing (default); "
-        "unity: 1 V per SI unit (the paper's mapping)",
-    )
-    parser.add_argument(
-        "--swing", type=float, default=5.0, metavar="VOLTS", help="target peak, V (> 0; default 5)"
-    )
-    parser.add_argument(
-        "--range",
-        type=state_range,
-        action="append",
-        default=[],
-        metavar="STATE=PEAK",
-        help="expected peak of a state in SI units, instead of the direct solution's (repeatable)",
-    )
-    _add_time_scale(parser)
-    parser.add_argument(
-        "--series",
-        choices=("E96", "E24", "exact"),
-        default="E96",
-        help="resistor values (default E96)",
-    )
-    parser.add_argument(
-        "--pair-tolerance",
-        type=float,
-        default=1e-3,
-        metavar="REL",
-        help="a coefficient resistor that one standard value misses by more than REL becomes "
-        "two in series, R33 -> R33A + R33B (default 0.001; inf: never a pair)",
-    )
+    add_translator_options(parser)
     parser.add_argument(
         "--dialect",
         choices=("ngspice", "ltspice", "multisim"),
@@ -116,16 +77,6 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=_run_generate)
 
 
-def _add_time_scale(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--time-scale",
-        type=float,
-        metavar="K",
-        help="one model second takes 1/K circuit seconds (K > 0; default: the model file's "
-        "[circuit] time_scale, else 1, real time)",
-    )
-
-
 def _print_warnings(synthesis) -> None:
     """The translator's warnings as ``warning:`` lines (the mapping check's are in its
     summary)."""
@@ -144,8 +95,7 @@ def _print_fits(system, stream=None) -> None:
 def _check_generate(args: argparse.Namespace) -> None:
     """Refuse non-positive or non-finite --swing, --time-scale, --tstop and a bad --switch-at."""
     check_scenario_options(args)
-    require_positive("--swing", args.swing)
-    require_positive("--time-scale", args.time_scale)
+    check_translator_options(args)
     require_positive("--tstop", args.tstop)
     if args.switch_at is not None and not args.switch_at >= 0:  # NaN fails the comparison
         raise UsageError(f"--switch-at must be a time >= 0 or inf, got {args.switch_at:g}")
@@ -153,21 +103,10 @@ def _check_generate(args: argparse.Namespace) -> None:
 
 def _run_generate(args: argparse.Namespace) -> int:
     from circuitsim.synthesis.generate import generate, switch_at
-    from circuitsim.synthesis.options import SynthesisOptions
 
     _check_generate(args)
     system = switch_at(scenario_system(args), args.switch_at)
-    options = SynthesisOptions(
-        opamp=args.opamp,
-        nonlinear=args.nonlinear,
-        scaling=args.scaling,
-        swing=args.swing,
-        time_scale=args.time_scale,
-        series=args.series,
-        pair_tolerance=args.pair_tolerance,
-        t_stop=args.tstop,
-        ranges=dict(args.range),
-    )
+    options = translator_options(args)
     result = generate(system, args.output, options, args.dialect)
     _print_warnings(result.synthesis)
     print(f"wrote {result.netlist}, {result.scale_file}, {result.bom_file}, {result.order_file}")
@@ -215,7 +154,7 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:
         metavar="T",
         help=TSTOP_HELP,
     )
-    _add_time_scale(parser)
+    add_time_scale(parser)
     given = parser.add_argument_group(
         "a circuit or results made elsewhere (instead of generating the circuit)"
     )

@@ -536,6 +536,95 @@ def state_range(text: str) -> tuple[str, float]:
         ) from None
 
 
+def add_time_scale(parser: argparse.ArgumentParser) -> None:
+    """``--time-scale K``: how fast the circuit runs against the model."""
+    parser.add_argument(
+        "--time-scale",
+        type=float,
+        metavar="K",
+        help="one model second takes 1/K circuit seconds (K > 0; default: the model file's "
+        "[circuit] time_scale, else 1, real time)",
+    )
+
+
+def add_translator_options(parser: argparse.ArgumentParser, series: str = "E96") -> None:
+    """The translator's options (generate, bench): --opamp, --nonlinear, --scaling, --swing,
+    --range, --time-scale, --series (default ``series``) and --pair-tolerance."""
+    parser.add_argument(
+        "--opamp", choices=("ideal", "tl074"), default="ideal", help="op-amp model (default ideal)"
+    )
+    parser.add_argument(
+        "--nonlinear",
+        choices=("abs", "deadzone"),
+        default="abs",
+        help="piecewise-linear terms from |x| blocks (the paper's form, default) or one "
+        "dead-zone block",
+    )
+    parser.add_argument(
+        "--scaling",
+        choices=("auto", "unity"),
+        default="auto",
+        help="auto: volts per unit from the direct solution's peaks to --swing (default); "
+        "unity: 1 V per SI unit (the paper's mapping)",
+    )
+    parser.add_argument(
+        "--swing", type=float, default=5.0, metavar="VOLTS", help="target peak, V (> 0; default 5)"
+    )
+    parser.add_argument(
+        "--range",
+        type=state_range,
+        action="append",
+        default=[],
+        metavar="STATE=PEAK",
+        help="expected peak of a state in SI units, instead of the direct solution's (repeatable)",
+    )
+    add_time_scale(parser)
+    parser.add_argument(
+        "--series",
+        choices=("E96", "E24", "exact"),
+        default=series,
+        help=f"resistor values (default {series})",
+    )
+    parser.add_argument(
+        "--pair-tolerance",
+        type=float,
+        default=1e-3,
+        metavar="REL",
+        help="a coefficient resistor that one standard value misses by more than REL becomes "
+        "two in series, R33 -> R33A + R33B (default 0.001; inf: never a pair)",
+    )
+
+
+def check_translator_options(args: argparse.Namespace) -> None:
+    """Refuse a non-positive or non-finite --swing or --time-scale.
+
+    Raises
+    ------
+    UsageError
+        Naming the option.
+    """
+    require_positive("--swing", args.swing)
+    require_positive("--time-scale", args.time_scale)
+
+
+def translator_options(args: argparse.Namespace):
+    """The SynthesisOptions of :func:`add_translator_options`' options (and ``--tstop``,
+    when the verb has it)."""
+    from circuitsim.synthesis.options import SynthesisOptions
+
+    return SynthesisOptions(
+        opamp=args.opamp,
+        nonlinear=args.nonlinear,
+        scaling=args.scaling,
+        swing=args.swing,
+        time_scale=args.time_scale,
+        series=args.series,
+        pair_tolerance=args.pair_tolerance,
+        t_stop=getattr(args, "tstop", None),
+        ranges=dict(args.range),
+    )
+
+
 def print_warning(message: Warning | str, *_: object, **__: object) -> None:
     """Print one warning as a ``warning: <message>`` line on stderr.
 

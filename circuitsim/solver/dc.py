@@ -139,7 +139,20 @@ def operating_point_solution(
 
 
 def initial_condition_solution(system: MnaSystem) -> tuple[np.ndarray, StepContext]:
-    """The ``uic`` start: .ic node voltages, IC= currents, IC= charges; no solve."""
+    """The ``uic`` start: .ic node voltages, IC= currents, IC= charges; no solve.
+
+    With ``system.start = (x, q)`` set, that vector of every unknown instead, and the charges
+    ``q`` (None: the charges x gives); .ic and IC= are not applied: it is a whole state, e.g.
+    where a run ended.
+    """
+    if system.start is not None:
+        x, q = system.start
+        x = np.array(x, dtype=float)
+        ctx = StepContext(system.n_charges)
+        finish(system, x, ctx)
+        if q is not None:
+            ctx.q[:] = q
+        return x, ctx
     x = np.zeros(system.size)
     x[system.ic_nodes] = system.ic_values
     ctx = StepContext(system.n_charges)

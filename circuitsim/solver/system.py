@@ -97,6 +97,9 @@ class MnaSystem:
         self.M = reactive.toarray() if self.dense else reactive
         self.node_index = np.flatnonzero(self.voltage)
         self.ic_nodes, self.ic_values = self._initial_conditions()
+        # (unknowns, charges or None) of a uic start when set (solver/continuation.py: a run
+        # that carries on from where another ended); None: the .ic and IC= values
+        self.start: tuple[np.ndarray, np.ndarray | None] | None = None
         self._bases: OrderedDict = OrderedDict()
         self._assembler = None if self.dense else SparseAssembler(n, CACHE_SIZE)
         self._factors: OrderedDict = OrderedDict()

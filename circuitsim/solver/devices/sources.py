@@ -8,6 +8,7 @@ from circuitsim.netlist.circuit import CurrentSource, VoltageSource
 from circuitsim.solver.context import Stamps
 from circuitsim.solver.devices.base import DeviceFamily
 from circuitsim.solver.devices.source_waveforms import SourceValues
+from circuitsim.solver.errors import CircuitInputError
 from circuitsim.solver.layout import MatrixPattern, VectorPattern
 
 
@@ -41,6 +42,23 @@ class VoltageSourceFamily(DeviceFamily):
 
     def set_timing(self, tstep: float, tstop: float) -> None:
         self.values.set_timing(tstep, tstop)
+
+    def set_sine(self, name: str, amplitude: float, phase: float) -> None:
+        """Set a SIN source's amplitude (V) and phase (degrees) for the next run of this
+        assembly (solver/continuation.py: a generator whose phase follows the time a chain
+        of runs has reached).
+
+        Raises
+        ------
+        CircuitInputError
+            ``name`` is not a SIN source of this family.
+        """
+        index = self.names.index(name) if name in self.names else -1
+        if index not in self.values.sin_index:
+            raise CircuitInputError(f"{name}: no SIN voltage source of that name")
+        j = self.values.sin_index.index(index)
+        self.values.sin["amplitude"][j] = float(amplitude)
+        self.values.sin["phase"][j] = float(phase)
 
     def source_rhs(self, time: float, scale: float, rhs: np.ndarray, dc: bool) -> None:
         rhs[self.branch] += scale * self.values.values(time, dc)

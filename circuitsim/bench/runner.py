@@ -1,0 +1,123 @@
+"""The bench's clock: a thread that steps a session chunk by chunk at ``rate`` model seconds
+per wall second (or as fast as it can: ``rate = inf``), with pause and resume.
+
+The session is kept at most one chunk ahead of the clock, so a knob change acts within about
+one chunk of model time (plus the time to compute it). A chunk that fails (no convergence)
+stops the clock; ``error`` says why and the session keeps the state before the chunk.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+
+from circuitsim.bench.errors import BenchError
+from circuitsim.bench.session import BenchSession
+
+
+class BenchRunner:
+    """Steps ``session`` in a background thread.
+
+    Parameters
+    ----------
+    session : BenchSession
+    rate : float
+        Model seconds per wall second (> 0; ``inf``: unthrottled).
+    running : bool
+        Start running (True) or paused.
+    """
+
+    def __init__(self, session: BenchSession, rate: float = 1.0, running: bool = True):
+        self.session = session
+        self.rate = check_rate(rate)
+        self.error: str | None = None
+        self._running = running
+        self._stop = threading.Event()
+        self._wake = threading.Event()
+        self._anchor = (time.monotonic(), session.t)  # wall time, model time
+        self._thread = threading.Thread(target=self._loop, name="bench-runner", daemon=True)
+
+    @property
+    def running(self) -> bool:
+        """Whether the clock runs (not paused, stopped or failed)."""
+        return self._running and self.error is None and not self._stop.is_set()
+
+    def start(self) -> BenchRunner:
+        """Start the thread; returns self."""
+        self._thread.start()
+        return self
+
+    def stop(self, timeout: float = 10.0) -> None:
+        """Stop the thread (waits for the chunk in progress)."""
+        self._stop.set()
+        self._wake.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout)
+
+    def pause(self) -> None:
+        """Hold the clock after the chunk in progress."""
+        self._running = False
+
+    def resume(self) -> None:
+        """Run again from the model time reached (the clock does not catch up the pause)."""
+        self._reanchor()
+        self._running = True
+        self._wake.set()
+
+    def set_rate(self, rate: float) -> None:
+        """Model seconds per wall second from now (> 0, ``inf``: unthrottled).
+
+        Raises
+        ------
+        BenchError
+            Not a positive number.
+        """
+        self.rate = check_rate(rate)
+        self._reanchor()
+        self._wake.set()
+
+    def _reanchor(self) -> None:
+        self._anchor = (time.monotonic(), self.session.t)
+
+    def _due(self) -> float:
+        """Wall seconds until the next chunk should start (<= 0: now)."""
+        if math.isinf(self.rate):
+            return 0.0
+        wall0, model0 = self._anchor
+        # one chunk ahead: the chunk that starts at t is computed when the clock reaches
+        # t - chunk, so its samples are there when the clock shows them
+        target = model0 + self.rate * (time.monotonic() - wall0) + self.session.chunk
+        return (self.session.t - target) / self.rate
+
+    def _loop(self) -> None:
+        while not self._stop.is_set():
+            if not self.running:
+                self._wake.wait(0.1)
+                self._wake.clear()
+                continue
+            wait = self._due()
+            if wait > 0:
+                self._wake.wait(min(wait, 0.1))
+                self._wake.clear()
+                continue
+            try:
+                self.session.step()
+            except Exception as exc:  # noqa: BLE001 - reported through the API, clock stopped
+                self.error = f"{type(exc).__name__}: {exc}"
+            if not math.isinf(self.rate) and self._due() < -1.0:
+                self._reanchor()  # more than a second behind: do not race to catch up
+
+
+def check_rate(rate) -> float:
+    """``rate`` as a float if it is a positive number (``inf`` allowed).
+
+    Raises
+    ------
+    BenchError
+    """
+    if isinstance(rate, bool) or not isinstance(rate, int | float) or not rate > 0:
+        raise BenchError(
+            f"rate must be a positive number of model seconds per second, got {rate!r}"
+        )
+    return float(rate)

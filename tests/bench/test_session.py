@@ -1,0 +1,190 @@
+"""A bench session through the library (no browser, unthrottled): the circuit with a knob
+history against the ODE solved independently with the same piecewise-constant values, the
+wheelset's free response against MODEL.md, and refused knob values."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from circuitsim.bench.errors import BenchError
+from circuitsim.bench.knobs import BenchSetup
+from circuitsim.bench.session import BenchSession
+from circuitsim.compare.signals import nrmsd_percent
+from circuitsim.mechanics import load_model
+from circuitsim.mechanics.solve import solve
+from circuitsim.synthesis.options import SynthesisOptions
+
+#: (model seconds, knob changes at the segment's start, push at its start)
+HISTORY = [
+    (3.0, {}, {"y": 0.005}),
+    (3.0, {"speed": 54.0}, {}),
+    (2.0, {"flange": True, "amplitude": 0.04, "freq": 5.0}, {}),
+]
+
+
+def wheelset_setup(speed=57.0) -> BenchSetup:
+    """The paper's wheelset at ``speed``, no forcing, flange off; ideal op-amps, exact values."""
+    model = load_model(None)
+    system = model.system(None, {"V": speed, "a": 0.0}, {"flange": False})
+    return BenchSetup.from_system(model, system, SynthesisOptions(series="exact"))
+
+
+def reference(history, t_end) -> tuple[np.ndarray, np.ndarray]:
+    """The ODE with the same piecewise-constant values, solved here segment by segment with
+    the model's own systems (the flange term absent when off, not the bench's never-closing
+    switch), sampled every 2 ms."""
+    model = load_model(None)
+    values = {"V": 57.0, "a": 0.0, "f": 3.0}
+    flange, x = False, np.zeros(4)
+    names = {"speed": "V", "amplitude": "a", "freq": "f"}
+    t0, times, states = 0.0, [], []
+    for duration, knobs, push in history:
+        for name, value in knobs.items():
+            if name == "flange":
+                flange = value
+            else:
+                values[names[name]] = value
+        for name, value in push.items():
+            x[["y", "psi", "y_dot", "psi_dot"].index(name)] = value
+        system = model.system(None, values, {"flange": flange})
+        result = solve(system, (t0, t0 + duration), x0=x)
+        grid = t0 + 0.002 * np.arange(1, round(duration / 0.002) + 1)
+        times.append(grid)
+        states.append(result.sol(grid))
+        x = result.x[:, -1]
+        t0 += duration
+    return np.concatenate(times), np.concatenate(states, axis=1)
+
+
+@pytest.fixture(scope="module")
+def session_run():
+    """The session stepped through HISTORY as fast as it runs."""
+    session = BenchSession(wheelset_setup())
+    applied = []
+    for duration, knobs, push in HISTORY:
+        if knobs:
+            applied.append(session.set_knobs(knobs))
+        if push:
+            applied.append(session.set_state(push))
+        for _ in range(round(duration / session.chunk)):
+            session.step()
+    return session, applied
+
+
+def test_the_circuit_follows_the_ode_with_the_same_knob_history(session_run):
+    """Every state within 0.5 % NRMSD of the ODE solved independently with the same knob
+    history (ideal op-amps, exact values)."""
+    session, _ = session_run
+    data = session.trace(since=0.0)
+    t_ref, x_ref = reference(HISTORY, session.t)
+    np.testing.assert_allclose(data["t"], t_ref, rtol=0, atol=1e-9)
+    for i, name in enumerate(session.states):
+        error = nrmsd_percent(x_ref[i], np.array(data["states"][name]))
+        assert error < 0.5, f"{name}: {error:.3f} % NRMSD"
+        # the session's own ODE is that reference (to the solvers' tolerance)
+        assert nrmsd_percent(x_ref[i], np.array(data["ode"][name])) < 1e-4
+    running = session.nrmsd()
+    assert all(0 < value < 0.5 for value in running.values()), running
+
+
+def test_hunting_grows_at_57_and_decays_after_the_knob_goes_to_54(session_run):
+    """The issue's bench demo: a 5 mm push at 57 m/s grows (the critical speed is
+    55.6455 m/s, MODEL.md), turning the speed to 54 m/s makes it decay, with no restart."""
+    session, applied = session_run
+    data = session.trace(since=-1.0)
+    t, y = np.array(data["t"]), np.abs(data["states"]["y"])
+
+    def peak(a, b):
+        return y[(t > a) & (t <= b)].max()
+
+    assert peak(2.0, 3.0) > 2 * peak(0.0, 1.0)  # growing at 57 m/s
+    assert peak(5.0, 6.0) < 0.5 * peak(3.0, 4.0)  # decaying at 54 m/s
+    assert applied == pytest.approx([0.0, 3.0, 6.0])
+    # one uniform clock from 0: nothing restarted
+    np.testing.assert_allclose(np.diff(t), session.sample, rtol=1e-6)
+
+
+def test_the_speed_knob_turns_r33_and_r44_in_proportion(session_run):
+    """c_y and c_psi are proportional to 1/V, so R33 and R44 to V (MODEL.md)."""
+    session, _ = session_run
+    speed = next(k for k in session.knobs if k.name == "speed")
+    assert set(speed.parts) == {"R33", "R44"}
+    change = next(e for e in session.history if e["kind"] == "knobs")
+    assert set(change["resistors"]) == {"R33", "R44"}
+    for old, new in change["resistors"].values():
+        assert new / old == pytest.approx(54.0 / 57.0, rel=1e-9)
+
+
+def test_export_holds_every_sample_and_the_history(session_run):
+    session, _ = session_run
+    lines = session.trace_csv().splitlines()
+    assert lines[0].split(",")[:3] == ["time_s", "y_circuit_m", "y_ode_m"]
+    assert len(lines) == 1 + 1 + round(session.t / session.sample)
+    events = json.loads(session.history_json())["events"]
+    assert [e["kind"] for e in events] == ["start", "state", "knobs", "knobs"]
+    assert events[3]["values"] == {"flange": True, "amplitude": 0.04, "freq": 5.0}
+
+
+def test_trace_since_returns_only_newer_samples(session_run):
+    session, _ = session_run
+    data = session.trace(since=7.5, last=0.1)
+    assert data["t"][0] > 7.9 - 1e-9 and data["t"][-1] == pytest.approx(8.0)
+    assert len(data["t"]) == len(data["states"]["psi"]) == len(data["ode"]["y_dot"]) == 50
+
+
+@pytest.mark.slow
+def test_free_response_at_57_matches_model_md():
+    """MODEL.md: from y(0) = 5 mm at V = 57, no flange, no excitation, max |y| over 9-10 s
+    is 1.223 m."""
+    session = BenchSession(wheelset_setup(57.0), chunk=0.1)
+    session.set_state({"y": 0.005})
+    while session.t < 10.0 - 1e-9:
+        session.step()
+    data = session.trace(since=9.0)
+    assert np.max(np.abs(data["states"]["y"])) == pytest.approx(1.223, rel=1e-2)
+
+
+@pytest.fixture(scope="module")
+def idle_session():
+    return BenchSession(wheelset_setup())
+
+
+@pytest.mark.parametrize(
+    "values, message",
+    [
+        ({"speed": "fast"}, "finite number"),
+        ({"speed": math.nan}, "finite number"),
+        ({"speed": math.inf}, "finite number"),
+        ({"flange": 1}, "true or false"),
+        ({"nope": 1}, "unknown knob 'nope'"),
+        ({}, "JSON object"),
+        ([57], "JSON object"),
+        ({"speed": -57.0}, "wiring"),  # negative damping: R33 would move to the other node
+    ],
+)
+def test_bad_knob_values_are_refused_and_change_nothing(idle_session, values, message):
+    before = (idle_session.knob_values(), len(idle_session.history), idle_session.resistors)
+    with pytest.raises(BenchError, match=message):
+        idle_session.set_knobs(values)
+    assert (idle_session.knob_values(), len(idle_session.history), idle_session.resistors) == (
+        before
+    )
+
+
+@pytest.mark.parametrize(
+    "values, message",
+    [({"q": 1.0}, "unknown state 'q'"), ({"y": "x"}, "finite number"), ({}, "JSON object")],
+)
+def test_bad_pushes_are_refused(idle_session, values, message):
+    with pytest.raises(BenchError, match=message):
+        idle_session.set_state(values)
+
+
+def test_time_series_forcing_is_refused():
+    model = load_model(None)
+    system = model.system(None, {"V": 55.0}, forcing={"irregularity": True, "track": False})
+    setup = BenchSetup.from_system(model, system, SynthesisOptions(series="exact"))
+    with pytest.raises(BenchError, match="sinusoidal forcing only"):
+        BenchSession(setup)
