@@ -10,19 +10,18 @@ threads use separate cores without the start-up and pickling of worker processes
 
 from __future__ import annotations
 
-import copy
 import os
 import time as _time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import replace
 from typing import NamedTuple
 
 import numpy as np
 
-from circuitsim.netlist.circuit import Capacitor, Circuit, Resistor
+from circuitsim.netlist.circuit import Circuit, Resistor
 from circuitsim.netlist.names import fold
-from circuitsim.solver.engine import build_system, flat_circuit
+from circuitsim.solver.engine import build_system
 from circuitsim.solver.errors import CircuitInputError
 from circuitsim.solver.threads import single_threaded_blas
 from circuitsim.solver.waveforms import Waveforms
@@ -237,116 +236,3 @@ def _waveforms(system, times, values, probes, index, stats, started) -> Waveform
     stats["wall_time_s"] = _time.perf_counter() - started
     return Waveforms(time=times, signals=signals, engine="builtin", stats=stats)
 
-
-class ContinuedRun(NamedTuple):
-    """One run of :func:`simulate_from`: the probes' waveforms and where the run ended."""
-
-    waves: Waveforms
-    final: dict[str, float]  # every node's voltage at the last time point, V (by node name)
-
-
-def continued(circuit: Circuit, voltages: Mapping[str, float]) -> Circuit:
-    """``circuit`` (flattened) set to start from the node ``voltages`` of another run.
-
-    Every node named in ``voltages`` gets an ``.ic`` at its voltage and every capacitor an
-    ``IC=`` of the voltage across it, and the ``.tran`` becomes ``uic``: the engine's start
-    then holds exactly those charges (a capacitor's IC= sets its charge; the nodes set the
-    charges of the other devices). A roller rig turning its speed knob while the wheelset
-    keeps moving is such a start: the state carries on, the elements' values change.
-
-    Parameters
-    ----------
-    circuit : Circuit
-        With a ``.tran``.
-    voltages : mapping of str to float
-        Node name (as in ``v(name)``, case-insensitive) to volts; ground may be left out.
-
-    Returns
-    -------
-    Circuit
-        A new, flat circuit; ``circuit`` is unchanged.
-
-    Raises
-    ------
-    CircuitInputError
-        No ``.tran``, or a capacitor terminal missing from ``voltages``.
-    """
-    flat = copy.deepcopy(flat_circuit(circuit))  # flatten may share element objects
-    if flat.transient is None:
-        raise CircuitInputError("continued: the circuit has no .tran")
-    known = {fold(name): float(value) for name, value in voltages.items()}
-    known.setdefault("0", 0.0)
-
-    def volts(node: str, part: str) -> float:
-        try:
-            return known[fold(node)]
-        except KeyError:
-            raise CircuitInputError(
-                f"continued: no voltage for node {node!r} of {part} (the previous run must "
-                "record every node)"
-            ) from None
-
-    ics = {name: value for name, value in flat.initial_conditions.items()}
-    for name, value in known.items():
-        if name != "0":
-            ics[name] = value
-    flat.initial_conditions = ics
-    for element in flat.elements:
-        if isinstance(element, Capacitor):
-            element.ic = volts(element.positive, element.name) - volts(
-                element.negative, element.name
-            )
-    flat.analyses = [replace(a, uic=True) if a is flat.transient else a for a in flat.analyses]
-    return flat
-
-
-def simulate_from(
-    circuit: Circuit,
-    probes: Sequence[str],
-    voltages: Mapping[str, float] | None = None,
-) -> ContinuedRun:
-    """The ``.tran`` of ``circuit`` on the ports kernel, started from ``voltages`` (the
-    ``final`` of an earlier :class:`ContinuedRun`; None: the circuit's own start).
-
-    Each run of a chain records every node (to hand its last point to the next), and
-    returns only ``probes`` as waveforms.
-
-    Parameters
-    ----------
-    circuit : Circuit
-        With a ``.tran``.
-    probes : sequence of str
-        Signal names (``"v(y)"``).
-    voltages : mapping of str to float, optional
-        Node voltages to start from, V (see :func:`continued`).
-
-    Returns
-    -------
-    ContinuedRun
-
-    Raises
-    ------
-    CircuitInputError, ConvergenceError, SingularMatrixError
-    """
-    from circuitsim.solver.compiled import check_cache, run_ports
-
-    check_cache()
-    if voltages is not None:
-        circuit = continued(circuit, voltages)
-    started = _time.perf_counter()
-    probes = [fold(p) for p in probes]
-    system, index, _ = _checked_system(circuit, probes, 0)
-    nodes = {name: i for name, i in system.signals.items() if name.startswith("v(") and i >= 0}
-    rows = np.array(sorted(set(nodes.values())), dtype=np.int64)
-    tran = circuit.transient
-    stats: dict = {"analysis": "tran", "newton_iterations": 0}
-    times, values = run_ports(
-        system, tran.tstep, tran.tstop, tran.tstart, tran.tmax, tran.uic, None, stats, rows=rows
-    )
-    stats["factorizations"] = system.factorizations
-    column = {int(r): c for c, r in enumerate(rows)}
-    final = {name[2:-1]: float(values[-1, column[i]]) for name, i in nodes.items()}
-    probed = np.array([column.get(i, -1) for i in index])
-    recorded = values[:, probed[probed >= 0]]
-    waves = _waveforms(system, times, recorded, probes, index, stats, started)
-    return ContinuedRun(waves, final)

@@ -5,8 +5,8 @@ from the previous step's final state, on two paths side by side:
 
     ode:     the direct solution (mechanics.solve: exact kink handling), state handed on;
     circuit: the equivalent circuit (one translation, one scaling), each step a restamp of the
-             speed resistors (R33, R44 for the wheelset) started from the previous run's last
-             node voltages (solver.variants.simulate_from).
+             speed resistors (R33, R44 for the wheelset) started from every unknown the
+             previous run ended with (solver.continuation.transient_from).
 
 Each step runs ``settle + record`` model seconds; its amplitude is max |y| over the last
 ``record`` seconds (after the settling time). Comparing the two halves of that window says
@@ -37,6 +37,7 @@ import numpy as np
 from circuitsim.compare.errors import ComparisonError
 from circuitsim.compare.values import parse_values
 from circuitsim.mechanics.system import System
+from circuitsim.studies.errors import StudyError
 
 Progress = Callable[[int, int, str], None]
 """Called with (steps done, steps in all, a short message) after each speed step."""
@@ -47,8 +48,8 @@ DIRECTIONS = ("up", "down")
 PATHS = ("ode", "circuit")
 
 
-class HuntingError(ComparisonError):
-    """A hunting study that cannot run as asked (bad speeds, settings or model)."""
+class HuntingError(StudyError):
+    """A hunting study that cannot run as asked (bad speeds, settings or model): bad input."""
 
 
 @dataclass(frozen=True)
@@ -422,40 +423,50 @@ def circuit_branch(
     state: str,
     push: float,
     flange: bool,
-    start: dict[str, float] | None = None,
+    start=None,
     progress: Callable[[str], None] | None = None,
-) -> tuple[HuntingBranch, dict[str, float] | None]:
+) -> tuple[HuntingBranch, object]:
     """One direction on the circuit path: each step the speed's circuit (its restamped
-    resistors) started from the previous run's last node voltages.
+    resistors) started from every unknown the previous run ended with
+    (:func:`circuitsim.solver.continuation.transient_from`).
+
+    Parameters
+    ----------
+    circuits : sequence of Circuit
+        One per speed, in the order run, of one wiring (a sweep's variants).
+    scale_map : ScaleMap
+        Maps the state's node back to physical units.
+    start : SavedState, optional
+        Where to start (default: the circuits' own start, the push).
 
     Returns
     -------
     branch : HuntingBranch
-    final : dict of str to float or None
-        The last run's node voltages, or None when the next step should start from the push.
+    final : SavedState or None
+        The last run's end, or None when the next step should start from the push.
     """
     from circuitsim.compare.mapping import map_waveforms
-    from circuitsim.solver.variants import simulate_from
+    from circuitsim.solver.continuation import transient_from
 
     began = time.perf_counter()
-    node = scale_map.states[state].node
     amplitudes, statuses, pushed = [], [], []
-    voltages = start
+    saved = start
     for circuit, speed in zip(circuits, speeds, strict=True):
-        pushed.append(voltages is None)
-        run = simulate_from(circuit, [f"v({node})"], voltages)
-        t, y = map_waveforms(run.waves, scale_map, [state])[state]
+        pushed.append(saved is None)
+        tran = circuit.transient
+        waves, end = transient_from(circuit, tran.tstep, tran.tstop, tran.tmax, saved)
+        t, y = map_waveforms(waves, scale_map, [state])[state]
         amplitude, status = measure(t, y, settings)
         amplitudes.append(amplitude)
         statuses.append(status)
-        voltages = None if _restart(amplitude, status, push, settings) else run.final
+        saved = None if _restart(amplitude, status, push, settings) else end
         if progress:
             progress(f"circuit {direction} {speed:g}: {status}")
     branch = HuntingBranch(
         "circuit", direction, flange, np.asarray(speeds, dtype=float), np.array(amplitudes),
         statuses, np.array(pushed), time.perf_counter() - began,
     )  # fmt: skip
-    return branch, voltages
+    return branch, saved
 
 
 def run_hunting(

@@ -66,45 +66,34 @@ def test_ode_steps_continue_from_the_previous_final_state():
     assert branch.amplitude[1] == pytest.approx(whole.max_abs("y", 2.5, 3.0), rel=1e-6)
 
 
-def test_circuit_run_continues_from_the_last_node_voltages():
-    """A run from another run's last point equals one run over both spans."""
-    from circuitsim.compare.mapping import map_waveforms
+def test_circuit_steps_continue_from_the_previous_final_state():
+    """Two circuit steps at one speed end where one run over both spans ends."""
     from circuitsim.compare.sweep import sweep_circuits
-    from circuitsim.solver.variants import continued, simulate_from
+    from circuitsim.solver.continuation import transient_from
+    from circuitsim.studies.hunting import circuit_branch
     from circuitsim.synthesis.options import SynthesisOptions
 
+    settings = HuntingSettings(settle=1.0, record=0.5, threshold=PUSH, bound=1.0, repush=0.0)
     ranges = {"y": 0.012, "psi": 0.012, "y_dot": 0.7, "psi_dot": 0.7}
-    one = sweep_circuits([free(58.0, True)], SynthesisOptions(t_stop=1.0, ranges=ranges))
-    two = sweep_circuits([free(58.0, True)], SynthesisOptions(t_stop=2.0, ranges=ranges))
+    one = sweep_circuits([free(58.0, True)], SynthesisOptions(t_stop=1.5, ranges=ranges))
+    two = sweep_circuits([free(58.0, True)], SynthesisOptions(t_stop=3.0, ranges=ranges))
+    circuit = one.circuits[0]
+    branch, final = circuit_branch(
+        [circuit, circuit], one.scale_map, np.array([58.0, 58.0]), "up", settings, "y", PUSH,
+        True,
+    )  # fmt: skip
+    assert list(branch.pushed) == [True, False] and final is not None
+    tran = two.circuits[0].transient
+    waves, whole = transient_from(two.circuits[0], tran.tstep, tran.tstop, tran.tmax)
+    for state in ("y", "psi", "y_dot"):
+        node = one.scale_map.states[state].node
+        assert final.voltage(node) == pytest.approx(whole.voltage(node), rel=2e-3, abs=2e-3)
+    # the second step's amplitude is the single run's over its last 0.5 s
     node = one.scale_map.states["y"].node
-    first = simulate_from(one.circuits[0], [f"v({node})"])
-    second = simulate_from(one.circuits[0], [f"v({node})"], first.final)
-    whole = simulate_from(two.circuits[0], [f"v({node})"])
-    # the chained end equals the single run's end to the engine's tolerance
-    for name in (node, one.scale_map.states["psi"].node):
-        assert second.final[name] == pytest.approx(whole.final[name], rel=2e-3, abs=1e-3)
-    _, y2 = map_waveforms(second.waves, one.scale_map, ["y"])["y"]
-    _, y1 = map_waveforms(first.waves, one.scale_map, ["y"])["y"]
-    assert abs(y2[0] - y1[-1]) < 2e-2 * np.max(np.abs(y1))  # no jump at the restart
-    # continued() sets every capacitor to the voltage across it and leaves the input alone
-    start = continued(one.circuits[0], first.final)
-    for cap in (e for e in start.elements if type(e).__name__ == "Capacitor"):
-        expected = first.final.get(cap.positive, 0.0) - first.final.get(cap.negative, 0.0)
-        assert cap.ic == pytest.approx(expected, rel=1e-15)
-    assert one.circuits[0].initial_conditions != start.initial_conditions
-    assert start.transient.uic
-
-
-def test_continued_without_a_capacitor_voltage_is_refused():
-    from circuitsim.compare.sweep import sweep_circuits
-    from circuitsim.solver.errors import CircuitInputError
-    from circuitsim.solver.variants import continued
-    from circuitsim.synthesis.options import SynthesisOptions
-
-    ranges = {"y": 0.012, "psi": 0.012, "y_dot": 0.7, "psi_dot": 0.7}
-    circuit = sweep_circuits([free(58.0, True)], SynthesisOptions(t_stop=1.0, ranges=ranges))
-    with pytest.raises(CircuitInputError, match="no voltage for node"):
-        continued(circuit.circuits[0], {"y": 1.0})
+    late = waves.time >= 2.5 / one.scale_map.time_scale
+    volts = np.max(np.abs(waves[f"v({node})"][late]))
+    expected = volts / abs(one.scale_map.states["y"].volts_per_unit)
+    assert branch.amplitude[1] == pytest.approx(expected, rel=2e-3)
 
 
 def test_circuit_and_ode_amplitudes_agree_and_the_critical_speeds_bracket_the_linear_one():
@@ -188,3 +177,36 @@ def test_cli_bad_input_exits_2_with_one_clear_line(arguments, message, tmp_path)
     assert message in run.stderr
     assert "Traceback" not in run.stderr
     assert not (tmp_path / "hunting.csv").exists()
+
+
+def _hunting(arguments, tmp_path):
+    return subprocess.run(
+        [sys.executable, "-m", "circuitsim", "hunting", *arguments, "--out", str(tmp_path)],
+        cwd=ROOT, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+
+
+def test_cli_writes_the_csv_figure_and_critical_speeds(tmp_path):
+    run = _hunting(["--speeds", "55,57", "--settle", "1", "--record", "0.5", "--flange"], tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert "linear critical V: 55.6455 m/s" in run.stdout
+    assert "flange on, circuit: limit cycle appears at" in run.stdout
+    assert "ETA" in run.stderr
+    rows = (tmp_path / "hunting.csv").read_text().splitlines()
+    assert rows[0] == "V (m/s),direction,path,flange,amplitude_y (m),status,cycle,pushed"
+    assert len(rows) == 1 + 2 * 2 * 2  # 2 speeds x up/down x ode/circuit
+    assert (tmp_path / "hunting.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_cli_runs_the_bogie_on_its_speed_parameter(tmp_path):
+    """Any model with a speed-like parameter: the bogie's V, its first state y1 pushed."""
+    run = _hunting(
+        ["--model", str(ROOT / "circuitsim/mechanics/models/bogie.toml"), "--speeds", "60,75",
+         "--settle", "0.5", "--record", "0.5", "--no-circuit", "--flange"],
+        tmp_path,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert "linear critical V: 67.1609 m/s" in run.stdout
+    rows = (tmp_path / "hunting.csv").read_text().splitlines()
+    assert rows[0].startswith("V (m/s),direction,path,flange,amplitude_y1 (m),")
+    assert len(rows) == 1 + 2 * 2
