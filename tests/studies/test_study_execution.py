@@ -30,12 +30,9 @@ WINDOW = 0.2
 @pytest.fixture(scope="module")
 def client():
     """Two in-process workers (threads): no worker start-up, the same code path."""
-    with (
-        distributed.LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None
-        ) as cluster,
-        distributed.Client(cluster) as c,
-    ):
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None
+    ) as cluster, distributed.Client(cluster) as c:
         yield c
 
 
