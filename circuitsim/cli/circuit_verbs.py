@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import functools
+import math
 import sys
 from typing import TYPE_CHECKING
 
@@ -73,8 +75,80 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
         help="close the nonlinear switches (S1) at model time T >= 0 instead of from the start; "
         "'inf' keeps them open (the linear circuit with the blocks in place)",
     )
+    knob = parser.add_argument_group(
+        "speed knob",
+        "the resistors that follow a parameter (the wheelset's speed V: R33, R44) as a fixed "
+        "resistor plus a potentiometer, with a dial table in FILE.knob.csv",
+    )
+    knob.add_argument(
+        "--speed-range",
+        type=value_range,
+        nargs="?",
+        const=(40.0, 70.0),
+        metavar="LO:HI",
+        help="turn the knob on over LO:HI (parameter units; alone: 40:70)",
+    )
+    knob.add_argument(
+        "--knob",
+        metavar="PARAM",
+        help="the parameter the knob turns (default: the model's speed option, V)",
+    )
+    knob.add_argument(
+        "--pot-series",
+        choices=("E3", "E6"),
+        default="E6",
+        help="potentiometer values (default E6)",
+    )
     parser.add_argument("-o", "--output", required=True, metavar="FILE.cir", help="netlist file")
     parser.set_defaults(func=_run_generate)
+
+
+def value_range(text: str) -> tuple[float, float]:
+    """``LO:HI``: two positive finite numbers, LO below HI."""
+    low, sep, high = text.partition(":")
+    try:
+        pair = (float(low), float(high))
+        if not sep or not all(math.isfinite(v) and v > 0 for v in pair) or pair[0] >= pair[1]:
+            raise ValueError
+        return pair
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected LO:HI with positive numbers, LO below HI, got {text!r}"
+        ) from None
+
+
+def _knob_request(args: argparse.Namespace, model):
+    """The KnobRequest of ``--speed-range``/``--knob``/``--pot-series``, None without them."""
+
+    from circuitsim.synthesis.knob import KnobRequest
+
+    if args.speed_range is None:
+        if args.knob is not None:
+            raise UsageError("--knob needs --speed-range LO:HI (the range the dial covers)")
+        return None
+    name = args.knob or model.options.get("speed")
+    if name is None:
+        raise UsageError(
+            f"--speed-range: model {model.name} has no speed option; name the parameter with "
+            f"--knob (one of {', '.join(model.parameters)})"
+        )
+    if name in model.options:
+        name = model.options[name]
+    if name not in model.parameters:
+        raise UsageError(
+            f"--knob {name}: model {model.name} has no such parameter; known: "
+            f"{', '.join(model.parameters)}"
+        )
+
+    @functools.cache
+    def linear_part(value: float):
+        variant = argparse.Namespace(**vars(args))
+        variant.param = [*args.param, (name, float(value))]  # overrides --speed
+        return scenario_system(variant, model=model).A
+
+    low, high = args.speed_range
+    unit = model.parameter_info[name].unit
+    return KnobRequest(name, low, high, linear_part, unit, args.pot_series)
 
 
 def _print_warnings(synthesis) -> None:
@@ -103,13 +177,22 @@ def _check_generate(args: argparse.Namespace) -> None:
 
 def _run_generate(args: argparse.Namespace) -> int:
     from circuitsim.synthesis.generate import generate, switch_at
+    from circuitsim.synthesis.knob import knob_summary
 
     _check_generate(args)
-    system = switch_at(scenario_system(args), args.switch_at)
+    model, system = scenario_system(args, with_model=True)
+    system = switch_at(system, args.switch_at)
+    knob = _knob_request(args, model)
     options = translator_options(args)
-    result = generate(system, args.output, options, args.dialect)
+    result = generate(system, args.output, options, args.dialect, knob=knob)
     _print_warnings(result.synthesis)
-    print(f"wrote {result.netlist}, {result.scale_file}, {result.bom_file}, {result.order_file}")
+    knob_file = f", {result.knob_file}" if result.knob_file else ""
+    print(
+        f"wrote {result.netlist}, {result.scale_file}, {result.bom_file}, {result.order_file}"
+        f"{knob_file}"
+    )
+    for line in knob_summary(result.knobs, knob):
+        print(line)
     _print_fits(system)
     print(result.synthesis.step.describe(result.synthesis.scale_map.time_scale))
     print(result.report.summary())

@@ -233,6 +233,9 @@ class SweepResult:
     warnings : list of str
         States whose node went beyond the op-amps' swing in some variants (they clipped
         there; checked for op-amps with a finite swing, every state probed).
+    resistors : dict of str to ndarray, shape (k,)
+        Ohms of each changed resistor per value (the wheelset's speed: R33 and R44, the
+        settings a knob turns; exact values, the sweep does not round).
     """
 
     parameter: str
@@ -250,9 +253,11 @@ class SweepResult:
     stats: dict = field(default_factory=dict)
     traces: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    resistors: dict[str, np.ndarray] = field(default_factory=dict)
 
     def csv_text(self) -> str:
-        """``<parameter>,peak_late,peak_all`` header and one row per value, full precision."""
+        """``<parameter>,peak_late,peak_all[,<R> (ohm) ...]`` header and one row per value,
+        full precision; one column per changed resistor."""
 
         def unit(text: str) -> str:
             return f" ({text})" if text else ""
@@ -260,11 +265,15 @@ class SweepResult:
         header = (
             f"{self.parameter}{unit(self.unit)},max_abs_{self.state}_last_{self.window:g}s"
             f"{unit(self.state_unit)},max_abs_{self.state}_all{unit(self.state_unit)}"
+            + "".join(f",{name} (ohm)" for name in self.resistors)
         )
         # repr: the shortest text that reads back as the same double (55.5, not 55.50000000001)
         rows = [
             f"{float(v)!r},{float(a)!r},{float(b)!r}"
-            for v, a, b in zip(self.values, self.peak_late, self.peak_all, strict=True)
+            + "".join(f",{float(ohms[k])!r}" for ohms in self.resistors.values())
+            for k, (v, a, b) in enumerate(
+                zip(self.values, self.peak_late, self.peak_all, strict=True)
+            )
         ]
         return "\n".join([header, *rows]) + "\n"
 
@@ -383,7 +392,18 @@ def run_sweep(
         stats=stats,
         traces=traces,
         warnings=warnings,
+        resistors=_changed_resistors(variants),
     )
+
+
+def _changed_resistors(variants: SweepCircuits) -> dict[str, np.ndarray]:
+    """Ohms of every changed resistor, per variant (netlist order)."""
+    found = {}
+    for name in variants.changed:
+        elements = [c.element(name) for c in variants.circuits]
+        if all(isinstance(e, Resistor) for e in elements):
+            found[name] = np.array([float(e.resistance) for e in elements])
+    return found
 
 
 def _values_text(values, parameter: str, unit: str) -> Callable[..., str]:

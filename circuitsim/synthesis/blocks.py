@@ -36,6 +36,9 @@ class BomEntry:
         parts that set none (capacitors, inverter pairs).
     realized : float
         The coefficient set with the rounded value.
+    nominal : float
+        A potentiometer's full resistance (ohms; ``value`` is its setting), NaN for every
+        other part.
     """
 
     part: str
@@ -45,6 +48,7 @@ class BomEntry:
     role: str
     target: float = math.nan
     realized: float = math.nan
+    nominal: float = math.nan
 
     @property
     def error(self) -> float:

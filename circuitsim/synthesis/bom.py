@@ -44,7 +44,7 @@ ORDER_COLUMNS = (
 
 #: Order rows come in this order of kinds.
 KINDS = (
-    "op-amp section", "resistor", "capacitor", "diode", "switch", "supply rail",
+    "op-amp section", "resistor", "potentiometer", "capacitor", "diode", "switch", "supply rail",
     "reference voltage", "switch control", "signal generator",
 )  # fmt: skip
 
@@ -169,6 +169,10 @@ def _describe(p: Part, circuit: Circuit) -> dict[str, str]:
         row["tolerance"] = "1 %" if series != "exact" else "0.1 %"
         if series == "exact":
             row["note"] = _nonstandard_note(p.value)
+    elif p.kind == "potentiometer":
+        row.update(description="linear potentiometer, wiper to one end (variable resistor)",
+                   tolerance="20 %", series=p.series, package="panel mount",
+                   note="set by the dial table (FILE.knob.csv); trim at the range's ends")
     elif p.kind == "capacitor":
         row.update(description="film capacitor (integrator)", tolerance="1 %",
                    series=p.series, package="radial")  # fmt: skip

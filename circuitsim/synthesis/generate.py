@@ -1,5 +1,6 @@
 """Generate the files of a circuit: ``FILE.cir``, ``FILE.scale.json``, ``FILE.bom.csv`` (every
-part) and ``FILE.order.csv`` (what to order, grouped).
+part) and ``FILE.order.csv`` (what to order, grouped); with a knob (:mod:`~circuitsim.synthesis.
+knob`) also ``FILE.knob.csv``, the dial tables.
 
 The three texts are rendered first (the netlist in the chosen dialect), then parsed back exactly
 as a reader of the files would parse them and checked against the model
@@ -13,7 +14,7 @@ file as it was, never a new netlist beside an old bill of materials.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from circuitsim.atomic import check_writable, write_files_atomic
@@ -22,6 +23,8 @@ from circuitsim.netlist.reader import parse_netlist
 from circuitsim.netlist.writer import write_netlist
 from circuitsim.synthesis.bom import bom_text, order_text, parse_bom
 from circuitsim.synthesis.check import MappingReport, check_mapping
+from circuitsim.synthesis.errors import SynthesisError
+from circuitsim.synthesis.knob import Knob, KnobRequest, add_knobs, knob_table_text
 from circuitsim.synthesis.options import SynthesisOptions
 from circuitsim.synthesis.scalemap import ScaleMap
 from circuitsim.synthesis.translator import Synthesis, synthesize
@@ -37,6 +40,8 @@ class Generated:
     bom_file: Path
     report: MappingReport
     order_file: Path | None = None
+    knobs: list[Knob] = field(default_factory=list)
+    knob_file: Path | None = None
 
     @property
     def warnings(self) -> list[str]:
@@ -64,6 +69,7 @@ def generate(
     path: str | os.PathLike,
     options: SynthesisOptions | None = None,
     dialect: str = "ngspice",
+    knob: KnobRequest | None = None,
 ) -> Generated:
     """Translate ``system``, check the circuit, and write the netlist, scale file and BOMs.
 
@@ -82,6 +88,10 @@ def generate(
         Translator options (op-amp model, scaling, resistor series ...).
     dialect : str
         ``ngspice``, ``ltspice`` or ``multisim``.
+    knob : KnobRequest, optional
+        Turn the resistors that follow ``knob.parameter`` into a fixed part plus a
+        potentiometer set for the system's value of it, and write the dial tables to
+        ``FILE.knob.csv``.
 
     Returns
     -------
@@ -101,7 +111,17 @@ def generate(
     scale_file, bom_file, order_file = companion_paths(netlist)
     for companion in (scale_file, bom_file, order_file):
         check_writable(companion)
+    knob_file = Path(f"{netlist.with_suffix('')}.knob.csv") if knob is not None else None
+    if knob_file is not None:
+        check_writable(knob_file)
     synthesis = synthesize(system, options)
+    knobs = []
+    if knob is not None:
+        if knob.parameter not in system.parameters:
+            raise SynthesisError(f"the knob's parameter {knob.parameter!r} is not the model's")
+        series = (options or SynthesisOptions()).series_key
+        value = float(system.parameters[knob.parameter])
+        knobs = add_knobs(synthesis.circuit, synthesis.bom, system, knob, series, value)
     texts = {
         netlist: write_netlist(synthesis.circuit, dialect),
         scale_file: synthesis.scale_map.to_text(),
@@ -117,5 +137,9 @@ def generate(
     scale_map = ScaleMap.from_text(texts[scale_file], source=str(scale_file))
     bom = parse_bom(texts[bom_file], source=str(bom_file))
     report = check_mapping(circuit, scale_map, system, bom=bom)
+    if knob_file is not None:
+        texts[knob_file] = knob_table_text(knobs, knob)
     write_files_atomic(texts)
-    return Generated(synthesis, netlist, scale_file, bom_file, report, order_file)
+    return Generated(
+        synthesis, netlist, scale_file, bom_file, report, order_file, knobs, knob_file
+    )

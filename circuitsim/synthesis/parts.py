@@ -59,7 +59,8 @@ class Part:
         Reference designator on the board: the name without SPICE's type letter for op-amp
         sections (``"U3A"``: package U3, section A), the element name otherwise.
     kind : str
-        ``resistor``, ``capacitor``, ``op-amp section``, ``diode``, ``switch``,
+        ``resistor``, ``potentiometer`` (value: its full resistance; the netlist holds its
+        setting), ``capacitor``, ``op-amp section``, ``diode``, ``switch``,
         ``supply rail``, ``reference voltage``, ``switch control`` or ``signal generator``.
     value : float
         Ohms, farads or volts (a generator's amplitude); NaN for parts with no value.
@@ -131,7 +132,12 @@ def board_parts(circuit: Circuit, bom: list[BomEntry]) -> list[Part]:
     for element in circuit.elements:
         name = element.name
         record = records.get(name.lower())
-        if isinstance(element, Resistor | Capacitor):
+        if record is not None and not math.isnan(record.nominal):  # a potentiometer
+            parts.append(
+                Part(name, name, "potentiometer", record.nominal, "ohm", record.series, "",
+                     "", record.role, record)
+            )  # fmt: skip
+        elif isinstance(element, Resistor | Capacitor):
             kind = "resistor" if isinstance(element, Resistor) else "capacitor"
             value = float(element.resistance if kind == "resistor" else element.capacitance)
             role = record.role if record else ""

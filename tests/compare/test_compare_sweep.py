@@ -113,6 +113,10 @@ def test_sweep_cli_writes_csv_and_plot(tmp_path, capsys):
         rows = list(csv.reader(handle))
     assert rows[0][0].startswith("V")
     assert [float(r[0]) for r in rows[1:]] == [50.0, 60.0]
+    # the resistors the speed turns, per row: proportional to V (c = 7.24e6 / V sets 1 / R33)
+    assert rows[0][3:] == ["R33 (ohm)", "R44 (ohm)"]
+    for column in (3, 4):
+        assert float(rows[2][column]) / float(rows[1][column]) == pytest.approx(1.2, rel=1e-12)
     model = load_model()
     for row in rows[1:]:
         system = model.system(parameters={"V": float(row[0])}, nonlinear={"flange": True})
