@@ -6,6 +6,7 @@ import argparse
 import functools
 import math
 import sys
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from circuitsim.cli.common import (
@@ -99,6 +100,12 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
         default="E6",
         help="potentiometer values (default E6)",
     )
+    parser.add_argument(
+        "--schematic",
+        metavar="FILE.svg|FILE.png",
+        help="also draw the circuit (one row of blocks per state, the paper's part names and "
+        "values); the format follows the suffix",
+    )
     parser.add_argument("-o", "--output", required=True, metavar="FILE.cir", help="netlist file")
     parser.set_defaults(func=_run_generate)
 
@@ -184,12 +191,19 @@ def _run_generate(args: argparse.Namespace) -> int:
     system = switch_at(system, args.switch_at)
     knob = _knob_request(args, model)
     options = translator_options(args)
-    result = generate(system, args.output, options, args.dialect, knob=knob)
+    if args.schematic is not None and Path(args.schematic).suffix.lower() not in (".svg", ".png"):
+        raise UsageError(
+            f"--schematic {args.schematic}: cannot draw a "
+            f"{Path(args.schematic).suffix or 'file without a suffix'}; use .svg or .png"
+        )
+    result = generate(
+        system, args.output, options, args.dialect, knob=knob, schematic=args.schematic
+    )
     _print_warnings(result.synthesis)
-    knob_file = f", {result.knob_file}" if result.knob_file else ""
+    extra = [p for p in (result.knob_file, result.schematic_file) if p is not None]
     print(
         f"wrote {result.netlist}, {result.scale_file}, {result.bom_file}, {result.order_file}"
-        f"{knob_file}"
+        + "".join(f", {p}" for p in extra)
     )
     for line in knob_summary(result.knobs, knob):
         print(line)

@@ -76,8 +76,51 @@ def render_report(result) -> str:
     _hunting(result, add)
     _forced(result, add)
     _metrics(result, add)
+    _drawing(result, add)
     _netlists(result, add)
     return "\n".join(lines) + "\n"
+
+
+def _drawing(result, add) -> None:
+    """The schematic of the circuit as one would build it and its speed knob's dial table."""
+    problem = getattr(result, "schematic_problem", None)
+    knobs = getattr(result, "knobs", [])
+    if "schematic" not in result.figures and problem is None:
+        return
+    add("## The circuit as built: schematic and speed knob")
+    add("")
+    if problem is not None:
+        add(f"The schematic could not be drawn: {problem}.")
+        add("")
+        return
+    add(
+        f"`{_rel(result, result.knob_netlist)}`: TL074 sections, E96 resistors (series pairs "
+        "where one value is more than 0.1 % off), the speed resistors as a fixed part plus a "
+        "potentiometer set for the simulated speed (`.knob.csv` beside it: the dial tables). "
+        "One row per state (integrator, inverter), then the flange's |x| blocks and summer, "
+        "then the sources; a labelled open dot is a net (same label, same node). Also as "
+        "`figures/schematic.svg`."
+    )
+    add("")
+    add(f"![schematic of the generated circuit]({result.figures['schematic']})")
+    add("")
+    if not knobs:
+        return
+    parts = "; ".join(
+        f"{k.resistor} = {k.fixed_part} {_value(k.fixed, 'ohm')} (E96) + {k.pot_part} "
+        f"{_value(k.pot, 'ohm')} linear potentiometer" for k in knobs
+    )
+    add(f"Speed knob: {parts}. Dial setting = fraction of the potentiometer's rotation:")
+    add("")
+    add("| V (m/s) | " + " | ".join(f"{k.resistor} | {k.resistor} dial" for k in knobs) + " |")
+    add("|---|" + "---|---|" * len(knobs))
+    for row, setting in enumerate(knobs[0].settings):
+        cells = []
+        for k in knobs:
+            s = k.settings[row]
+            cells += [_value(s.resistance, "ohm"), f"{s.fraction:.4f}"]
+        add(f"| {setting.value:g} | " + " | ".join(cells) + " |")
+    add("")
 
 
 def _stability(result, add) -> None:

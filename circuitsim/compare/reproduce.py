@@ -20,7 +20,7 @@ import os
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -152,6 +152,9 @@ class Reproduction:
     mode_frequency: dict[float, float] = field(default_factory=dict)
     kernel_warm_up_s: float | None = None  # the builtin engine's kernels made ready, s
     hunting: dict | None = None  # the hunting diagram's summary (HuntingResult.summary)
+    knobs: list = field(default_factory=list)  # the speed knob of the drawn circuit
+    knob_netlist: str = ""
+    schematic_problem: str | None = None
 
 
 # --- jobs (module-level so the process pool can pickle them) ----------------------------------
@@ -248,6 +251,46 @@ def _circuit_job(
         return variant, scenario, f"failed: {type(exc).__name__}: {message}", None, info, 0.0, 0
 
 
+def _schematic_job(scenario: Scenario, out: str, low: float = 40.0, high: float = 70.0):
+    """The paper's circuit as one would build it (TL074 sections, E96 parts, the speed knob
+    over ``low``-``high`` m/s): netlist, BOMs and dial table in ``out``/netlists, the
+    schematic (PNG and SVG) in ``out``/figures. Returns (knobs, netlist, problem); never
+    raises (a failure is the report's sentence, not a crash)."""
+    from functools import cache
+
+    from circuitsim.mechanics import load_model
+    from circuitsim.synthesis.generate import generate
+    from circuitsim.synthesis.knob import KnobRequest
+    from circuitsim.synthesis.options import SynthesisOptions
+    from circuitsim.synthesis.schematic import save_schematic
+
+    try:
+        model = load_model()
+        system = scenario.system(model)
+
+        @cache
+        def linear_part(speed: float):
+            return replace(scenario, speed=speed).system(model).A
+
+        netlist = Path(out) / "netlists" / f"{scenario.name}-tl074-e96-knob.cir"
+        generated = generate(
+            system,
+            netlist,
+            SynthesisOptions(opamp="tl074", series="E96", t_stop=scenario.t_stop),
+            knob=KnobRequest("V", low, high, linear_part, "m/s"),
+            schematic=Path(out) / "figures" / "schematic.png",
+        )
+        save_schematic(
+            generated.synthesis.circuit,
+            Path(out) / "figures" / "schematic.svg",
+            list(system.states),
+            generated.synthesis.bom,
+        )
+        return generated.knobs, str(netlist), None
+    except Exception as exc:  # noqa: BLE001 - reported, not raised
+        return [], "", f"{type(exc).__name__}: {' '.join(str(exc).split())[:300]}"
+
+
 # --- the run -------------------------------------------------------------------------------
 
 
@@ -337,7 +380,13 @@ def reproduce(
                     jobs.append(("circuit", (scenario, variant, path, reason, ngspice_timeout)))
     ode_jobs = [("ode", (sc, str(out / "figures" / f"fig4-{sc.name}.png"))) for sc in scenarios]
     free_jobs = [("free", (speed,)) for speed in free_speeds]
-    functions = {"circuit": _circuit_job, "ode": _ode_job, "free": _free_job}
+    drawn = next((sc for sc in scenarios if sc.flange), scenarios[0] if scenarios else None)
+    if drawn is not None and 40.0 <= drawn.speed <= 70.0:
+        free_jobs.append(("schematic", (drawn, str(out))))
+    functions = {
+        "circuit": _circuit_job, "ode": _ode_job, "free": _free_job, "schematic": _schematic_job
+    }  # fmt: skip
+    schematic = None
 
     references: dict[str, dict[str, Trace]] = {}
     ode_summary: dict[str, dict] = {}
@@ -373,6 +422,10 @@ def reproduce(
                     f"[{done}/{len(everything)}] ODE {args[0].title}: "
                     f"max |y| {summary['max_abs_y_mm']:.3f} mm"
                 )
+            elif kind == "schematic":
+                schematic = value
+                figures["schematic"] = "figures/schematic.png"
+                say(f"[{done}/{len(everything)}] schematic and speed knob: {value[2] or 'drawn'}")
             elif kind == "free":
                 speed, trace, peak = value
                 free[speed], free_summary[speed] = trace, peak
@@ -464,6 +517,10 @@ def reproduce(
         workers,
     )
     result.mode_frequency = modes
+    if schematic is not None:
+        result.knobs, result.knob_netlist, result.schematic_problem = schematic
+        if result.schematic_problem is not None:
+            figures.pop("schematic", None)
     result.kernel_warm_up_s = warm_up_s
     result.hunting = hunting
     write_text_atomic(out / "metrics.json", json.dumps(reproduction_json(result), indent=1) + "\n")

@@ -104,6 +104,8 @@ def parse_bom(text: str, source: str = "<bill of materials>") -> list[BomEntry]:
                 BomEntry(
                     row["part"], float(row["value"] or "nan"), row["unit"], row["series"],
                     row["role"], float(row["target"] or "nan"), float(row["realized"] or "nan"),
+                    # a potentiometer's row holds its full resistance (the netlist its setting)
+                    float(row["value"]) if row.get("kind") == "potentiometer" else math.nan,
                 )
             )  # fmt: skip
         except (TypeError, ValueError) as exc:

@@ -1,6 +1,6 @@
 """Generate the files of a circuit: ``FILE.cir``, ``FILE.scale.json``, ``FILE.bom.csv`` (every
 part) and ``FILE.order.csv`` (what to order, grouped); with a knob (:mod:`~circuitsim.synthesis.
-knob`) also ``FILE.knob.csv``, the dial tables.
+knob`) also ``FILE.knob.csv``, the dial tables, and on request a schematic (SVG or PNG).
 
 The three texts are rendered first (the netlist in the chosen dialect), then parsed back exactly
 as a reader of the files would parse them and checked against the model
@@ -27,6 +27,7 @@ from circuitsim.synthesis.errors import SynthesisError
 from circuitsim.synthesis.knob import Knob, KnobRequest, add_knobs, knob_table_text
 from circuitsim.synthesis.options import SynthesisOptions
 from circuitsim.synthesis.scalemap import ScaleMap
+from circuitsim.synthesis.schematic import schematic_format, schematic_image
 from circuitsim.synthesis.translator import Synthesis, synthesize
 
 
@@ -42,6 +43,7 @@ class Generated:
     order_file: Path | None = None
     knobs: list[Knob] = field(default_factory=list)
     knob_file: Path | None = None
+    schematic_file: Path | None = None
 
     @property
     def warnings(self) -> list[str]:
@@ -70,6 +72,7 @@ def generate(
     options: SynthesisOptions | None = None,
     dialect: str = "ngspice",
     knob: KnobRequest | None = None,
+    schematic: str | os.PathLike | None = None,
 ) -> Generated:
     """Translate ``system``, check the circuit, and write the netlist, scale file and BOMs.
 
@@ -92,6 +95,9 @@ def generate(
         Turn the resistors that follow ``knob.parameter`` into a fixed part plus a
         potentiometer set for the system's value of it, and write the dial tables to
         ``FILE.knob.csv``.
+    schematic : path-like, optional
+        Also draw the circuit (:mod:`~circuitsim.synthesis.schematic`) into this ``.svg`` or
+        ``.png`` file, written with the others.
 
     Returns
     -------
@@ -114,6 +120,9 @@ def generate(
     knob_file = Path(f"{netlist.with_suffix('')}.knob.csv") if knob is not None else None
     if knob_file is not None:
         check_writable(knob_file)
+    if schematic is not None:
+        schematic_format(schematic)
+        check_writable(schematic)
     synthesis = synthesize(system, options)
     knobs = []
     if knob is not None:
@@ -139,7 +148,12 @@ def generate(
     report = check_mapping(circuit, scale_map, system, bom=bom)
     if knob_file is not None:
         texts[knob_file] = knob_table_text(knobs, knob)
+    if schematic is not None:
+        texts[Path(schematic)] = schematic_image(
+            circuit, schematic_format(schematic), list(system.states), synthesis.bom
+        )
     write_files_atomic(texts)
     return Generated(
-        synthesis, netlist, scale_file, bom_file, report, order_file, knobs, knob_file
-    )
+        synthesis, netlist, scale_file, bom_file, report, order_file, knobs, knob_file,
+        None if schematic is None else Path(schematic),
+    )  # fmt: skip

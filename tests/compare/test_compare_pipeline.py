@@ -121,6 +121,16 @@ def test_reproduce_one_short_scenario_writes_report_figures_and_honest_rows(tmp_
         png = tmp_path / result.figures[name]
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (tmp_path / "netlists" / "f10-flange-on-ideal-exact.cir").exists()
+    # the circuit as built: its schematic and the speed knob's dial table (R33, R44 over 40-70)
+    assert (tmp_path / result.figures["schematic"]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (tmp_path / "figures" / "schematic.svg").read_bytes().startswith(b"<svg")
+    assert result.schematic_problem is None
+    assert [k.resistor for k in result.knobs] == ["R33", "R44"]
+    assert "![schematic of the generated circuit](figures/schematic.png)" in report
+    assert "Speed knob: R33 = R33A" in report
+    dial_rows = [line for line in report.splitlines() if line.startswith(("| 40 |", "| 70 |"))]
+    assert len(dial_rows) == 2
+    assert (tmp_path / "netlists" / "f10-flange-on-tl074-e96-knob.knob.csv").exists()
     # The netlist's realized slowest mode, recomputed from the file, is the model's (exact values).
     info = result.circuits[(scenario.name, "ideal", "exact")]
     slowest = eigenvalues(load_model(), "V", [55.0])[0, 0].real

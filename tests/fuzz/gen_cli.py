@@ -46,12 +46,13 @@ EXTRA_OPTIONS = [
     "--max-nrmsd", "--tolerance", "--workers", "--flange", "--no-flange", "--json",
     "--eigenvalues", "--nosuch", "-o", "--csv", "--plot", "--netlist", "--out",
     "--write-netlist", "--raw", "--scale", "--states", "--forcing", "--ngspice-timeout",
-    "--log", "--pair-tolerance",
+    "--log", "--pair-tolerance", "--speed-range", "--knob", "--pot-series",
+    "--schematic",
 ]  # fmt: skip
 
 PATH_OPTIONS = (
     "-o", "--csv", "--plot", "--netlist", "--out", "--model", "--write-netlist", "--raw",
-    "--scale", "--states",
+    "--scale", "--states", "--schematic",
 )  # options whose value is a path: mutated with hostile paths
 
 

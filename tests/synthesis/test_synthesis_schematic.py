@@ -1,0 +1,88 @@
+"""The schematic of a generated circuit: every part drawn once with its name and value, for
+every shipped model; the files written atomically; a bad suffix refused by name."""
+
+import xml.etree.ElementTree as ET
+from collections import Counter
+
+import pytest
+
+from circuitsim.mechanics import load_model
+from circuitsim.netlist.circuit import Resistor, SubcircuitCall
+from circuitsim.synthesis.bom import engineering
+from circuitsim.synthesis.errors import SynthesisError
+from circuitsim.synthesis.generate import generate
+from circuitsim.synthesis.options import SynthesisOptions
+from circuitsim.synthesis.schematic import layout, schematic_format, schematic_image
+from circuitsim.synthesis.translator import synthesize
+
+SVG = "{http://www.w3.org/2000/svg}"
+
+
+def _texts(svg: bytes) -> list[str]:
+    root = ET.fromstring(svg)
+    return ["".join(t.itertext()) for t in root.iter(f"{SVG}tspan")]
+
+
+def _designator(element) -> str:
+    name = element.name
+    return name[1:] if isinstance(element, SubcircuitCall) else name
+
+
+@pytest.mark.parametrize("name", ["wheelset", "quarter_car", "bogie", "wheelset_creep"])
+def test_every_part_is_drawn_once_with_its_label(name):
+    system = load_model(name).system()
+    synthesis = synthesize(system, SynthesisOptions(t_stop=0.5))
+    circuit = synthesis.circuit
+    plan = layout(circuit, list(system.states))
+    drawn = plan.elements()
+    assert sorted(id(e) for e in drawn) == sorted(id(e) for e in circuit.elements)
+    texts = _texts(schematic_image(circuit, "svg", list(system.states), synthesis.bom))
+    first_words = Counter(t.split(" ")[0] for t in texts)
+    for element in circuit.elements:
+        assert first_words[_designator(element)] == 1, _designator(element)
+    # the labels with a part's name are as many as the circuit's parts
+    names = {_designator(e) for e in circuit.elements}
+    assert sum(first_words[n] for n in names) == len(circuit.elements)
+    # a resistor's label carries its value as a shop writes it
+    resistor = next(e for e in circuit.elements if isinstance(e, Resistor))
+    value = engineering(float(resistor.resistance), "ohm").replace(" Ohm", "").replace(" ", "")
+    assert f"{resistor.name} {value}" in texts
+    # one row per state (merged up to four stages), the paper's sections for the wheelset
+    titles = [title for title, _ in plan.rows]
+    assert all(any(s in t.split(" ", 1)[1].split(", ") for t in titles if t.startswith("state"))
+               for s in system.states)  # fmt: skip
+    if name == "wheelset":
+        assert [[s.opamp.name for s in row] for _, row in plan.rows[:2]] == [
+            ["XU1A", "XU1B", "XU2A", "XU2B"], ["XU1C", "XU1D", "XU2C", "XU2D"]
+        ]  # fmt: skip
+        assert "R31A 102kOhm" in texts and "C3 100nF" in texts and "S1 (ctl flange_ctl)" in texts
+
+
+def test_generate_writes_png_and_svg_with_the_other_files(tmp_path):
+    system = load_model().system()
+    png = tmp_path / "w.png"
+    result = generate(system, tmp_path / "w.cir", SynthesisOptions(t_stop=0.5), schematic=png)
+    assert result.schematic_file == png
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    svg = tmp_path / "w.svg"
+    generate(system, tmp_path / "w.cir", SynthesisOptions(t_stop=0.5), schematic=svg)
+    assert "U1A" in _texts(svg.read_bytes())
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporaries
+
+
+def test_bad_suffix_or_folder_writes_nothing(tmp_path, capsys):
+    system = load_model().system()
+    with pytest.raises(SynthesisError, match=r"schematic .*w\.pdf: cannot draw a \.pdf file"):
+        generate(system, tmp_path / "w.cir", schematic=tmp_path / "w.pdf")
+    with pytest.raises(OSError, match="does not exist"):
+        generate(system, tmp_path / "w.cir", schematic=tmp_path / "no" / "w.svg")
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(SynthesisError, match=r"no suffix"):
+        schematic_format("drawing")
+    from circuitsim.cli import main
+
+    argv = ["generate", "--schematic", str(tmp_path / "w.jpg"), "-o", str(tmp_path / "w.cir")]
+    assert main(argv) == 2
+    error = capsys.readouterr().err
+    assert "--schematic" in error and "w.jpg" in error and "use .svg or .png" in error
+    assert list(tmp_path.iterdir()) == []
