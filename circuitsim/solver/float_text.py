@@ -13,7 +13,7 @@ by Python's ``repr``. 17 correctly rounded digits read back to the same float.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from fractions import Fraction
 
 import numpy as np
@@ -36,6 +36,11 @@ def _powers() -> np.ndarray:
 
 
 POWERS = _powers()
+# 10**k for k = LOW_EXPONENT ... HIGH_EXPONENT, rounded (only compared with: see _write_token)
+TENS = np.array([float(Fraction(10) ** k) for k in range(LOW_EXPONENT, HIGH_EXPONENT + 1)])
+LOG10_2 = 0.30102999566398120
+# "00", "01", ... "99" as ASCII codes: two digits per division
+DIGIT_PAIRS = np.frombuffer("".join(f"{k:02d}" for k in range(100)).encode(), dtype=np.uint8)
 
 
 @njit(cache=True, inline="always")
@@ -84,11 +89,15 @@ def _write_token(out, at, value, powers):
             at += 1
         out[at], out[at + 1], out[at + 2] = 105, 110, 102  # inf
         return at + 3
-    exponent = int(math.floor(math.log10(magnitude)))
-    if exponent < LOW_EXPONENT or exponent > HIGH_EXPONENT - 1:
+    # the decimal exponent from the binary one (log10(2) = 0.30103...), then one comparison
+    # with a power of ten; _digits' count of digits corrects what a rounded power misjudges
+    exponent = int(math.floor((math.frexp(magnitude)[1] - 1) * LOG10_2))
+    if exponent < LOW_EXPONENT - 1 or exponent > HIGH_EXPONENT - 1:
         return -1
+    if magnitude >= TENS[exponent + 1 - LOW_EXPONENT]:
+        exponent += 1
     number, certain = _digits(magnitude, exponent, powers)
-    if number >= 100_000_000_000_000_000:  # log10 rounded up: one digit too many
+    if number >= 100_000_000_000_000_000:  # the exponent one too small
         exponent += 1
         number, certain = _digits(magnitude, exponent, powers)
     elif number < 10_000_000_000_000_000:
@@ -99,31 +108,36 @@ def _write_token(out, at, value, powers):
     if value < 0:
         out[at] = 45
         at += 1
-    ten = np.uint64(10)
-    count = 17
-    while count > 1 and number % ten == 0:  # trailing zeros of the fraction
-        number //= ten
-        count -= 1
-    for k in range(count - 1, 0, -1):  # the fraction's digits, from the last
-        rest = number // ten
-        out[at + 1 + k] = 48 + (number - rest * ten)
-        number = rest
-    out[at] = 48 + number
-    if count > 1:
-        out[at + 1] = 46
-        at += count + 1
-    else:
-        at += 1
+    # 17 digits d.dddddddd dddddddd: the first nine and the last eight formed two at a time,
+    # in two independent chains of unsigned divisions by a constant (which compile to
+    # multiplications; signed ones do not), then the fraction's trailing zeros dropped
+    eight = np.uint64(100_000_000)
+    head = np.uint32(number // eight)
+    tail = np.uint32(number - np.uint64(head) * eight)
+    hundred = np.uint32(100)
+    for k in range(4):
+        pair = 2 * (tail % hundred)
+        tail //= hundred
+        out[at + 16 - 2 * k], out[at + 17 - 2 * k] = DIGIT_PAIRS[pair], DIGIT_PAIRS[pair + 1]
+        pair = 2 * (head % hundred)
+        head //= hundred
+        out[at + 8 - 2 * k], out[at + 9 - 2 * k] = DIGIT_PAIRS[pair], DIGIT_PAIRS[pair + 1]
+    out[at] = 48 + head
+    out[at + 1] = 46
+    end = at + 17
+    while out[end] == 48:
+        end -= 1
+    at = end if out[end] == 46 else end + 1
     if exponent != 0:
         out[at] = 101
         out[at + 1] = 45 if exponent < 0 else 43
         at += 2
-        e = abs(exponent)
+        e = np.uint32(abs(exponent))
         if e >= 100:
-            out[at] = 48 + e // 100
+            out[at] = 48 + e // np.uint32(100)
             at += 1
-        out[at] = 48 + (e // 10) % 10
-        out[at + 1] = 48 + e % 10
+        out[at] = 48 + (e // np.uint32(10)) % np.uint32(10)
+        out[at + 1] = 48 + e % np.uint32(10)
         at += 2
     return at
 
@@ -172,19 +186,46 @@ def table_lines(table: np.ndarray, rows_per_chunk: int = 512) -> Iterator[bytes]
     table = np.asarray(table, dtype=np.float64)
     if table.ndim != 2 or table.shape[1] == 0:
         raise ValueError(f"table_lines: expected a 2-d table with columns, got {table.shape}")
-    none = np.zeros((0, TOKEN), dtype=np.uint8)
-    no_lengths = np.zeros(0, dtype=np.int64)
     for start in range(0, table.shape[0], rows_per_chunk):
-        chunk = np.ascontiguousarray(table[start : start + rows_per_chunk])
-        text, missing = _write_rows(chunk, POWERS, none, no_lengths)
-        if missing.size:
-            tokens = [repr(float(v)).encode() for v in chunk.ravel()[missing]]
-            fallback = np.zeros((len(tokens), TOKEN), dtype=np.uint8)
-            for k, token in enumerate(tokens):
-                fallback[k, : len(token)] = np.frombuffer(token, dtype=np.uint8)
-            lengths = np.array([len(t) for t in tokens], dtype=np.int64)
-            text, _ = _write_rows(chunk, POWERS, fallback, lengths)
-        yield text.tobytes()
+        yield _chunk_text(np.ascontiguousarray(table[start : start + rows_per_chunk]))
+
+
+def column_lines(columns: Sequence[np.ndarray], rows_per_chunk: int = 512) -> Iterator[bytes]:
+    """:func:`table_lines` of the table whose columns are ``columns`` (each shape (m,)),
+    without forming that table: one chunk of rows at a time is gathered from the columns
+    (a run's recorded signals are written with the memory of a chunk, not of a copy).
+
+    Raises
+    ------
+    ValueError
+        No columns, or columns of different lengths.
+    """
+    columns = [np.asarray(c, dtype=np.float64) for c in columns]
+    lengths = {c.shape for c in columns}
+    if not columns or len(lengths) != 1 or len(next(iter(lengths))) != 1:
+        raise ValueError(f"column_lines: expected 1-d columns of one length, got {lengths}")
+    rows = columns[0].size
+    chunk = np.empty((min(rows, rows_per_chunk), len(columns)))
+    for start in range(0, rows, rows_per_chunk):
+        count = min(rows_per_chunk, rows - start)
+        for j, column in enumerate(columns):
+            chunk[:count, j] = column[start : start + count]
+        yield _chunk_text(chunk[:count])
+
+
+def _chunk_text(chunk: np.ndarray) -> bytes:
+    """The CSV text of the C-contiguous rows ``chunk``; repr forms the few tokens the compiled
+    writer leaves (see the module's docstring)."""
+    none = np.zeros((0, TOKEN), dtype=np.uint8)
+    text, missing = _write_rows(chunk, POWERS, none, np.zeros(0, dtype=np.int64))
+    if missing.size:
+        tokens = [repr(float(v)).encode() for v in chunk.ravel()[missing]]
+        fallback = np.zeros((len(tokens), TOKEN), dtype=np.uint8)
+        for k, token in enumerate(tokens):
+            fallback[k, : len(token)] = np.frombuffer(token, dtype=np.uint8)
+        lengths = np.array([len(t) for t in tokens], dtype=np.int64)
+        text, _ = _write_rows(chunk, POWERS, fallback, lengths)
+    return text.tobytes()
 
 
 def table_text(table: np.ndarray) -> bytes:

@@ -3,8 +3,9 @@
 import io
 
 import numpy as np
+import pytest
 
-from circuitsim.solver.float_text import table_text
+from circuitsim.solver.float_text import column_lines, table_text
 from circuitsim.solver.waveforms import Waveforms
 
 
@@ -60,3 +61,17 @@ def test_waveforms_csv_round_trip(tmp_path):
     assert np.array_equal(back["v(a)"], waves["v(a)"]) and np.array_equal(
         back["i(v1)"], waves["i(v1)"]
     )
+
+
+def test_columns_are_written_as_their_stacked_table():
+    # chunk boundaries (rows_per_chunk 7 of 40 rows) and tokens left to repr (a tie, a tiny
+    # value) in the column writer as in the table writer
+    rng = np.random.default_rng(5)
+    columns = [rng.standard_normal(40) * 10.0 ** rng.integers(-300, 300, 40) for _ in range(3)]
+    columns[1][3] = 1e-320
+    columns[2][11] = 123456789012345.875
+    expected = table_text(np.column_stack(columns))
+    assert b"".join(column_lines(columns, rows_per_chunk=7)) == expected
+    assert b"".join(column_lines([c[:0] for c in columns])) == b""
+    with pytest.raises(ValueError, match="one length"):
+        list(column_lines([columns[0], columns[1][:5]]))

@@ -70,3 +70,43 @@ def test_falling_back_to_the_numpy_loop_says_why():
     with pytest.warns(KernelFallbackWarning, match="numpy reference loop"):
         waves = simulate(circuit, options)
     assert waves.stats["kernel"].startswith("python (")
+
+
+LOADED_RUN = """
+import sys
+import numpy as np
+from circuitsim.netlist.reader import parse_netlist
+from circuitsim.solver import simulate
+from circuitsim.solver.compiled import port_loop
+waves = simulate(parse_netlist(sys.argv[1]))
+from numba.core.imputils import builtin_registry
+from numba.core.registry import cpu_target
+hits = sum(port_loop.run.stats.cache_hits.values())
+np.savez(sys.argv[2], time=waves.time, v=waves["v(b)"])
+print(hits, builtin_registry in cpu_target.target_context._registries)
+"""
+
+
+def test_a_new_process_loads_the_kernel_without_numbas_registries(tmp_path):
+    # the machine code is loaded with numba's runtime only (cache.py: KernelFunctionCache),
+    # not after importing every typing and lowering registry, and it computes the same run
+    import subprocess
+    import sys
+
+    import numpy as np
+
+    waves = simulate(parse_netlist(RECTIFIER))  # in the cache from here on
+    out = tmp_path / "loaded.npz"
+    done = subprocess.run(
+        [sys.executable, "-c", LOADED_RUN, RECTIFIER, str(out)],
+        capture_output=True,
+        text=True,
+        cwd=Path(__file__).resolve().parents[2],
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr
+    hits, registries = done.stdout.split()
+    assert int(hits) == 1 and registries == "False"
+    loaded = np.load(out)
+    assert np.array_equal(loaded["time"], waves.time)
+    assert np.array_equal(loaded["v"], waves["v(b)"])

@@ -90,12 +90,33 @@ def relocate_caches(names: list[str] | None = None) -> list:
     """
     from numba.core import caching
     from numba.core.registry import CPUDispatcher
+    from numba.core.runtime.nrt import rtsys
 
     class KernelCacheImpl(caching.CompileResultCacheImpl):
         _locator_classes = _locator_classes()
 
     class KernelFunctionCache(caching.FunctionCache):
+        """numba's cache of one function, loading without refreshing the target context.
+
+        numba refreshes the whole target context before it loads machine code: it imports
+        and installs every typing and lowering registry (numpy ufuncs, linalg, typed
+        containers ...), about 0.2 s of a process's start, which only compiling needs
+        (compiling refreshes by itself). Running loaded nopython code needs numba's runtime
+        (NRT) only. Functions compiled with ``parallel=True`` are loaded numba's way.
+        """
+
         _impl_class = KernelCacheImpl
+
+        def __init__(self, py_func, parallel: bool = False):
+            super().__init__(py_func)
+            self._parallel = parallel
+
+        def load_overload(self, sig, target_context):
+            if self._parallel:
+                return super().load_overload(sig, target_context)
+            rtsys.initialize(target_context)
+            with self._guard_against_spurious_io_errors():
+                return self._load_overload(sig, target_context)
 
     caches = []
     chosen = names if names is not None else [n for n in sys.modules if n.startswith(PACKAGE)]
@@ -108,7 +129,8 @@ def relocate_caches(names: list[str] | None = None) -> list:
                 continue
             if isinstance(getattr(obj, "_cache", None), caching.FunctionCache):
                 if not isinstance(obj._cache, KernelFunctionCache) and not obj.overloads:
-                    obj._cache = KernelFunctionCache(obj.py_func)
+                    parallel = bool(obj.targetoptions.get("parallel"))
+                    obj._cache = KernelFunctionCache(obj.py_func, parallel)
                 caches.append(obj._cache)
     return caches
 
