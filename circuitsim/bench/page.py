@@ -88,7 +88,7 @@ class BenchPage:
         for name, unit in zip(session.states, session.units, strict=True):
             source = ColumnDataSource({"t": [], "circuit": [], "ode": []}, name=f"trace_{name}")
             plot = figure(
-                height=190,
+                height=175,
                 width=720,
                 x_range=x_range,
                 name=f"scope_{name}",
@@ -192,7 +192,7 @@ class BenchPage:
                 self.status.text = f"{name} = {new:g} from t = {t:.2f} s"
             except BenchError as exc:
                 self.status.text = f"<b>refused</b>: {exc}"
-            self._sync_knobs(force=True)
+            self._sync_knobs()
 
         return changed
 
@@ -204,7 +204,7 @@ class BenchPage:
                 shown = [f"{p} = {_ohms(resistors[p])}" for p in knob.parts if p in resistors]
                 label.text = ("<small>" + ", ".join(shown) + "</small>") if shown else ""
 
-    def _sync_knobs(self, force: bool = False) -> None:
+    def _sync_knobs(self) -> None:
         """Widgets follow the session's values (changed by the API or another tab)."""
         values = self.session.knob_values()
         self.syncing = True
@@ -219,6 +219,12 @@ class BenchPage:
                         end=max(widget.end, values[name]),
                         value=values[name],
                     )
+            paused = not self.runner.running
+            if self.pause.active != paused and self.runner.error is None:
+                self.pause.active = paused
+            rate = None if math.isinf(self.runner.rate) else self.runner.rate
+            if self.rate.value != rate:
+                self.rate.value = rate
         finally:
             self.syncing = False
         self._show_parts()
@@ -255,10 +261,8 @@ class BenchPage:
     def _run_widgets(self) -> list:
         from bokeh.models import Div, NumericInput, Toggle
 
-        pause = Toggle(label="pause", active=not self.runner.running, name="pause", width=100)
-        pause.on_change(
-            "active", lambda attr, old, new: self.runner.pause() if new else self.runner.resume()
-        )
+        self.pause = Toggle(label="pause", active=not self.runner.running, name="pause", width=100)
+        self.pause.on_change("active", self._pause_changed)
         rate = NumericInput(
             title="rate (model s per wall s)",
             mode="float",
@@ -272,9 +276,16 @@ class BenchPage:
             '<a href="/api/export/history.json" download>knob history '
             "(JSON)</a>"
         )
-        return [pause, rate, export]
+        self.rate = rate
+        return [self.pause, rate, export]
+
+    def _pause_changed(self, attr, old, new) -> None:
+        if not self.syncing:
+            self.runner.pause() if new else self.runner.resume()
 
     def _rate_changed(self, attr, old, new) -> None:
+        if self.syncing:
+            return
         try:
             self.runner.set_rate(new if new is not None else math.inf)
         except BenchError as exc:

@@ -66,7 +66,7 @@ class BenchSession:
         refuses).
     """
 
-    def __init__(self, setup: BenchSetup, chunk: float = 0.05, sample: float = 0.002):
+    def __init__(self, setup: BenchSetup, chunk: float = 0.1, sample: float = 0.002):
         if not (math.isfinite(chunk) and chunk > 0 and math.isfinite(sample) and sample > 0):
             raise BenchError(f"chunk and sample must be positive, got {chunk:g} and {sample:g}")
         self.setup = setup

@@ -67,9 +67,9 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--chunk",
         type=float,
-        default=0.05,
+        default=0.1,
         metavar="SECONDS",
-        help="model seconds per chunk: a knob acts within one chunk (> 0, default 0.05)",
+        help="model seconds per chunk: a knob acts within one chunk (> 0, default 0.1)",
     )
     parser.add_argument(
         "--no-browser", action="store_true", help="do not open the page in a web browser"

@@ -4,6 +4,7 @@ wheelset's free response against MODEL.md, and refused knob values."""
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,6 +16,8 @@ from circuitsim.compare.signals import nrmsd_percent
 from circuitsim.mechanics import load_model
 from circuitsim.mechanics.solve import solve
 from circuitsim.synthesis.options import SynthesisOptions
+
+ROOT = Path(__file__).resolve().parents[2]
 
 #: (model seconds, knob changes at the segment's start, push at its start)
 HISTORY = [
@@ -188,3 +191,19 @@ def test_time_series_forcing_is_refused():
     setup = BenchSetup.from_system(model, system, SynthesisOptions(series="exact"))
     with pytest.raises(BenchError, match="sinusoidal forcing only"):
         BenchSession(setup)
+
+
+def test_a_model_file_may_list_its_knobs(tmp_path):
+    """``[circuit] knobs = [...]``: only those parameters (beside the scenario options and
+    the switches) become knobs."""
+    text = (ROOT / "circuitsim/mechanics/models/wheelset.toml").read_text()
+    series = ROOT / "circuitsim/mechanics/models/track_irregularity.csv"
+    text = text.replace("[circuit]\n", '[circuit]\nknobs = ["k"]\n', 1)
+    text = text.replace('file = "track_irregularity.csv"', f'file = "{series}"')
+    path = tmp_path / "wheelset_knobs.toml"
+    path.write_text(text)
+    model = load_model(str(path))
+    system = model.system(None, {"V": 57.0, "a": 0.0})
+    session = BenchSession(BenchSetup.from_system(model, system, SynthesisOptions(series="exact")))
+    assert [k.name for k in session.knobs] == ["speed", "freq", "amplitude", "flange", "k"]
+    assert next(k for k in session.knobs if k.name == "k").parts == ("R3",)

@@ -1,0 +1,81 @@
+"""A live ``circuitsim bench`` server for the API and browser tests, and HTTP helpers."""
+
+import json
+import os
+import re
+import subprocess
+import sys
+import time
+import urllib.error
+import urllib.request
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+#: Wall seconds a test waits for the server or for model time to pass (the machine may be
+#: loaded; no test asserts a wall-clock figure).
+PATIENCE = 240.0
+
+
+def request(url: str, data=None, method: str | None = None) -> tuple[int, object]:
+    """(status, decoded JSON or text) of a GET, or of a POST of ``data`` (JSON-encoded unless
+    bytes)."""
+    body = None
+    if data is not None:
+        body = data if isinstance(data, bytes) else json.dumps(data).encode()
+    req = urllib.request.Request(url, data=body, method=method or ("POST" if body else "GET"))
+    try:
+        with urllib.request.urlopen(req, timeout=60) as answer:
+            status, text = answer.status, answer.read().decode()
+            kind = answer.headers.get("Content-Type", "")
+    except urllib.error.HTTPError as error:
+        status, text, kind = error.code, error.read().decode(), error.headers.get("Content-Type")
+    return status, json.loads(text) if "json" in (kind or "") else text
+
+
+def wait_for_model_time(base: str, t: float) -> dict:
+    """Poll ``/api/state`` until the session has passed model time ``t`` (s)."""
+    deadline = time.monotonic() + PATIENCE
+    while time.monotonic() < deadline:
+        _, state = request(base + "api/state")
+        assert state["error"] is None, state["error"]
+        if state["t"] >= t:
+            return state
+        time.sleep(0.2)
+    raise AssertionError(f"the bench did not reach t = {t} s within {PATIENCE} s")
+
+
+class BenchProcess:
+    """``python -m circuitsim bench ...`` on a free port, until :meth:`stop`."""
+
+    def __init__(self, *options: str):
+        env = {**os.environ, "PYTHONPATH": str(ROOT)}
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "circuitsim", "bench", "--no-browser", "--port", "0",
+             *options],
+            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        )  # fmt: skip
+        deadline = time.monotonic() + PATIENCE
+        self.url = None
+        while time.monotonic() < deadline and self.url is None:
+            line = self.process.stdout.readline()
+            if not line:
+                raise AssertionError(f"bench exited: {self.process.stderr.read()}")
+            found = re.search(r" at (http://\S+/) ", line)
+            self.url = found.group(1) if found else None
+        if self.url is None:
+            self.stop()
+            raise AssertionError("bench did not print its address")
+
+    def stop(self) -> None:
+        stop_process(self.process)
+
+
+def stop_process(process: subprocess.Popen) -> None:
+    """Terminate a process this test started, killing it after 30 s."""
+    process.terminate()
+    try:
+        process.wait(30)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait(30)
