@@ -179,11 +179,11 @@ def report_grid(result, grid: ParameterGrid, paths, executor) -> None:
     )
     if executor is not None and executor.stats:
         s = executor.stats
-        warm = ", ".join(f"{w:.2g}" for w in s["first_batch_warm_up_s"])
+        warm = ", ".join(f"{w:.2g}" for w in s["warm_up_s"])
         print(
             f"cluster: {s['batches']} batches of up to {s['batch_size']} variants on "
             f"{s['workers']} workers, {s['batch_wall_s']:.3g} s in the batches; loading the "
-            f"compiled kernels in each worker's first batch: {warm} s"
+            f"compiled kernels in each worker before its first batch: {warm} s"
         )
     if len(grid.names) != 2:
         print(f"no map: {len(grid.names)} parameters (sweep.csv has every variant)")
