@@ -3,7 +3,10 @@
 A parameter sweep simulates circuits that differ only in element values. Each variant runs
 exactly what ``simulate(circuit, SimulationOptions.from_circuit(circuit, kernel="ports"))``
 runs (same options, same time steps, same Newton iterates), but records only the probed
-signals (formed row by row, so their values equal the single run's to round-off), and
+signals (formed row by row, so their values equal the single run's to round-off). A run of more
+than 20,000 attempted steps returns to Python every 20,000 attempts (``fixed_pauses``: its
+values do not depend on the machine's speed or load), where a single run does so by the
+clock; each return restarts the loop's local caches, so such runs agree to round-off. And
 ``workers`` variants run at once in threads: the compiled loop releases the GIL, so the
 threads use separate cores without the start-up and pickling of worker processes.
 """
@@ -199,7 +202,7 @@ def _one_shared(
     system = shared.start.system
     G = system.conductances_with(changes) if changes else None
     stats: dict = {"analysis": "tran", "newton_iterations": 0}
-    times, values = run_ports_from(shared.start, G, shared.rows, stats)
+    times, values = run_ports_from(shared.start, G, shared.rows, stats, fixed_pauses=True)
     stats["shared_start"] = True
     waves = _waveforms(system, times, values, probes, shared.index, stats, started)
     return waves if reduce is None else reduce(k, waves)
@@ -214,7 +217,8 @@ def _one(circuit: Circuit, probes: list[str], k: int, reduce: Reduce | None):
     tran = circuit.transient
     stats: dict = {"analysis": "tran", "newton_iterations": 0}
     times, values = run_ports(
-        system, tran.tstep, tran.tstop, tran.tstart, tran.tmax, tran.uic, None, stats, rows=rows
+        system, tran.tstep, tran.tstop, tran.tstart, tran.tmax, tran.uic, None, stats, rows=rows,
+        fixed_pauses=True,
     )
     stats["factorizations"] = system.factorizations
     stats["shared_start"] = False

@@ -37,7 +37,10 @@ from circuitsim.solver.transient import recorded, run_transient, start_transient
 # The loop returns to Python after FIRST_PAUSE attempted steps, then after about PAUSE_SECONDS
 # of work, to check the wall-time limit. Each return restarts the loop's local caches (its
 # results then differ in round-off, not beyond its tolerances): the first chunk is long
-# enough that a run like the ideal wheelset (15,000 steps) has no extra return.
+# enough that a run like the ideal wheelset (15,000 steps) has no extra return. With
+# ``fixed_pauses`` (sweep variants) every chunk is FIRST_PAUSE attempts: the returns, and so
+# the values, do not depend on the machine's speed or load (a study run in-process and on a
+# cluster gives the same numbers bit for bit).
 FIRST_PAUSE = 20_000
 PAUSE_SECONDS = 1.0
 
@@ -129,9 +132,11 @@ def run_ports(
     progress: Callable[[str], None] | None = None,
     stats: dict | None = None,
     rows: np.ndarray | None = None,
+    fixed_pauses: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`run_compiled` with Newton confined to the junction voltages (the ports kernel,
-    port_loop.py), recording only the unknowns ``rows`` (default: all).
+    port_loop.py), recording only the unknowns ``rows`` (default: all); ``fixed_pauses``:
+    chunks of a fixed number of attempted steps (values independent of the machine's speed).
 
     Returns
     -------
@@ -139,7 +144,9 @@ def run_ports(
         Accepted time points >= tstart (with uic, after 0: see ``recorded``), seconds.
     solutions : ndarray, shape (m, len(rows))
     """
-    return _run("ports", system, tstep, tstop, tstart, tmax, uic, progress, stats, rows)
+    return _run(
+        "ports", system, tstep, tstop, tstart, tmax, uic, progress, stats, rows, fixed_pauses
+    )
 
 
 class PortsStart(NamedTuple):
@@ -182,11 +189,12 @@ def run_ports_from(
     rows: np.ndarray | None = None,
     stats: dict | None = None,
     progress: Callable[[str], None] | None = None,
+    fixed_pauses: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`run_ports` from a shared start, with the constant matrix ``G`` in place of the
     system's (a sweep variant: ``MnaSystem.conductances_with``). The start is only read, so
     threads may share it. ``stats["factorizations"]`` counts this run's (``start.system`` is
-    not updated).
+    not updated). ``fixed_pauses`` as in :func:`run_ports`.
 
     Raises
     ------
@@ -203,17 +211,17 @@ def run_ports_from(
     stats.update(accepted=0, rejected=0, newton_iterations=stats.get("newton_iterations", 0))
     counted: list[int] = []
     try:
-        return _integrate("ports", start, plan, progress, stats, rows, counted)
+        return _integrate("ports", start, plan, progress, stats, rows, counted, fixed_pauses)
     finally:
         stats["factorizations"] = sum(counted)
 
 
-def _run(kind, system, tstep, tstop, tstart, tmax, uic, progress, stats, rows):
+def _run(kind, system, tstep, tstop, tstart, tmax, uic, progress, stats, rows, fixed=False):
     stats = stats if stats is not None else {}
     start = ports_start(system, tstep, tstop, tstart, tmax, uic, stats)  # the same for both
     counted: list[int] = []
     try:
-        return _integrate(kind, start, start.plan, progress, stats, rows, counted)
+        return _integrate(kind, start, start.plan, progress, stats, rows, counted, fixed)
     finally:
         system.factorizations += sum(counted)
 
@@ -232,7 +240,7 @@ def _loop_state(kind, start: PortsStart, plan, rows, capacity):
     return loop, initial_state(plan, start.families, start.x, start.q0.copy(), capacity)
 
 
-def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted):
+def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fixed_pauses=False):
     """The compiled loop from t = 0 on ``plan`` (``start.plan``, or it with a variant's G):
     (times, recorded values); the run's factorizations are appended to ``counted``, also
     when it fails."""
@@ -278,8 +286,12 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted):
                     raise RunLimitError(
                         "max_wall_time", options.max_wall_time, float(st.fs[nw.T]), tstop, done
                     )
-                rate = (done - attempts) / max(time.perf_counter() - chunk_began, 1e-6)
-                st.ints[nw.PAUSE_ATTEMPTS] = done + int(min(max(rate * PAUSE_SECONDS, 100), 1e7))
+                if fixed_pauses:
+                    st.ints[nw.PAUSE_ATTEMPTS] = done + FIRST_PAUSE
+                else:
+                    rate = (done - attempts) / max(time.perf_counter() - chunk_began, 1e-6)
+                    pause = int(min(max(rate * PAUSE_SECONDS, 100), 1e7))
+                    st.ints[nw.PAUSE_ATTEMPTS] = done + pause
             else:
                 break
     except np.linalg.LinAlgError:
