@@ -124,9 +124,13 @@ class HuntingBranch:
     wall: float = 0.0
 
     def cycle(self, threshold: float) -> np.ndarray:
-        """Steps holding a limit cycle: steady, amplitude >= threshold; bool, shape (k,)."""
+        """Steps holding a limit cycle: steady, amplitude >= threshold; bool, shape (k,).
+
+        None with the flange off: the system is then linear, and a linear system has no
+        limit cycle (a slow decay or growth near its critical speed only reads as steady).
+        """
         steady = np.array([s == "steady" for s in self.status], dtype=bool)
-        return steady & (self.amplitude >= threshold)
+        return steady & (self.amplitude >= threshold) & self.flange
 
     def onset(self) -> float | None:
         """Where the motion stops dying out: up, the lowest speed from which no later step
@@ -305,6 +309,8 @@ def speed_grid(text: str, option: str = "--speeds") -> np.ndarray:
         raise HuntingError(str(exc).replace("--values", option, 1)) from None
     if speeds.size < 2:
         raise HuntingError(f"{option} {text!r}: at least two speeds are needed to sweep")
+    # 12 digits: 67.2, not the grid arithmetic's 67.19999999999999 (the CSV writes repr)
+    speeds = np.array([float(f"{v:.12g}") for v in speeds])
     if np.any(np.diff(speeds) <= 0):
         raise HuntingError(f"{option} {text!r}: list the speeds in increasing order, each once")
     return speeds

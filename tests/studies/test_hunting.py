@@ -129,6 +129,10 @@ def test_critical_speeds_show_hysteresis_of_a_subcritical_branch():
     assert down.critical(0.005) == 51.0  # the cycle holds below where it appeared
     grows = _branch("up", [50, 51, 52], [0, 0.01, 1.0], ["decaying", "growing", "unbounded"])
     assert grows.critical(0.005) is None and grows.onset() == 51.0
+    # flange off the system is linear: a slow decay that reads as steady is no limit cycle
+    linear = _branch("down", [53, 52, 51], [0.1, 0.1, 0.05], ["growing", "steady", "decaying"])
+    linear.flange = False
+    assert linear.critical(0.005) is None and linear.onset() == 52.0
 
 
 def test_measure_tells_decay_growth_and_steady_cycles():
