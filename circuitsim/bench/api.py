@@ -50,6 +50,7 @@ def state_of(runner: BenchRunner) -> dict:
                 "error": runner.error,
                 "nrmsd_percent": session.nrmsd(),
                 "resistors": session.resistors,
+                "pots": session.pot_settings(),
                 "state": current,
                 "chunk": session.chunk,
                 "knob_info": [

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 from circuitsim.bench.errors import BenchError
 from circuitsim.mechanics.errors import ModelError
@@ -28,6 +29,8 @@ from circuitsim.mechanics.system import Sinusoid, System
 from circuitsim.netlist.circuit import Capacitor, Circuit, Resistor, VoltageSource
 from circuitsim.solver.engine import flat_circuit
 from circuitsim.synthesis.errors import SynthesisError
+from circuitsim.synthesis.knob import Knob as Potentiometer
+from circuitsim.synthesis.knob import KnobRequest, add_knobs
 from circuitsim.synthesis.options import SynthesisOptions
 from circuitsim.synthesis.translator import Synthesis, synthesize
 
@@ -84,6 +87,10 @@ class BenchSetup:
     options : SynthesisOptions
         Translator options (``series="exact"`` makes each knob a potentiometer set to any
         value; a rounded series may rewire a pair R33 -> R33A + R33B, which is refused).
+    pot : KnobRequest, optional
+        The resistors that follow this parameter (the wheelset's speed: R33, R44) as a fixed
+        part plus a potentiometer over the request's range (``--speed-range``); values
+        outside it are refused.
     """
 
     model: Model
@@ -93,10 +100,16 @@ class BenchSetup:
     forcing: dict[str, bool] | None = None
     x0: dict[str, float] = field(default_factory=dict)
     options: SynthesisOptions = field(default_factory=lambda: SynthesisOptions(series="exact"))
+    pot: KnobRequest | None = None
 
     @classmethod
     def from_system(
-        cls, model: Model, system: System, options: SynthesisOptions, coefficients=None
+        cls,
+        model: Model,
+        system: System,
+        options: SynthesisOptions,
+        coefficients=None,
+        pot: KnobRequest | None = None,
     ) -> BenchSetup:
         """The setup of a System built from ``model`` (the CLI's scenario options)."""
         on = {term.name for term in system.nonlinear}
@@ -117,6 +130,7 @@ class BenchSetup:
             forcing,
             x0,
             options,
+            pot,
         )
 
     @property
@@ -169,14 +183,23 @@ class BenchSetup:
         return 1.0
 
 
+class Translated(NamedTuple):
+    """A circuit of the bench and its potentiometers (empty without ``setup.pot``)."""
+
+    synthesis: Synthesis
+    pots: list[Potentiometer]
+
+
 def synthesize_at(
     setup: BenchSetup,
     parameters: dict[str, float],
     switches: dict[str, bool],
     options: SynthesisOptions,
     first: bool = False,
-) -> Synthesis:
-    """The circuit at these knob values, the generator at the reference amplitude.
+) -> Translated:
+    """The circuit at these knob values, the generator at the reference amplitude; with
+    ``setup.pot``, the resistors that follow its parameter as fixed parts plus potentiometers
+    set for its value (:func:`~circuitsim.synthesis.knob.add_knobs`).
 
     ``first``: the session's first translation, which chooses the scales (auto scaling from
     the direct solution); later ones pass ``options`` with every range fixed.
@@ -184,16 +207,25 @@ def synthesize_at(
     Raises
     ------
     BenchError
-        The model or the translator refuses the values.
+        The model or the translator refuses the values (a potentiometer's value outside its
+        range among them).
     """
     amplitude = setup.amplitude_parameter
     if amplitude is not None:
         parameters = {**parameters, amplitude: setup.reference_amplitude()}
     system = setup.system(parameters, switches)
     try:
-        return synthesize(system, options, peaks=first)
+        synthesis = synthesize(system, options, peaks=first)
+        pots = []
+        if setup.pot is not None:
+            value = parameters[setup.pot.parameter]
+            pots = add_knobs(synthesis.circuit, synthesis.bom, system, setup.pot, options.series,
+                             value)  # fmt: skip
     except (SynthesisError, ModelError) as exc:
         raise BenchError(str(exc)) from None
+    except (ValueError, ArithmeticError) as exc:  # a potentiometer with no span left
+        raise BenchError(f"the potentiometers cannot realize these values ({exc})") from None
+    return Translated(synthesis, pots)
 
 
 def fixed_ranges(synthesis: Synthesis, options: SynthesisOptions) -> SynthesisOptions:
@@ -290,11 +322,17 @@ def _parts_set_by(
     value = setup.parameters.get(name, 0.0)
     if not value:
         return ()
-    probe = {**setup.parameters, name: value * (1 + PROBE_STEP)}
-    try:
-        other = flat_circuit(synthesize_at(setup, probe, setup.switches, options).circuit)
-        changed = differences(flat, other)
-    except BenchError:
+    for step in (PROBE_STEP, -PROBE_STEP):  # down where up leaves a potentiometer's range
+        probe = {**setup.parameters, name: value * (1 + step)}
+        try:
+            other = flat_circuit(
+                synthesize_at(setup, probe, setup.switches, options).synthesis.circuit
+            )
+            changed = differences(flat, other)
+            break
+        except BenchError:
+            continue
+    else:
         return ()
     if not _same_sources(flat, other):
         return ()

@@ -47,6 +47,14 @@ def _ohms(value: float) -> str:
     return f"{value:.4g} Ω"
 
 
+def _pot_text(pot) -> str:
+    """``R33 = R33A 80.6 kΩ + R33P (68 kΩ) at 0.472``."""
+    return (
+        f"{pot.resistor} = {pot.fixed_part} {_ohms(pot.fixed)} + {pot.pot_part} "
+        f"({_ohms(pot.pot)}) at {pot.setting.fraction:.3f}"
+    )
+
+
 class BenchPage:
     """Builds and updates one Bokeh document over ``runner``'s session."""
 
@@ -160,6 +168,9 @@ class BenchPage:
                 out.append(widget)
             else:
                 start, end, step = knob_range(knob, value, reference)
+                pot = self.session.setup.pot
+                if pot is not None and knob.parameter == pot.parameter:  # the dial's range
+                    start, end, step = pot.low, pot.high, (pot.high - pot.low) / 1000
                 title = (
                     f"{knob.name} = {knob.parameter} ({knob.unit})"
                     if knob.parameter != (knob.name)
@@ -198,10 +209,15 @@ class BenchPage:
 
     def _show_parts(self) -> None:
         resistors = self.session.resistors
+        pots = {pot.pot_part: pot for pot in self.session.pots}
         for knob in self.session.knobs:
             label = self.part_labels.get(knob.name)
             if label is not None:
-                shown = [f"{p} = {_ohms(resistors[p])}" for p in knob.parts if p in resistors]
+                shown = [
+                    _pot_text(pots[p]) if p in pots else f"{p} = {_ohms(resistors[p])}"
+                    for p in knob.parts
+                    if p in resistors
+                ]
                 label.text = ("<small>" + ", ".join(shown) + "</small>") if shown else ""
 
     def _sync_knobs(self) -> None:

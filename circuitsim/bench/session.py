@@ -76,10 +76,10 @@ class BenchSession:
         self.lock = threading.RLock()
         self.parameters = dict(setup.parameters)
         self.switches = dict(setup.switches)
-        first = synthesize_at(setup, self.parameters, self.switches, setup.options, first=True)
+        first = synthesize_at(setup, self.parameters, self.switches, setup.options, True).synthesis
         self.warnings = list(first.warnings)
         self.options = fixed_ranges(first, setup.options)
-        synthesis = synthesize_at(setup, self.parameters, self.switches, self.options)
+        synthesis, self.pots = synthesize_at(setup, self.parameters, self.switches, self.options)
         if synthesis.scale_map != first.scale_map:
             raise BenchError("the translator did not keep the scales of the first circuit")
         self.circuit = RunningCircuit(synthesis)
@@ -131,6 +131,16 @@ class BenchSession:
             for e in self.circuit.flat.elements
             if e.name in parts and isinstance(e, Resistor)
         }
+
+    def pot_settings(self) -> dict[str, dict]:
+        """Each potentiometer-realized resistor (``--speed-range``): its fixed part and
+        potentiometer (names, ohms) and the dial's rotation fraction (0..1) now."""
+        return {
+            pot.resistor: {"fixed_part": pot.fixed_part, "fixed": pot.fixed,
+                           "pot_part": pot.pot_part, "pot": pot.pot,
+                           "dial": pot.setting.fraction}
+            for pot in self.pots
+        }  # fmt: skip
 
     def _parse_knobs(self, values: dict) -> tuple[dict, dict]:
         """New parameters and switches from a request's knob values.
@@ -184,12 +194,13 @@ class BenchSession:
         """
         parameters, switches = self._parse_knobs(values)
         with self.lock:
-            synthesis = synthesize_at(self.setup, parameters, switches, self.options)
+            synthesis, pots = synthesize_at(self.setup, parameters, switches, self.options)
             system = self.setup.system(parameters, switches)
             if synthesis.scale_map != self.scale_map:
                 raise BenchError("these values change the circuit's scales")
             changed = self.circuit.restamp(synthesis)
             self.parameters, self.switches, self.system = parameters, switches, system
+            self.pots = pots
             self.resistors = self._resistor_values()
             self.history.append(
                 {

@@ -8,11 +8,13 @@ import sys
 
 from circuitsim.cli.common import (
     UsageError,
+    add_knob_options,
     add_model_options,
     add_scenario_options,
     add_translator_options,
     check_scenario_options,
     check_translator_options,
+    knob_request,
     progress,
     require_positive,
     scenario_system,
@@ -33,13 +35,16 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
             "flange switch S1, other resistor-realized parameters), a push that sets a state, "
             "pause, rate and export; a JSON API beside it (/api/state, /api/knobs, "
             "/api/set_state, /api/trace, /api/history) drives it from scripts. A knob acts at "
-            "the next chunk boundary from the state reached: nothing restarts. See "
+            "the next chunk boundary from the state reached: nothing restarts. With "
+            "--speed-range LO:HI, R33 and R44 are fixed parts plus potentiometers and the "
+            "speed knob turns their dials over that range. See "
             "docs/bench.md. Ctrl-C stops it."
         ),
     )
     add_model_options(parser)
     add_scenario_options(parser)
     add_translator_options(parser, series="exact")
+    add_knob_options(parser)
     parser.add_argument(
         "--tstop",
         type=float,
@@ -99,7 +104,9 @@ def _run_bench(args: argparse.Namespace) -> int:
     _check_bench(args)
     require_bokeh()
     model, system = scenario_system(args, with_model=True)
-    setup = BenchSetup.from_system(model, system, translator_options(args), args.coeffs)
+    setup = BenchSetup.from_system(
+        model, system, translator_options(args), args.coeffs, knob_request(args, model)
+    )
     progress("bench: translating the circuit and finding its knobs")
     session = BenchSession(setup, chunk=args.chunk)
     for warning in session.warnings:

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import functools
-import math
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -12,6 +10,7 @@ from typing import TYPE_CHECKING
 from circuitsim.cli.common import (
     UsageError,
     add_jobs_option,
+    add_knob_options,
     add_model_options,
     add_ngspice_timeout,
     add_scenario_options,
@@ -19,6 +18,7 @@ from circuitsim.cli.common import (
     add_translator_options,
     check_scenario_options,
     check_translator_options,
+    knob_request,
     prepare_output_folder,
     print_warning,
     progress,
@@ -76,30 +76,7 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
         help="close the nonlinear switches (S1) at model time T >= 0 instead of from the start; "
         "'inf' keeps them open (the linear circuit with the blocks in place)",
     )
-    knob = parser.add_argument_group(
-        "speed knob",
-        "the resistors that follow a parameter (the wheelset's speed V: R33, R44) as a fixed "
-        "resistor plus a potentiometer, with a dial table in FILE.knob.csv",
-    )
-    knob.add_argument(
-        "--speed-range",
-        type=value_range,
-        nargs="?",
-        const=(40.0, 70.0),
-        metavar="LO:HI",
-        help="turn the knob on over LO:HI (parameter units; alone: 40:70)",
-    )
-    knob.add_argument(
-        "--knob",
-        metavar="PARAM",
-        help="the parameter the knob turns (default: the model's speed option, V)",
-    )
-    knob.add_argument(
-        "--pot-series",
-        choices=("E3", "E6"),
-        default="E6",
-        help="potentiometer values (default E6)",
-    )
+    add_knob_options(parser)
     parser.add_argument(
         "--schematic",
         metavar="FILE.svg|FILE.png",
@@ -108,54 +85,6 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("-o", "--output", required=True, metavar="FILE.cir", help="netlist file")
     parser.set_defaults(func=_run_generate)
-
-
-def value_range(text: str) -> tuple[float, float]:
-    """``LO:HI``: two positive finite numbers, LO below HI."""
-    low, sep, high = text.partition(":")
-    try:
-        pair = (float(low), float(high))
-        if not sep or not all(math.isfinite(v) and v > 0 for v in pair) or pair[0] >= pair[1]:
-            raise ValueError
-        return pair
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected LO:HI with positive numbers, LO below HI, got {text!r}"
-        ) from None
-
-
-def _knob_request(args: argparse.Namespace, model):
-    """The KnobRequest of ``--speed-range``/``--knob``/``--pot-series``, None without them."""
-
-    from circuitsim.synthesis.knob import KnobRequest
-
-    if args.speed_range is None:
-        if args.knob is not None:
-            raise UsageError("--knob needs --speed-range LO:HI (the range the dial covers)")
-        return None
-    name = args.knob or model.options.get("speed")
-    if name is None:
-        raise UsageError(
-            f"--speed-range: model {model.name} has no speed option; name the parameter with "
-            f"--knob (one of {', '.join(model.parameters)})"
-        )
-    if name in model.options:
-        name = model.options[name]
-    if name not in model.parameters:
-        raise UsageError(
-            f"--knob {name}: model {model.name} has no such parameter; known: "
-            f"{', '.join(model.parameters)}"
-        )
-
-    @functools.cache
-    def linear_part(value: float):
-        variant = argparse.Namespace(**vars(args))
-        variant.param = [*args.param, (name, float(value))]  # overrides --speed
-        return scenario_system(variant, model=model).A
-
-    low, high = args.speed_range
-    unit = model.parameter_info[name].unit
-    return KnobRequest(name, low, high, linear_part, unit, args.pot_series)
 
 
 def _print_warnings(synthesis) -> None:
@@ -189,7 +118,7 @@ def _run_generate(args: argparse.Namespace) -> int:
     _check_generate(args)
     model, system = scenario_system(args, with_model=True)
     system = switch_at(system, args.switch_at)
-    knob = _knob_request(args, model)
+    knob = knob_request(args, model)
     options = translator_options(args)
     if args.schematic is not None and Path(args.schematic).suffix.lower() not in (".svg", ".png"):
         raise UsageError(

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import math
 import os
 import re
@@ -623,6 +624,88 @@ def translator_options(args: argparse.Namespace):
         t_stop=getattr(args, "tstop", None),
         ranges=dict(args.range),
     )
+
+
+def add_knob_options(parser: argparse.ArgumentParser) -> None:
+    """``--speed-range LO:HI``, ``--knob PARAM``, ``--pot-series``: the speed knob as fixed
+    resistors plus potentiometers (generate, bench)."""
+    knob = parser.add_argument_group(
+        "speed knob",
+        "the resistors that follow a parameter (the wheelset's speed V: R33, R44) as a fixed "
+        "resistor plus a potentiometer (generate: with a dial table in FILE.knob.csv)",
+    )
+    knob.add_argument(
+        "--speed-range",
+        type=value_range,
+        nargs="?",
+        const=(40.0, 70.0),
+        metavar="LO:HI",
+        help="turn the knob on over LO:HI (parameter units; alone: 40:70)",
+    )
+    knob.add_argument(
+        "--knob",
+        metavar="PARAM",
+        help="the parameter the knob turns (default: the model's speed option, V)",
+    )
+    knob.add_argument(
+        "--pot-series",
+        choices=("E3", "E6"),
+        default="E6",
+        help="potentiometer values (default E6)",
+    )
+
+
+def value_range(text: str) -> tuple[float, float]:
+    """``LO:HI``: two positive finite numbers, LO below HI."""
+    low, sep, high = text.partition(":")
+    try:
+        pair = (float(low), float(high))
+        if not sep or not all(math.isfinite(v) and v > 0 for v in pair) or pair[0] >= pair[1]:
+            raise ValueError
+        return pair
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected LO:HI with positive numbers, LO below HI, got {text!r}"
+        ) from None
+
+
+def knob_request(args: argparse.Namespace, model):
+    """The KnobRequest of ``--speed-range``/``--knob``/``--pot-series``, None without them.
+
+    Raises
+    ------
+    UsageError
+        ``--knob`` without a range, or a parameter the model does not have.
+    """
+    from circuitsim.synthesis.knob import KnobRequest
+
+    if args.speed_range is None:
+        if args.knob is not None:
+            raise UsageError("--knob needs --speed-range LO:HI (the range the dial covers)")
+        return None
+    name = args.knob or model.options.get("speed")
+    if name is None:
+        raise UsageError(
+            f"--speed-range: model {model.name} has no speed option; name the parameter with "
+            f"--knob (one of {', '.join(model.parameters)})"
+        )
+    if name in model.options:
+        name = model.options[name]
+    if name not in model.parameters:
+        raise UsageError(
+            f"--knob {name}: model {model.name} has no such parameter; known: "
+            f"{', '.join(model.parameters)}"
+        )
+
+    @functools.cache
+    def linear_part(value: float):
+        variant = argparse.Namespace(**vars(args))
+        variant.param = [*args.param, (name, float(value))]  # overrides --speed
+        return scenario_system(variant, model=model).A
+
+    low, high = args.speed_range
+    unit = model.parameter_info[name].unit
+    return KnobRequest(name, low, high, linear_part, unit, args.pot_series)
 
 
 def print_warning(message: Warning | str, *_: object, **__: object) -> None:

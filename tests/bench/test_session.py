@@ -15,6 +15,7 @@ from circuitsim.bench.session import BenchSession
 from circuitsim.compare.signals import nrmsd_percent
 from circuitsim.mechanics import load_model
 from circuitsim.mechanics.solve import solve
+from circuitsim.synthesis.knob import KnobRequest
 from circuitsim.synthesis.options import SynthesisOptions
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -207,3 +208,31 @@ def test_a_model_file_may_list_its_knobs(tmp_path):
     session = BenchSession(BenchSetup.from_system(model, system, SynthesisOptions(series="exact")))
     assert [k.name for k in session.knobs] == ["speed", "freq", "amplitude", "flange", "k"]
     assert next(k for k in session.knobs if k.name == "k").parts == ("R3",)
+
+
+def test_with_a_speed_range_the_speed_knob_turns_potentiometer_dials():
+    """--speed-range 40:70: R33 = R33A (fixed, E96) + R33P (a potentiometer); the speed knob
+    turns only the potentiometers, their sum stays proportional to V, and a speed past the
+    dial's range is refused."""
+    model = load_model(None)
+    system = model.system(None, {"V": 57.0, "a": 0.0}, {"flange": False})
+
+    def linear_part(value):
+        return model.system(None, {"V": value, "a": 0.0}, {"flange": False}).A
+
+    pot = KnobRequest("V", 40.0, 70.0, linear_part, "m/s", "E6")
+    setup = BenchSetup.from_system(model, system, SynthesisOptions(series="E96"), pot=pot)
+    session = BenchSession(setup)
+    speed = next(k for k in session.knobs if k.name == "speed")
+    assert speed.parts == ("R33P", "R44P")
+    before = session.pot_settings()
+    session.set_knobs({"speed": 54.0})
+    after = session.pot_settings()
+    for name in ("R33", "R44"):
+        old, new = before[name], after[name]
+        assert new["fixed"] == old["fixed"] and new["pot"] == old["pot"]
+        total = [s["fixed"] + s["dial"] * s["pot"] for s in (old, new)]
+        assert total[1] / total[0] == pytest.approx(54.0 / 57.0, rel=1e-9)
+        assert 0 < new["dial"] < old["dial"] < 1
+    with pytest.raises(BenchError, match="outside the knob's range 40:70"):
+        session.set_knobs({"speed": 75.0})
