@@ -46,6 +46,17 @@ def _add_hunting(sub: argparse._SubParsersAction) -> None:
     )
     add_model_options(parser)
     add_scenario_options(parser)
+    hunting_help = {  # the scenario options whose meaning or default differ here
+        "speed": "not used: the speed is swept (--speeds)",
+        "y0": f"the push: the first state's start value, its unit (default {DEFAULT_PUSH:g})",
+        "flange": "run with the piecewise-linear terms (the flange) on only, or off only "
+        "(default: both, one after the other)",
+        "forcing": "switch on only this forcing group of the model (repeatable); default: "
+        "every group off, the free response",
+    }
+    for action in parser._actions:
+        if action.dest in hunting_help:
+            action.help = hunting_help[action.dest]
     parser.add_argument(
         "--parameter",
         metavar="NAME",
