@@ -11,7 +11,12 @@ import math
 from dataclasses import dataclass
 
 from circuitsim.netlist.circuit import Circuit, Resistor
-from circuitsim.synthesis.eseries import round_to_series, series_pair
+from circuitsim.synthesis.eseries import (
+    parallel_pair,
+    parallel_value,
+    round_to_series,
+    series_pair,
+)
 from circuitsim.synthesis.opamps import add_opamp
 
 
@@ -88,6 +93,7 @@ class Builder:
         target: float = math.nan,
         series_extra: float = 0.0,
         series: str | None = None,
+        parallel: bool = False,
     ) -> float:
         """Add a resistor whose ideal value is ``ideal`` ohms (total, including
         ``series_extra``, e.g. a switch's on resistance); returns the realized total.
@@ -97,7 +103,10 @@ class Builder:
         (``target`` given) and that one standard value misses by more than the pair tolerance
         becomes a series pair ``{name}A`` (node_a side) + ``{name}B`` with the internal node
         ``{name}_mid`` (:func:`~circuitsim.synthesis.eseries.series_pair`); the A line of the
-        bill of materials carries the pair's coefficient.
+        bill of materials carries the pair's coefficient. With ``parallel`` (a resistor whose
+        two nodes take a second one, i.e. no switch in its path), a pair that still misses the
+        tolerance is compared with the best parallel pair ``{name}A`` || ``{name}B``
+        (:func:`~circuitsim.synthesis.eseries.parallel_pair`), and the closer one is used.
         """
         chosen = series or self.series
         wanted = max(ideal - series_extra, 1e-3)
@@ -106,6 +115,13 @@ class Builder:
             values: tuple[float, ...] = (round_to_series(wanted, chosen),)
         else:
             values = series_pair(wanted, chosen, self.pair_tolerance, low)
+        if parallel and len(values) == 2 and abs(sum(values) / wanted - 1) > self.pair_tolerance:
+            pair = parallel_pair(wanted, chosen, low)
+            if pair is not None and abs(parallel_value(pair) / wanted - 1) < abs(
+                sum(values) / wanted - 1
+            ):
+                return self._parallel(name, node_a, node_b, pair, chosen, role, target, ideal,
+                                      series_extra)  # fmt: skip
         total = sum(values) + series_extra
         realized = float(target * ideal / total) if not math.isnan(target) else math.nan
         if len(values) == 1:
@@ -123,6 +139,22 @@ class Builder:
         )  # fmt: skip
         self.bom.append(
             BomEntry(second, values[1], "ohm", chosen, f"{role}; series pair with {first}")
+        )
+        return total
+
+    def _parallel(self, name, node_a, node_b, pair, chosen, role, target, ideal, extra) -> float:
+        """Place ``{name}A`` || ``{name}B`` (both between the nodes); returns the total ohms."""
+        total = parallel_value(pair) + extra
+        realized = float(target * ideal / total) if not math.isnan(target) else math.nan
+        first, second = f"{name}A", f"{name}B"
+        self.circuit.add(Resistor(first, node_a, node_b, pair[0]))
+        self.circuit.add(Resistor(second, node_a, node_b, pair[1]))
+        self.bom.append(
+            BomEntry(first, pair[0], "ohm", chosen, f"{role}; parallel pair with {second}",
+                     float(target), realized)
+        )  # fmt: skip
+        self.bom.append(
+            BomEntry(second, pair[1], "ohm", chosen, f"{role}; parallel pair with {first}")
         )
         return total
 

@@ -114,6 +114,49 @@ def series_pair(
     return best
 
 
+def parallel_pair(value: float, series: str, smallest: float = 0.0) -> tuple[float, float] | None:
+    """The two members of ``series`` whose parallel combination is nearest ``value``.
+
+    Tried: each member R1 in (``value``, 2 ``value``] with R2 the member nearest the rest,
+    1 / (1/value - 1/R1). Parallel pairs reach values a series pair misses: with E24, a series
+    pair is up to 0.58 % off (one part near value, the other a rounded remainder), the better
+    of the two kinds up to 0.29 %.
+
+    Parameters
+    ----------
+    value : float
+        Positive resistance (ohms).
+    series : str
+        ``"E96"`` or ``"E24"``.
+    smallest : float
+        No part below this (ohms).
+
+    Returns
+    -------
+    tuple of float or None
+        ``(R1, R2)`` in ohms (R1 <= R2 not implied), None for ``exact`` or when none fits.
+    """
+    if series.lower() == "exact":
+        return None
+    decade, _ = _decade(value)
+    best, error = None, math.inf
+    for shift in (0, 1):
+        for member in SERIES[series.upper()]:
+            first = _standard(member, decade + shift, value)
+            if not value < first <= 2 * value:
+                continue
+            second = round_to_series(1.0 / (1.0 / value - 1.0 / first), series)
+            combined = first * second / (first + second)
+            if min(first, second) >= smallest and abs(combined / value - 1.0) < error:
+                best, error = (first, second), abs(combined / value - 1.0)
+    return best
+
+
+def parallel_value(pair: tuple[float, float]) -> float:
+    """Ohms of two resistors in parallel."""
+    return pair[0] * pair[1] / (pair[0] + pair[1])
+
+
 def floor_to_series(value: float, series: str = "E24") -> float:
     """The largest member of ``series`` not above ``value`` (for readable volts-per-unit).
 

@@ -243,7 +243,11 @@ def _turn(circuit, bom, system, request, series, value, names, target, source) -
     if not parts or not all(isinstance(p, Resistor) for p in parts):
         raise SynthesisError(f"no resistor {name} for A[{target}, {source}] in the circuit")
     record = next(e for e in bom if e.part.upper() == parts[0].name.upper())
-    total = sum(float(p.resistance) for p in parts)
+    ohms = [float(p.resistance) for p in parts]
+    if len(parts) == 2 and parts[0].nodes == parts[1].nodes:  # a parallel pair
+        total = ohms[0] * ohms[1] / (ohms[0] + ohms[1])
+    else:
+        total = sum(ohms)
     # the record's realized coefficient is target * exact / total: the exact resistor follows
     exact = record.realized * total / record.target
     scale = exact * abs(float(system.A[i, j]))
@@ -264,7 +268,7 @@ def _turn(circuit, bom, system, request, series, value, names, target, source) -
     settings = tuple(DialSetting(v, resistance(v), (resistance(v) - fixed) / pot) for v in rows)
     setting = next(s for s in settings if s.value == value)
     fixed_name, pot_name = f"{name}A", f"{name}P"
-    node_a, node_b = parts[0].positive, parts[-1].negative
+    node_a, node_b = parts[0].positive, parts[-1].negative  # a pair's far ends
     middle = f"{name.lower()}_mid"
     at = circuit.elements.index(parts[0])
     circuit.elements = [e for e in circuit.elements if e not in parts]
@@ -273,7 +277,7 @@ def _turn(circuit, bom, system, request, series, value, names, target, source) -
         Resistor(pot_name, middle, node_b, float(f"{setting.resistance - fixed:.12g}")),
     ]
     realized = record.target * exact / (fixed + float(f"{setting.resistance - fixed:.12g}"))
-    role = record.role.split("; series pair")[0]
+    role = record.role.split("; series pair")[0].split("; parallel pair")[0]
     where = bom.index(record)
     bom[:] = [e for e in bom if e.part.upper() not in {p.name.upper() for p in parts}]
     bom[where:where] = [

@@ -401,9 +401,13 @@ def _add_integrator(builder, names, state, state_nodes, state_inputs, options, w
         if inp.switch is not None:
             switch, signal, control, model = inp.switch
             circuit.add(Switch(switch, signal, inp.node, control, "0", model=model))
+        # parallel pairs only where the checker reads a pair as one input: an A entry's
+        # resistor from a state node (a switched or forcing path is one resistor per path)
+        linear = inp.switch is None and "(A[" in inp.role
         total = builder.place_resistor(
-            inp.name, far, junction, ideal, inp.role, inp.target, inp.series_extra
-        )
+            inp.name, far, junction, ideal, inp.role, inp.target, inp.series_extra,
+            parallel=linear,
+        )  # fmt: skip
         if not options.r_min <= total <= options.r_max:
             warnings.append(
                 f"{inp.name} = {total:.4g} ohm is outside {options.r_min:g}..{options.r_max:g} "

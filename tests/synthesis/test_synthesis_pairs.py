@@ -122,3 +122,59 @@ def test_e96_wheelset_scenario_passes_the_exact_thresholds(tmp_path):
                     netlist=tmp_path / "w.cir")  # fmt: skip
     assert case.report.ok
     assert case.comparison.passed, case.comparison
+
+
+def test_parallel_pairs_reach_what_series_pairs_miss():
+    """E24: a series pair is up to 0.58 % off (20000 values); the better of a series and a
+    parallel pair up to 0.3 %; E96 needs no parallel pair (series within 0.1 %)."""
+    from circuitsim.synthesis.eseries import parallel_pair, parallel_value
+
+    rng = np.random.default_rng(7)
+    worst_series = worst_best = 0.0
+    for value in 10 ** rng.uniform(2, 7, 20000):
+        pair = parallel_pair(value, "E24")
+        assert all(_member(p, E24) for p in pair) and value < max(pair)
+        series = abs(sum(series_pair(value, "E24", 1e-3)) / value - 1)
+        worst_series = max(worst_series, series)
+        worst_best = max(worst_best, min(series, abs(parallel_value(pair) / value - 1)))
+    assert 4e-3 < worst_series <= 6e-3 and worst_best <= 3e-3
+    assert parallel_pair(1000.0, "exact") is None
+
+
+def test_wheelset_e24_with_parallel_pairs_by_hand(tmp_path):
+    """E24 wheelset (auto scaling): parallel pairs (both parts between the same nodes) where
+    a series pair misses 0.1 %; every A entry, recomputed by hand from the file's values and
+    scales (|A_ij| = G_j / (K G_i R C_i)), is what the mapping check reads, and within 0.2 %
+    (two E24 parts cannot always reach 0.1 %: R32 = 56k || 240k is 0.16 % off, the best pair)."""
+    from circuitsim.synthesis.scalemap import ScaleMap
+
+    system = load_model().system(parameters={"V": 55.0, "f": 3.0}, nonlinear={"flange": False})
+    result = generate(system, tmp_path / "w.cir", SynthesisOptions(series="E24"))
+    scale = ScaleMap.load(result.scale_file)
+    G = [scale.states[s].volts_per_unit for s in system.states]
+    c = read_netlist(result.netlist)
+    names = {e.name.upper() for e in c.elements}
+    kinds = set()
+
+    def ohms(r):
+        if r in names:
+            return float(c.element(r).resistance)
+        a, b = c.element(r + "A"), c.element(r + "B")
+        ra, rb = float(a.resistance), float(b.resistance)
+        if a.nodes == b.nodes:
+            kinds.add("parallel")
+            return ra * rb / (ra + rb)
+        kinds.add("series")
+        return ra + rb
+
+    A = np.asarray(system.A)
+    for i, j, r in [(0, 2, "R1"), (1, 3, "R2"), (2, 0, "R31"), (2, 1, "R32"), (2, 2, "R33"),
+                    (3, 0, "R41"), (3, 1, "R42"), (3, 3, "R44")]:  # fmt: skip
+        capacitance = float(c.element(f"C{i + 1}").capacitance)
+        realized = G[j] / (scale.time_scale * G[i] * ohms(r) * capacitance)
+        assert realized == pytest.approx(abs(A[i, j]), rel=2e-3), r
+        (entry,) = [e for e in result.report.entries
+                    if e.what == f"A[{system.states[i]}, {system.states[j]}]"]  # fmt: skip
+        assert abs(entry.realized) == pytest.approx(realized, rel=1e-9)
+    assert kinds == {"series", "parallel"}
+    assert result.report.ok
