@@ -115,14 +115,15 @@ class Builder:
             values: tuple[float, ...] = (round_to_series(wanted, chosen),)
         else:
             values = series_pair(wanted, chosen, self.pair_tolerance, low)
+        kind = "series"
         if parallel and len(values) == 2 and abs(sum(values) / wanted - 1) > self.pair_tolerance:
             pair = parallel_pair(wanted, chosen, low)
             if pair is not None and abs(parallel_value(pair) / wanted - 1) < abs(
                 sum(values) / wanted - 1
             ):
-                return self._parallel(name, node_a, node_b, pair, chosen, role, target, ideal,
-                                      series_extra)  # fmt: skip
-        total = sum(values) + series_extra
+                values, kind = pair, "parallel"
+        combined = parallel_value(values) if kind == "parallel" else sum(values)
+        total = combined + series_extra
         realized = float(target * ideal / total) if not math.isnan(target) else math.nan
         if len(values) == 1:
             self.circuit.add(Resistor(name, node_a, node_b, values[0]))
@@ -130,31 +131,18 @@ class Builder:
                 BomEntry(name, values[0], "ohm", chosen, role, float(target), realized)
             )
             return total
-        first, second, middle = f"{name}A", f"{name}B", f"{name.lower()}_mid"
-        self.circuit.add(Resistor(first, node_a, middle, values[0]))
-        self.circuit.add(Resistor(second, middle, node_b, values[1]))
-        self.bom.append(
-            BomEntry(first, values[0], "ohm", chosen, f"{role}; series pair with {second}",
-                     float(target), realized)
-        )  # fmt: skip
-        self.bom.append(
-            BomEntry(second, values[1], "ohm", chosen, f"{role}; series pair with {first}")
-        )
-        return total
-
-    def _parallel(self, name, node_a, node_b, pair, chosen, role, target, ideal, extra) -> float:
-        """Place ``{name}A`` || ``{name}B`` (both between the nodes); returns the total ohms."""
-        total = parallel_value(pair) + extra
-        realized = float(target * ideal / total) if not math.isnan(target) else math.nan
         first, second = f"{name}A", f"{name}B"
-        self.circuit.add(Resistor(first, node_a, node_b, pair[0]))
-        self.circuit.add(Resistor(second, node_a, node_b, pair[1]))
+        # series: through the internal node {name}_mid; parallel: both between the nodes
+        middle = f"{name.lower()}_mid" if kind == "series" else node_b
+        self.circuit.add(Resistor(first, node_a, middle, values[0]))
+        self.circuit.add(Resistor(second, middle if kind == "series" else node_a, node_b,
+                                  values[1]))  # fmt: skip
         self.bom.append(
-            BomEntry(first, pair[0], "ohm", chosen, f"{role}; parallel pair with {second}",
+            BomEntry(first, values[0], "ohm", chosen, f"{role}; {kind} pair with {second}",
                      float(target), realized)
         )  # fmt: skip
         self.bom.append(
-            BomEntry(second, pair[1], "ohm", chosen, f"{role}; parallel pair with {first}")
+            BomEntry(second, values[1], "ohm", chosen, f"{role}; {kind} pair with {first}")
         )
         return total
 
