@@ -9,7 +9,9 @@ against one ngspice process per variant), ``profile`` (where the time of one bui
 run goes: the compiled kernel piece by piece, cProfile of the reference loop), ``scaling``
 (chains of N = 1..64 masses with a contact on each, and the wheelset: in-process and
 whole-process time against ngspice, accuracy against the direct ODE, growth exponents;
-``--sizes`` picks the chains). Prints text
+``--sizes`` picks the chains), ``startup`` (whole-process ``simulate`` of the wheelset against
+``ngspice -b``, where a process's time goes, the floor of numpy/scipy/numba, peak memory with
+and without ``--probe``; median of ``--repeat`` processes). Prints text
 tables and writes <part>.json / <part>.md and machine.json into --out (default
 benchmarks/results). Not part of the test suite.
 """
@@ -28,6 +30,7 @@ import bench_common  # noqa: E402
 import bench_golden  # noqa: E402
 import bench_profile  # noqa: E402
 import bench_scaling  # noqa: E402
+import bench_startup  # noqa: E402
 import bench_sweep  # noqa: E402
 import bench_wheelset  # noqa: E402
 
@@ -37,6 +40,7 @@ PARTS = {
     "sweep": bench_sweep,
     "profile": bench_profile,
     "scaling": bench_scaling,
+    "startup": bench_startup,
 }
 
 
@@ -61,6 +65,7 @@ def main(argv=None) -> int:
         bench_scaling.CHAIN_SIZES = tuple(args.sizes)
     parts = ["sweep"] if args.sweep else args.parts
     bench_common.REPEAT[0] = args.repeat
+    bench_startup.REPEAT[0] = max(args.repeat, 3)
     out = Path(args.out)
     machine = bench_common.machine()
     print("machine: " + ", ".join(f"{k} {v}" for k, v in machine.items()))

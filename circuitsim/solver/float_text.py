@@ -13,6 +13,8 @@ by Python's ``repr``. 17 correctly rounded digits read back to the same float.
 from __future__ import annotations
 
 import math
+import time
+import warnings
 from collections.abc import Iterator, Sequence
 from fractions import Fraction
 
@@ -21,6 +23,7 @@ from numba import njit
 
 LOW_EXPONENT, HIGH_EXPONENT = -270, 290  # decimal exponents formed here; outside: repr
 POWER_OFFSET = 16 - HIGH_EXPONENT  # POWERS[k - POWER_OFFSET] is 10**k
+COMPILE_KIND = "CSV writer"  # its name in the compile announcement and the timings file
 TOKEN = 24  # longest token: "-1.2345678901234567e-270"
 SPLITTER = 134217729.0  # 2**27 + 1 (Dekker)
 
@@ -186,8 +189,9 @@ def table_lines(table: np.ndarray, rows_per_chunk: int = 512) -> Iterator[bytes]
     table = np.asarray(table, dtype=np.float64)
     if table.ndim != 2 or table.shape[1] == 0:
         raise ValueError(f"table_lines: expected a 2-d table with columns, got {table.shape}")
-    for start in range(0, table.shape[0], rows_per_chunk):
-        yield _chunk_text(np.ascontiguousarray(table[start : start + rows_per_chunk]))
+    rows = range(0, table.shape[0], rows_per_chunk)
+    chunks = (np.ascontiguousarray(table[start : start + rows_per_chunk]) for start in rows)
+    yield from _compiled_chunks(chunks)
 
 
 def column_lines(columns: Sequence[np.ndarray], rows_per_chunk: int = 512) -> Iterator[bytes]:
@@ -206,11 +210,43 @@ def column_lines(columns: Sequence[np.ndarray], rows_per_chunk: int = 512) -> It
         raise ValueError(f"column_lines: expected 1-d columns of one length, got {lengths}")
     rows = columns[0].size
     chunk = np.empty((min(rows, rows_per_chunk), len(columns)))
-    for start in range(0, rows, rows_per_chunk):
-        count = min(rows_per_chunk, rows - start)
-        for j, column in enumerate(columns):
-            chunk[:count, j] = column[start : start + count]
-        yield _chunk_text(chunk[:count])
+
+    def chunks() -> Iterator[np.ndarray]:
+        for start in range(0, rows, rows_per_chunk):
+            count = min(rows_per_chunk, rows - start)
+            for j, column in enumerate(columns):
+                chunk[:count, j] = column[start : start + count]
+            yield chunk[:count]
+
+    yield from _compiled_chunks(chunks())
+
+
+def _compile_announced() -> float | None:
+    """Warn (a KernelCompileWarning with an estimate) when the writer must compile before it
+    runs: its first use after an install or a change (seconds to a minute; then it is kept
+    in the user cache directory). Returns when that compile started (None: nothing to
+    compile)."""
+    from circuitsim.solver.compiled.cache import compile_notice, is_cold
+    from circuitsim.solver.errors import KernelCompileWarning
+
+    if not is_cold(_write_rows):
+        return None
+    warnings.warn(KernelCompileWarning(compile_notice(COMPILE_KIND)), stacklevel=4)
+    return time.perf_counter()
+
+
+def _compiled_chunks(chunks: Iterator[np.ndarray]) -> Iterator[bytes]:
+    """The text of each chunk; a compile of the writer is announced first and its time
+    kept as the next estimate."""
+    from circuitsim.solver.compiled.cache import record_compile_seconds
+
+    compiling = _compile_announced()
+    for chunk in chunks:
+        text = _chunk_text(chunk)
+        if compiling is not None:
+            record_compile_seconds(COMPILE_KIND, time.perf_counter() - compiling)
+            compiling = None
+        yield text
 
 
 def _chunk_text(chunk: np.ndarray) -> bytes:

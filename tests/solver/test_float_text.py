@@ -75,3 +75,20 @@ def test_columns_are_written_as_their_stacked_table():
     assert b"".join(column_lines([c[:0] for c in columns])) == b""
     with pytest.raises(ValueError, match="one length"):
         list(column_lines([columns[0], columns[1][:5]]))
+
+
+def test_a_compile_of_the_writer_is_announced(monkeypatch):
+    import warnings
+
+    from circuitsim.solver.compiled import cache
+    from circuitsim.solver.errors import KernelCompileWarning
+
+    recorded = {}
+    monkeypatch.setattr(cache, "is_cold", lambda dispatcher: True)
+    monkeypatch.setattr(cache, "record_compile_seconds", lambda k, s: recorded.update({k: s}))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert table_text(np.array([[1.5, -2.0]])) == b"1.5,-2\n"
+    notices = [w for w in caught if issubclass(w.category, KernelCompileWarning)]
+    assert len(notices) == 1 and "compiling the CSV writer kernel" in str(notices[0].message)
+    assert list(recorded) == ["CSV writer"]
