@@ -152,7 +152,7 @@ def series_points(reader, table: dict, key: str) -> tuple[tuple[float, float], .
 
     Parameters
     ----------
-    reader : modelfile._Reader
+    reader : tomlfile.TableReader
         For ``fail`` (the ModelError of this model file) and ``file``.
     table : dict
         The ``[forcing.NAME]`` table.

@@ -1,26 +1,35 @@
 """Reading a model file (TOML) into a :class:`~circuitsim.mechanics.model.Model`.
 
 Everything the file says is checked here, and every problem becomes a ModelError naming the
-file, the dotted key and what is wrong. The format is documented in docs/model.md.
+file, the dotted key and what is wrong. The format is documented in docs/model.md. Finding
+the file, reading its TOML and the checked walk through its tables (TableReader):
+:mod:`circuitsim.mechanics.tomlfile`; here, what each section means.
 """
 
 from __future__ import annotations
 
 import math
-import os
-import re
-import tomllib
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 from circuitsim.mechanics.errors import ModelError
-from circuitsim.mechanics.expressions import RESERVED, ExpressionError, Item, parse
+from circuitsim.mechanics.expressions import Item
 from circuitsim.mechanics.forcingfile import ForcingSpec, read_forcing
 from circuitsim.mechanics.parameters import Parameter, read_parameters
 from circuitsim.mechanics.shapes import SHAPES, ShapeSpec, read_shape
+from circuitsim.mechanics.tomlfile import (  # noqa: F401 - BUILTIN, MAX_FILE_BYTES ... re-exported
+    BUILTIN,
+    MAX_FILE_BYTES,
+    TableReader,
+    builtin_path,
+    check_identifier,
+    load_toml,
+    model_path,
+    read_float,
+    shipped_models,
+    type_name,
+)
 
-BUILTIN = "wheelset"
 KINDS = ("second_order", "first_order")
 TOP_KEYS = {
     "model": "name, kind, description",
@@ -35,10 +44,6 @@ TOP_KEYS = {
     "initial": "initial conditions",
     "circuit": "free-form hints for the circuit translator",
 }
-
-MAX_FILE_BYTES = 16 * 2**20
-"""Largest model file read (16 MiB; a dense 1,000-state model is about 10 MiB): a bigger one is
-refused before it is read, not turned into a MemoryError halfway through."""
 
 
 @dataclass(frozen=True)
@@ -90,106 +95,6 @@ class ModelSpec:
     time_unit: str = "s"
 
 
-def builtin_path(name: str = BUILTIN) -> Path:
-    """Path of a model file shipped inside the package (``"wheelset"``)."""
-    return Path(str(resources.files("circuitsim.mechanics") / "models" / f"{name}.toml"))
-
-
-def shipped_models() -> tuple[str, ...]:
-    """Names of the model files shipped inside the package (``--model NAME``)."""
-    folder = builtin_path().parent
-    return tuple(sorted(p.stem for p in folder.glob("*.toml")))
-
-
-def model_path(path: str | Path | None) -> Path:
-    """The file ``--model`` means: a file that exists, else a shipped model's name.
-
-    ``None`` is the built-in wheelset; ``"bogie"`` (no such file here) is the shipped
-    ``bogie.toml``. Anything else is returned as given (reading it reports it missing).
-    """
-    if path is None:
-        return builtin_path()
-    path = Path(path)
-    if not path.exists() and path.name == str(path) and path.stem in shipped_models():
-        if path.suffix in ("", ".toml"):
-            return builtin_path(path.stem)
-    return path
-
-
-class _Reader:
-    """Walks the TOML document; ``fail`` raises the ModelError for this file."""
-
-    def __init__(self, file: str):
-        self.file = file
-
-    def fail(self, key: str | None, message: str) -> ModelError:
-        return ModelError(message, file=self.file, key=key)
-
-    def table(self, value, key: str, required: bool = True) -> dict:
-        if value is None:
-            if required:
-                raise self.fail(key, "missing table")
-            return {}
-        if not isinstance(value, dict):
-            raise self.fail(key, f"wrong type: expected a table, got {_type(value)}")
-        return value
-
-    def check_keys(self, table: dict, key: str, allowed: tuple[str, ...]) -> None:
-        for name in table:
-            if name not in allowed:
-                where = f"{key}.{name}" if key else name
-                raise self.fail(where, f"unknown key (allowed: {', '.join(allowed)})")
-
-    def string(self, table: dict, name: str, key: str, default: str | None = None) -> str:
-        if name not in table:
-            if default is None:
-                raise self.fail(f"{key}.{name}", "missing key")
-            return default
-        value = table[name]
-        if not isinstance(value, str):
-            raise self.fail(f"{key}.{name}", f"wrong type: expected a string, got {_type(value)}")
-        return value
-
-    def boolean(self, table: dict, name: str, key: str, default: bool) -> bool:
-        value = table.get(name, default)
-        if not isinstance(value, bool):
-            raise self.fail(
-                f"{key}.{name}", f"wrong type: expected true or false, got {_type(value)}"
-            )
-        return value
-
-    def names(self, table: dict, name: str, key: str) -> tuple[str, ...]:
-        value = table.get(name)
-        if value is None:
-            raise self.fail(f"{key}.{name}", "missing key")
-        if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
-            raise self.fail(f"{key}.{name}", "wrong type: expected a non-empty list of strings")
-        for entry in value:
-            _check_identifier(self, entry, f"{key}.{name}")
-        if len(set(value)) != len(value):
-            raise self.fail(f"{key}.{name}", "duplicate names")
-        return tuple(value)
-
-    def expression(self, value, key: str) -> Item:
-        try:
-            return Item(key, parse(value))
-        except ExpressionError as exc:
-            raise self.fail(key, f"bad expression: {exc}") from None
-
-
-def _type(value) -> str:
-    return {dict: "a table", list: "an array", str: "a string", bool: "a boolean"}.get(
-        type(value), type(value).__name__
-    )
-
-
-def _check_identifier(reader: _Reader, name: str, key: str) -> None:
-    if not name.isidentifier():
-        raise reader.fail(key, f"{name!r} is not a valid name (letters, digits, _)")
-    if name in RESERVED:
-        raise reader.fail(key, f"{name!r} is reserved (a function or constant of expressions)")
-
-
 def read_model(path: str | Path | None = None) -> ModelSpec:
     """Read and check a model file; ``None`` reads the built-in wheelset, a name without a
     file of that name a shipped model (``"bogie"``, see :func:`model_path`).
@@ -207,8 +112,8 @@ def read_model(path: str | Path | None = None) -> ModelSpec:
         reason = getattr(exc, "strerror", None) or str(exc)
         raise ModelError(f"cannot read: {reason}", file=str(path)) from None
     file = str(path)
-    reader = _Reader(file)
-    document = _load_toml(path, reader)
+    reader = TableReader(file)
+    document = load_toml(path, reader)
     reader.check_keys(document, "", tuple(TOP_KEYS))
 
     model = reader.table(document.get("model"), "model")
@@ -282,51 +187,6 @@ def read_model(path: str | Path | None = None) -> ModelSpec:
     )
 
 
-def _load_toml(path: Path, reader: _Reader) -> dict:
-    """The TOML document of ``path``; every way reading it can fail is a ModelError."""
-    try:
-        with open(path, "rb") as handle:
-            size = os.fstat(handle.fileno()).st_size
-            if size > MAX_FILE_BYTES:
-                raise reader.fail(
-                    None, f"too large: {size:,} bytes (a model file is at most "
-                    f"{MAX_FILE_BYTES:,} bytes)"
-                )  # fmt: skip
-            return tomllib.load(handle)
-    except ModelError:  # the size check's
-        raise
-    except FileNotFoundError:
-        shipped = ", ".join(shipped_models())
-        raise reader.fail(None, f"model file not found (shipped models: {shipped})") from None
-    except IsADirectoryError:
-        raise reader.fail(None, "is a folder, not a model file") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise reader.fail(None, f"not valid TOML: {exc}") from None
-    except ValueError as exc:  # tomllib's own: an integer past Python's 4,300-digit limit
-        if "digits" not in str(exc):
-            raise reader.fail(None, f"not valid TOML: {exc}") from None
-        line = _line_of_long_integer(path)
-        raise reader.fail(
-            None, f"not valid TOML: an integer of more than 4,300 digits{line}"
-        ) from None
-    except RecursionError:  # tomllib parses nested arrays and inline tables recursively
-        raise reader.fail(None, "not valid TOML: arrays or tables nested too deeply") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise reader.fail(None, f"cannot read: {exc}") from None
-
-
-def _line_of_long_integer(path: Path) -> str:
-    """`` (line N)`` of the first run of more than 4,300 digits in ``path``, for the message
-    (tomllib's own error has no position); empty if not found."""
-    with open(path, "rb") as handle:
-        data = handle.read(MAX_FILE_BYTES + 1)
-    match = re.search(rb"\d{4301,}", data)
-    if match is None:
-        return ""
-    line = data.count(b"\n", 0, match.start()) + 1
-    return f" (line {line})"
-
-
 def _rate(unit: str, time_unit: str = "s") -> str:
     """The unit of a coordinate's rate: ``m/s``; with a dimensionless time, the unit itself."""
     if not time_unit:
@@ -334,7 +194,7 @@ def _rate(unit: str, time_unit: str = "s") -> str:
     return f"1/{time_unit}" if unit in ("", "1") else f"{unit}/{time_unit}"
 
 
-def _units(reader: _Reader, section: dict, key: str, count: int) -> tuple[str, ...]:
+def _units(reader: TableReader, section: dict, key: str, count: int) -> tuple[str, ...]:
     if "units" not in section:
         return ("",) * count
     value = section["units"]
@@ -346,7 +206,7 @@ def _units(reader: _Reader, section: dict, key: str, count: int) -> tuple[str, .
 
 
 def _circuit_hints(
-    reader: _Reader,
+    reader: TableReader,
     circuit: dict,
     states: tuple[str, ...],
     parameters: dict,
@@ -393,26 +253,14 @@ def _circuit_hints(
             )
     for name, what in (("t_stop", "a number of seconds"), ("time_scale", "a number")):
         if name in circuit:
-            value = _float(reader, circuit[name], f"circuit.{name}", what)
+            value = read_float(reader, circuit[name], f"circuit.{name}", what)
             if not (math.isfinite(value) and value > 0):
                 raise reader.fail(
                     f"circuit.{name}", f"must be a positive {what[2:]}, got {circuit[name]}"
                 )
 
 
-def _float(reader: _Reader, value, key: str, what: str) -> float:
-    """``value`` as a float; a boolean, a string or an integer beyond the float range is
-    refused naming ``key``; ``what`` names what is expected ("a number")."""
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise reader.fail(key, f"wrong type: expected {what}, got {_type(value)}")
-    try:
-        return float(value)
-    except OverflowError:  # an integer of hundreds of digits
-        digits = len(str(abs(value)))
-        raise reader.fail(key, f"number too large: an integer of {digits:,} digits") from None
-
-
-def _part_names(reader: _Reader, value, key: str, what: str, known: tuple[str, ...]) -> None:
+def _part_names(reader: TableReader, value, key: str, what: str, known: tuple[str, ...]) -> None:
     """A table of part names (strings) keyed by names in ``known`` (each a ``what``)."""
     for name, part in reader.table(value, key, False).items():
         if name not in known:
@@ -420,28 +268,30 @@ def _part_names(reader: _Reader, value, key: str, what: str, known: tuple[str, .
                 f"{key}.{name}", f"not a {what} of the model (known: {', '.join(known)})"
             )
         if not isinstance(part, str) or not part.strip():
-            raise reader.fail(f"{key}.{name}", f"expected a part name, got {_type(part)}")
+            raise reader.fail(f"{key}.{name}", f"expected a part name, got {type_name(part)}")
 
 
-def _parameters(reader: _Reader, document: dict) -> dict[str, Parameter]:
+def _parameters(reader: TableReader, document: dict) -> dict[str, Parameter]:
     table = reader.table(document.get("parameters"), "parameters", False)
-    return read_parameters(reader, table, _check_identifier)
+    return read_parameters(reader, table, check_identifier)
 
 
-def _options(reader: _Reader, document: dict, parameters: dict) -> dict[str, str]:
+def _options(reader: TableReader, document: dict, parameters: dict) -> dict[str, str]:
     table = reader.table(document.get("options"), "options", False)
     options = {}
     for option, target in table.items():
         key = f"options.{option}"
         if not isinstance(target, str):
-            raise reader.fail(key, f"wrong type: expected a parameter name, got {_type(target)}")
+            raise reader.fail(
+                key, f"wrong type: expected a parameter name, got {type_name(target)}"
+            )
         if target not in parameters:
             raise reader.fail(key, f"unknown parameter {target!r}")
         options[option] = target
     return options
 
 
-def _coefficient_sets(reader: _Reader, document: dict, parameters: dict):
+def _coefficient_sets(reader: TableReader, document: dict, parameters: dict):
     table = reader.table(document.get("coefficients"), "coefficients", False)
     sets: dict[str, tuple[tuple[str, Item], ...]] = {}
     default = None
@@ -449,13 +299,13 @@ def _coefficient_sets(reader: _Reader, document: dict, parameters: dict):
         key = f"coefficients.{name}"
         if name == "default":
             if not isinstance(entries, str):
-                raise reader.fail(key, f"wrong type: expected a set name, got {_type(entries)}")
+                raise reader.fail(key, f"wrong type: expected a set name, got {type_name(entries)}")
             default = entries
             continue
         entries = reader.table(entries, key)
         items = []
         for coefficient, value in entries.items():
-            _check_identifier(reader, coefficient, f"{key}.{coefficient}")
+            check_identifier(reader, coefficient, f"{key}.{coefficient}")
             if coefficient in parameters:
                 raise reader.fail(
                     f"{key}.{coefficient}", "a coefficient may not reuse a parameter's name"
@@ -473,7 +323,7 @@ def _coefficient_sets(reader: _Reader, document: dict, parameters: dict):
     return sets, default
 
 
-def _matrices(reader: _Reader, document: dict, kind: str, size: int) -> dict:
+def _matrices(reader: TableReader, document: dict, kind: str, size: int) -> dict:
     table = reader.table(document.get("matrices"), "matrices")
     if kind == "second_order":
         square, vectors, required = ("M", "C", "K"), ("F",), ("M", "K")
@@ -508,7 +358,7 @@ def _matrices(reader: _Reader, document: dict, kind: str, size: int) -> dict:
         key = f"matrices.{name}"
         values = table[name]
         if not isinstance(values, list):
-            raise reader.fail(key, f"wrong type: expected an array, got {_type(values)}")
+            raise reader.fail(key, f"wrong type: expected an array, got {type_name(values)}")
         if len(values) != size:
             raise reader.fail(key, f"wrong length: expected {size}, got {len(values)}")
         matrices[name] = [reader.expression(v, f"{key}[{j}]") for j, v in enumerate(values)]
@@ -516,7 +366,7 @@ def _matrices(reader: _Reader, document: dict, kind: str, size: int) -> dict:
 
 
 def _row(
-    reader: _Reader,
+    reader: TableReader,
     value,
     key: str,
     names: tuple[str, ...],
@@ -546,10 +396,10 @@ def _row(
                 f"wrong row length: expected {expected} ({', '.join(names)}), got {len(value)}",
             )
         return {i: reader.expression(v, f"{key}[{i}]") for i, v in enumerate(value)}
-    raise reader.fail(key, f"wrong type: expected a table or an array, got {_type(value)}")
+    raise reader.fail(key, f"wrong type: expected a table or an array, got {type_name(value)}")
 
 
-def _optional(reader: _Reader, table: dict, name: str, key: str, default) -> Item:
+def _optional(reader: TableReader, table: dict, name: str, key: str, default) -> Item:
     return reader.expression(table.get(name, default), f"{key}.{name}")
 
 
@@ -564,7 +414,7 @@ def _nonlinear(reader, table, key, states, equations, kind) -> NonlinearSpec:
     abs_list = table.get("abs", [])
     if not isinstance(abs_list, list):
         raise reader.fail(
-            f"{key}.abs", f"wrong type: expected an array of tables, got {_type(abs_list)}"
+            f"{key}.abs", f"wrong type: expected an array of tables, got {type_name(abs_list)}"
         )
     terms = []
     for i, entry in enumerate(abs_list):
