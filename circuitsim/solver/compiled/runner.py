@@ -309,7 +309,12 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     keep = recorded(out_t, start.tstart, start.min_step, start.uic)
     if kind != "ports" and rows is not None:
         out_x = out_x[:, np.asarray(rows, dtype=np.int64)]
-    return out_t[keep].copy(), out_x[keep].copy()
+    # times increase, so the points kept are a tail: returned as views of the output arrays
+    # (the recorded table is the largest thing a run holds; a copy doubled a long run's peak)
+    first = count - int(np.count_nonzero(keep))
+    if keep[first:].all():
+        return out_t[first:], out_x[first:]
+    return out_t[keep], out_x[keep]
 
 
 def _announce_compile(kind: str, dispatcher) -> bool:
