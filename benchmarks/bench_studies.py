@@ -27,12 +27,27 @@ import time
 
 import numpy as np
 
+from circuitsim.compare.sweep_measure import InProcess
 from circuitsim.compare.values import parse_values
 from circuitsim.mechanics import load_model
 from circuitsim.studies.execution import DaskExecutor
 from circuitsim.studies.grid import full_grid
 from circuitsim.studies.study import run_grid
 from circuitsim.synthesis.options import SynthesisOptions
+
+
+class _CpuTimed:
+    """An executor with the CPU seconds of this process while it ran."""
+
+    def __init__(self, inner) -> None:
+        self.inner, self.cpu = inner, 0.0
+
+    def __call__(self, *args):
+        started = time.process_time()
+        try:
+            return self.inner(*args)
+        finally:
+            self.cpu = time.process_time() - started
 
 
 def _empty() -> int:
@@ -69,12 +84,15 @@ def main() -> None:
     options = SynthesisOptions(t_stop=args.tstop)
     results = {}
     for threads in (1, 2):
-        result = run_grid(systems, grid, options=options, window=1.0, workers=threads)
+        executor = _CpuTimed(InProcess(threads))
+        result = run_grid(systems, grid, options=options, window=1.0, executor=executor)
+        cpu = executor.cpu
         results[f"in-process {threads} thread(s)"] = result
         s = result.sweep
         print(f"in-process, {threads} thread(s): synthesis {s.timings['synthesis']:.2f} s, "
               f"simulation {s.timings['simulation']:.2f} s = "
-              f"{len(grid) / s.timings['simulation']:.1f} variants/s; shared start "
+              f"{len(grid) / s.timings['simulation']:.1f} variants/s; CPU "
+              f"{1e3 * cpu / len(grid):.1f} ms per variant; shared start "
               f"{s.stats['shared_start']}; load {os.getloadavg()}")  # fmt: skip
     reference = results["in-process 1 thread(s)"]
     for workers in (int(w) for w in args.workers.split(",")):
@@ -104,11 +122,13 @@ def main() -> None:
         for info in x["batch_info"]:  # in the order they ended: a worker's first ends first
             per = info["wall_s"] / info["variants"]
             (later.append(per) if info["pid"] in first else first.setdefault(info["pid"], per))
+        cpu = sum(i["cpu_s"] for i in x["batch_info"])
         excess = ", ".join(f"{v / np.mean(later):.2f}" for v in first.values()) if later else "-"
         print(f"dask LocalCluster {workers} worker(s): cluster start {up:.2f} s; simulation "
               f"{wall:.2f} s = {len(grid) / wall:.1f} variants/s "
               f"({len(grid) / wall / workers:.1f} per worker); {x['batches']} batches of "
-              f"{x['batch_size']}; batches' own time {x['batch_wall_s']:.2f} s; kernel loading "
+              f"{x['batch_size']}; batches' own time {x['batch_wall_s']:.2f} s, CPU "
+              f"{cpu:.2f} s = {1e3 * cpu / len(grid):.1f} ms per variant; kernel loading "
               f"before the first batch {warm} s; first batch's time per variant / later "
               f"batches' {excess}; overhead per task {overhead:.3f} s; empty-task round "
               f"trip {1e3 * trip:.2f} ms; identical to in-process: {same}; "

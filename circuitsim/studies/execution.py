@@ -117,15 +117,17 @@ def run_batch(
     -------
     outcomes : list of VariantOutcome
     info : dict
-        ``pid``, ``wall_s`` (the whole task on the worker), ``warm_up_s`` (loading the
+        ``pid``, ``wall_s`` (the whole task on the worker), ``cpu_s`` (the worker process's
+        CPU seconds meanwhile), ``warm_up_s`` (loading the
         compiled kernels, in a worker's first batch only; else 0).
     """
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.process_time()
     warm = warm_worker()
     outcomes = measure_batch(circuits, base, measure, first, threads)
     info = {
         "pid": os.getpid(),
         "wall_s": time.perf_counter() - started,
+        "cpu_s": time.process_time() - cpu,  # the worker process's, its other threads included
         "warm_up_s": warm,
         "variants": len(circuits),
     }

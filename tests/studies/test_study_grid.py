@@ -202,3 +202,30 @@ def test_sweep_verb_two_parameter_grid_writes_tidy_csv_and_map(tmp_path):
     rows = list(csv.DictReader((tmp_path / "sweep.csv").open()))
     assert len(rows) == 8
     assert (tmp_path / "sweep.png").stat().st_size > 0
+
+
+def test_variants_whose_capacitors_differ_are_assembled_on_their_own():
+    """The initial displacement sets the y integrator's capacitor's initial voltage: such
+    variants cannot run from the base circuit's shared start (resistor changes only); they
+    are assembled on their own, counted apart, and still equal their single runs."""
+    grid = full_grid(["V", "y0"], ["m/s", "m"], [np.array([50.0, 60.0]), np.array([3e-3, 5e-3])])
+    model = load_model()
+    systems = [
+        model.system(parameters={"a": 0.0, **dict(grid.assignments(k))}) for k in range(len(grid))
+    ]
+    options = SynthesisOptions(t_stop=0.3)
+    result = run_grid(systems, grid, options=options, window=0.1, workers=2)
+    variants = sweep_circuits(systems, options)
+    base = variants.circuits[len(grid) // 2]  # V 60, y0 3 mm
+    assert not variants.rescaled and "C1" in variants.changed
+    # the base's y0 (V 50 differs from it in resistors only) from the shared start; the other
+    # y0's two variants (their C1 starts elsewhere) assembled on their own
+    assert result.sweep.stats["shared_start"] == 2
+    for k, circuit in enumerate(variants.circuits):
+        same_ic = circuit.element("C1") == base.element("C1")
+        assert same_ic == (grid.points[k, 1] == 3e-3)
+        waves = simulate(circuit, SimulationOptions.from_circuit(circuit, kernel="ports"))
+        t, y = map_waveforms(waves, variants.scale_map, ["y"])["y"]
+        assert result.sweep.peak_all[k] == pytest.approx(np.max(np.abs(y)), rel=1e-12)
+        exact = solve(systems[k], t_span=(0.0, 0.3)).max_abs("y")
+        assert result.sweep.peak_all[k] == pytest.approx(exact, rel=2e-3)
