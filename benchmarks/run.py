@@ -1,6 +1,7 @@
 """Benchmark harness: our MNA solver against ngspice, at equal accuracy, and speed sweeps.
 
-    python benchmarks/run.py [--quick] [--out DIR] [--parts wheelset golden sweep profile scaling]
+    python benchmarks/run.py [--quick] [--out DIR] [--parts wheelset golden sweep profile scaling
+                                                           macromodels]
 
 Parts: ``wheelset`` (work-precision of the generated wheelset circuit, ideal and TL074 op-amps,
 against the direct ODE solution), ``golden`` (tests/solver/golden netlists: time ratio and max
@@ -11,7 +12,9 @@ run goes: the compiled kernel piece by piece, cProfile of the reference loop), `
 whole-process time against ngspice, accuracy against the direct ODE, growth exponents;
 ``--sizes`` picks the chains), ``startup`` (whole-process ``simulate`` of the wheelset against
 ``ngspice -b``, where a process's time goes, the floor of numpy/scipy/numba, peak memory with
-and without ``--probe``; median of ``--repeat`` processes). Prints text
+and without ``--probe``; median of ``--repeat`` processes), ``macromodels`` (the wheelset with
+the JFET-input and bipolar Boyle op-amps of netlist/library/macromodels.lib, and the built-in
+TL074: time and accuracy against ngspice and the ODE; only when named in --parts). Prints text
 tables and writes <part>.json / <part>.md and machine.json into --out (default
 benchmarks/results). Not part of the test suite.
 """
@@ -28,6 +31,7 @@ sys.path.insert(0, str(HERE))
 
 import bench_common  # noqa: E402
 import bench_golden  # noqa: E402
+import bench_macromodels  # noqa: E402
 import bench_profile  # noqa: E402
 import bench_scaling  # noqa: E402
 import bench_startup  # noqa: E402
@@ -41,6 +45,7 @@ PARTS = {
     "profile": bench_profile,
     "scaling": bench_scaling,
     "startup": bench_startup,
+    "macromodels": bench_macromodels,
 }
 
 
@@ -52,7 +57,12 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer settings and variants")
     parser.add_argument("--out", default=str(HERE / "results"), help="folder for JSON/markdown")
-    parser.add_argument("--parts", nargs="+", choices=list(PARTS), default=list(PARTS))
+    parser.add_argument(
+        "--parts",
+        nargs="+",
+        choices=list(PARTS),
+        default=[p for p in PARTS if p != "macromodels"],  # minutes of numpy loop: asked for
+    )
     parser.add_argument("--sweep", action="store_true", help="only the sweep part")
     parser.add_argument(
         "--repeat", type=int, default=1, help="wheelset/golden: best of N runs (default 1)"

@@ -13,12 +13,14 @@ from circuitsim.cli.common import (
     add_knob_options,
     add_model_options,
     add_ngspice_timeout,
+    add_opamp_options,
     add_scenario_options,
     add_time_scale,
     add_translator_options,
     check_scenario_options,
     check_translator_options,
     knob_request,
+    opamp_fields,
     prepare_output_folder,
     print_warning,
     progress,
@@ -157,9 +159,7 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:
     )
     add_model_options(parser)
     add_scenario_options(parser)
-    parser.add_argument(
-        "--opamp", choices=("ideal", "tl074"), default="ideal", help="op-amp model (default ideal)"
-    )
+    add_opamp_options(parser)
     parser.add_argument(
         "--series",
         choices=("exact", "E96", "E24"),
@@ -264,6 +264,7 @@ def _check_given_inputs(args: argparse.Namespace) -> None:
         name
         for name, value in (
             ("--series", args.series != "exact"),
+            ("--opamp-lib", args.opamp_lib is not None),
             ("--tstop", args.tstop is not None),
             ("--time-scale", args.time_scale is not None),
             ("--write-netlist", args.write_netlist is not None),
@@ -290,6 +291,7 @@ def _run_compare(args: argparse.Namespace) -> int:
     from circuitsim.synthesis.options import SynthesisOptions
 
     _check_compare(args)
+    fields = opamp_fields(args)
     thresholds = replace(
         Thresholds.for_opamp(args.opamp),
         peak_ratio_tolerance=args.tolerance,
@@ -301,9 +303,10 @@ def _run_compare(args: argparse.Namespace) -> int:
         return _compare_given(args, thresholds)
     args.engine = args.engine or "builtin"
     options = SynthesisOptions(
-        opamp=args.opamp, series=args.series, t_stop=args.tstop, time_scale=args.time_scale
+        **fields, series=args.series, t_stop=args.tstop, time_scale=args.time_scale
     )
-    label = f"{args.engine}, {args.opamp}, {args.series}"
+    opamp = args.opamp_subckt if args.opamp == "lib" else args.opamp
+    label = f"{args.engine}, {opamp}, {args.series}"
     system = scenario_system(args)
     case = run_case(
         system,

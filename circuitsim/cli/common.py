@@ -548,12 +548,48 @@ def add_time_scale(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def add_translator_options(parser: argparse.ArgumentParser, series: str = "E96") -> None:
-    """The translator's options (generate, bench): --opamp, --nonlinear, --scaling, --swing,
-    --range, --time-scale, --series (default ``series``) and --pair-tolerance."""
+def add_opamp_options(parser: argparse.ArgumentParser) -> None:
+    """--opamp, --opamp-lib FILE and --opamp-subckt NAME (read with :func:`opamp_fields`)."""
     parser.add_argument(
-        "--opamp", choices=("ideal", "tl074"), default="ideal", help="op-amp model (default ideal)"
+        "--opamp", choices=("ideal", "tl074"), default=None, help="op-amp model (default ideal)"
     )
+    parser.add_argument(
+        "--opamp-lib",
+        metavar="FILE",
+        help="use an op-amp subcircuit from this SPICE library file instead of the built-in "
+        "models (with --opamp-subckt; pins in+ in- V+ V- out, checked on loading; "
+        "docs/parts.md)",
+    )
+    parser.add_argument(
+        "--opamp-subckt", metavar="NAME", help="the op-amp subcircuit of --opamp-lib"
+    )
+
+
+def opamp_fields(args: argparse.Namespace) -> dict:
+    """``SynthesisOptions`` fields of :func:`add_opamp_options`' options; ``args.opamp`` is
+    set to the kind (``"lib"`` for a library op-amp).
+
+    Raises
+    ------
+    UsageError
+        Only one of --opamp-lib and --opamp-subckt, or --opamp with --opamp-lib.
+    """
+    if (args.opamp_lib is None) != (args.opamp_subckt is None):
+        raise UsageError("--opamp-lib FILE and --opamp-subckt NAME go together")
+    if args.opamp_lib is None:
+        args.opamp = args.opamp or "ideal"
+        return {"opamp": args.opamp}
+    if args.opamp is not None:
+        raise UsageError(f"--opamp {args.opamp} and --opamp-lib: choose one op-amp model")
+    args.opamp = "lib"
+    return {"opamp": "lib", "opamp_lib": args.opamp_lib, "opamp_subckt": args.opamp_subckt}
+
+
+def add_translator_options(parser: argparse.ArgumentParser, series: str = "E96") -> None:
+    """The translator's options (generate, bench): --opamp (and --opamp-lib, --opamp-subckt),
+    --nonlinear, --scaling, --swing, --range, --time-scale, --series (default ``series``) and
+    --pair-tolerance."""
+    add_opamp_options(parser)
     parser.add_argument(
         "--nonlinear",
         choices=("abs", "deadzone"),
@@ -614,7 +650,7 @@ def translator_options(args: argparse.Namespace):
     from circuitsim.synthesis.options import SynthesisOptions
 
     return SynthesisOptions(
-        opamp=args.opamp,
+        **opamp_fields(args),
         nonlinear=args.nonlinear,
         scaling=args.scaling,
         swing=args.swing,

@@ -173,8 +173,8 @@ def add_dead_zone(
         raise SynthesisError(f"dead-zone half-width must be > 0 V, got {eta_volts!r}")
     if bias not in ("sources", "supplies"):
         raise SynthesisError(f"bias must be 'sources' or 'supplies', got {bias!r}")
-    if bias == "supplies" and kind != "tl074":
-        raise SynthesisError("bias from the supplies needs real op-amps (kind 'tl074')")
+    if bias == "supplies" and kind == "ideal":
+        raise SynthesisError("bias from the supplies needs real op-amps (kind 'tl074' or 'lib:')")
     p, n = prefix, prefix.lower()
     r = float(resistance)
     diode = ensure_diode_model(circuit)

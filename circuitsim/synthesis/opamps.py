@@ -13,7 +13,10 @@ from circuitsim.netlist.circuit import Circuit, SubcircuitCall, VoltageSource
 from circuitsim.synthesis.errors import SynthesisError
 
 OPAMP_KINDS = ("ideal", "tl074")
-"""Op-amp kinds ``add_opamp`` knows."""
+"""Op-amp kinds ``add_opamp`` knows, besides ``"lib:NAME"`` (a user's library subcircuit
+``NAME``, put into the circuit first by :func:`circuitsim.synthesis.opamp_library.install`)."""
+
+LIBRARY_PREFIX = "lib:"
 
 SUBCIRCUIT_OF_KIND = {"ideal": "OPAMP_IDEAL", "tl074": "TL074"}
 """Library subcircuit used for each op-amp kind."""
@@ -29,11 +32,31 @@ DIODE_MODEL = "D1N4148"
 
 
 def check_kind(kind: str) -> str:
-    """``kind`` lower-cased if it is one of :data:`OPAMP_KINDS`; SynthesisError otherwise."""
+    """``kind`` lower-cased if it is one of :data:`OPAMP_KINDS` or ``"lib:NAME"``;
+    SynthesisError otherwise."""
     key = kind.lower() if isinstance(kind, str) else kind
-    if key not in OPAMP_KINDS:
-        raise SynthesisError(f"unknown op-amp kind {kind!r}; expected one of {OPAMP_KINDS}")
+    if key not in OPAMP_KINDS and not (
+        isinstance(key, str) and key.startswith(LIBRARY_PREFIX) and len(key) > len(LIBRARY_PREFIX)
+    ):
+        raise SynthesisError(
+            f"unknown op-amp kind {kind!r}; expected one of {OPAMP_KINDS} or 'lib:NAME'"
+        )
     return key
+
+
+def is_opamp_call(circuit: Circuit, element) -> bool:
+    """Whether ``element`` is an op-amp section the generator placed: a call of a part-library
+    op-amp, or of a 5-pin subcircuit with the supplies on pins 3 and 4 (a library op-amp)."""
+    if not isinstance(element, SubcircuitCall):
+        return False
+    if element.subcircuit.lower() in (s.lower() for s in SUBCIRCUIT_OF_KIND.values()):
+        return True
+    definition = circuit.subcircuits.get(element.subcircuit.lower())
+    return (
+        definition is not None
+        and len(definition.ports) == 5
+        and tuple(c.lower() for c in element.connections[2:4]) == SUPPLY_NODES
+    )
 
 
 def add_opamp(
@@ -58,9 +81,10 @@ def add_opamp(
         The subcircuit-call name, starting with ``X``.
     non_inverting, inverting, output : str
         Node names (lower case by the circuit's convention).
-    kind : {"ideal", "tl074"}
+    kind : {"ideal", "tl074", "lib:NAME"}
         ``ideal``: ``OPAMP_IDEAL`` (in+ in- out), a gain-1e6 VCVS. ``tl074``: the TL074-like
-        macromodel, connections (in+, in-, vcc, vee, out).
+        macromodel, connections (in+, in-, vcc, vee, out). ``lib:NAME``: the circuit's
+        subcircuit NAME (a user's library op-amp), connected as the TL074.
     offset_volts : float, optional
         Input offset voltage of a ``tl074`` section, volts (datasheet typical 3e-3); 0 leaves
         the parameter at the library default (0). Not allowed for ``ideal``.
@@ -78,9 +102,20 @@ def add_opamp(
         raise SynthesisError(f"element name {name!r} is already used in the circuit")
     params = {}
     if offset_volts:
-        if key == "ideal":
-            raise SynthesisError("an ideal op-amp has no input offset; use kind 'tl074'")
+        if key != "tl074":
+            raise SynthesisError(f"a {key} op-amp has no input offset parameter; use 'tl074'")
         params["vos"] = float(offset_volts)
+    if key.startswith(LIBRARY_PREFIX):
+        definition = circuit.subcircuits.get(key[len(LIBRARY_PREFIX) :])
+        if definition is None:
+            raise SynthesisError(
+                f"op-amp kind {kind!r}: the circuit has no such subcircuit (install the "
+                "library op-amp first)"
+            )
+        ensure_supplies(circuit)
+        connections = (non_inverting, inverting, *SUPPLY_NODES, output)
+        circuit.add(SubcircuitCall(name, connections, definition.name, params))
+        return
     subckt_name = SUBCIRCUIT_OF_KIND[key]
     if key == "ideal":
         connections = (non_inverting, inverting, output)

@@ -8,7 +8,8 @@ from dataclasses import dataclass, field
 from circuitsim.synthesis.errors import SynthesisError
 
 #: Peak output swing (V) beyond which a signal is reported as clipping, per op-amp kind.
-SWING_LIMIT = {"ideal": math.inf, "tl074": 13.0}
+#: A library op-amp ("lib") is assumed to swing as the TL074 on the same +/-15 V supplies.
+SWING_LIMIT = {"ideal": math.inf, "tl074": 13.0, "lib": 13.0}
 
 
 @dataclass(frozen=True)
@@ -18,7 +19,11 @@ class SynthesisOptions:
     Attributes
     ----------
     opamp : str
-        ``"ideal"`` (high-gain controlled source) or ``"tl074"`` (macromodel, +/-15 V supplies).
+        ``"ideal"`` (high-gain controlled source), ``"tl074"`` (macromodel, +/-15 V supplies)
+        or ``"lib"``: the 5-pin subcircuit ``opamp_subckt`` of the library file ``opamp_lib``
+        (pins in+, in-, V+, V-, out; see :mod:`circuitsim.synthesis.opamp_library`).
+    opamp_lib, opamp_subckt : str or None
+        The library file and subcircuit name of ``opamp="lib"`` (both given then, else None).
     nonlinear : str
         ``"abs"``: each piecewise-linear term literally from precision |x| blocks (the paper's
         form); ``"deadzone"``: one dead-zone block where the term has that shape.
@@ -54,6 +59,8 @@ class SynthesisOptions:
     """
 
     opamp: str = "ideal"
+    opamp_lib: str | None = None
+    opamp_subckt: str | None = None
     nonlinear: str = "abs"
     scaling: str = "auto"
     swing: float = 5.0
@@ -73,7 +80,7 @@ class SynthesisOptions:
     def validated(self) -> SynthesisOptions:
         """Self, after checking every field; SynthesisError naming the bad option."""
         choices = {
-            "opamp": ("ideal", "tl074"),
+            "opamp": ("ideal", "tl074", "lib"),
             "nonlinear": ("abs", "deadzone"),
             "scaling": ("auto", "unity"),
         }
@@ -82,6 +89,12 @@ class SynthesisOptions:
                 raise SynthesisError(
                     f"option {key}={getattr(self, key)!r}: choose one of {', '.join(allowed)}"
                 )
+        library = (self.opamp_lib is not None, self.opamp_subckt is not None)
+        if (self.opamp == "lib") != all(library) or any(library) != all(library):
+            raise SynthesisError(
+                "option opamp='lib' goes with both opamp_lib (a library file) and opamp_subckt "
+                "(its op-amp subcircuit), and they with it"
+            )
         if self.series.lower() not in ("e96", "e24", "exact"):
             raise SynthesisError(f"option series={self.series!r}: choose E96, E24 or exact")
         positive = ("swing", "time_scale", "r_min", "r_max", "r_unit", "switch_ron",

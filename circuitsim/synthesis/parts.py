@@ -26,7 +26,7 @@ from circuitsim.netlist.circuit import (
 )
 from circuitsim.synthesis.blocks import BomEntry
 from circuitsim.synthesis.eseries import E24, E96, _decade
-from circuitsim.synthesis.opamps import SUBCIRCUIT_OF_KIND, SUPPLY_NODES
+from circuitsim.synthesis.opamps import SUPPLY_NODES, is_opamp_call
 
 E6 = (1.0, 1.5, 2.2, 3.3, 4.7, 6.8)
 E12 = (1.0, 1.2, 1.5, 1.8, 2.2, 2.7, 3.3, 3.9, 4.7, 5.6, 6.8, 8.2)
@@ -169,11 +169,11 @@ def board_parts(circuit: Circuit, bom: list[BomEntry]) -> list[Part]:
 
 def _opamp_model(circuit: Circuit, element) -> str | None:
     """The library subcircuit name if ``element`` is an op-amp section, else None."""
-    if not isinstance(element, SubcircuitCall):
+    if not is_opamp_call(circuit, element):
         return None
     definition = circuit.subcircuits.get(element.subcircuit.lower())
     name = definition.name if definition is not None else element.subcircuit
-    return name.upper() if name.upper() in SUBCIRCUIT_OF_KIND.values() else None
+    return name.upper()
 
 
 def _opamp_role(element: SubcircuitCall) -> str:

@@ -27,8 +27,7 @@ from circuitsim.netlist.circuit import (
     VoltageSource,
 )
 from circuitsim.synthesis.errors import SynthesisError
-
-OPAMP_SUBCIRCUITS = ("opamp_ideal", "tl074")
+from circuitsim.synthesis.opamps import is_opamp_call
 
 
 @dataclass
@@ -75,7 +74,7 @@ class CircuitReader:
                 self.by_node.setdefault(node.lower(), []).append(e)
         self.opamp_by_out: dict[str, SubcircuitCall] = {}
         for e in circuit.elements:
-            if isinstance(e, SubcircuitCall) and e.subcircuit.lower() in OPAMP_SUBCIRCUITS:
+            if is_opamp_call(circuit, e):
                 self.opamp_by_out[e.connections[-1].lower()] = e
         self.names = {e.name.lower(): e for e in circuit.elements}
         self.state_expr: dict[str, Affine] = {}

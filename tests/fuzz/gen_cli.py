@@ -47,12 +47,12 @@ EXTRA_OPTIONS = [
     "--eigenvalues", "--nosuch", "-o", "--csv", "--plot", "--netlist", "--out",
     "--write-netlist", "--raw", "--scale", "--states", "--forcing", "--ngspice-timeout",
     "--log", "--pair-tolerance", "--speed-range", "--knob", "--pot-series",
-    "--schematic",
+    "--schematic", "--opamp-lib", "--opamp-subckt",
 ]  # fmt: skip
 
 PATH_OPTIONS = (
     "-o", "--csv", "--plot", "--netlist", "--out", "--model", "--write-netlist", "--raw",
-    "--scale", "--states", "--schematic",
+    "--scale", "--states", "--schematic", "--opamp-lib",
 )  # options whose value is a path: mutated with hostile paths
 
 
