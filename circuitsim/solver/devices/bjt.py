@@ -169,7 +169,6 @@ class BjtFamily(TransistorFamily):
         self.slots = layout.add_charges(2 * len(elements)) if self.has_charge else None
         m = len(elements)
         self.v = np.zeros((2, m))  # (v_be, v_bc) of the last load, n-p-n frame
-        self.v_accepted = np.zeros((2, m))
         self.lin = None
 
     def stamp_linear(self, stamps: Stamps) -> None:
@@ -189,7 +188,10 @@ class BjtFamily(TransistorFamily):
     def _limited(self, v: np.ndarray, ctx: StepContext) -> np.ndarray:
         if ctx.init_junction:  # BJTload's MODEINITJCT start
             return np.stack([self.vcrit, np.zeros_like(self.vcrit)])
-        old = self.v_accepted if ctx.first_iteration else self.v
+        # against the last evaluation, also on a new step's first iteration and after
+        # a failed attempt (ngspice's state0): a retry goes on where the failed
+        # attempt's limiting had got to instead of climbing the same ladder again
+        old = self.v
         vbe, hit_be = pnjlim(v[0], old[0], self.vt, self.vcrit)
         vbc, hit_bc = pnjlim(v[1], old[1], self.vt, self.vcrit)
         ctx.noncon += hit_be or hit_bc

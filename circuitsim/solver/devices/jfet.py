@@ -96,7 +96,6 @@ class JfetFamily(TransistorFamily):
         self.slots = layout.add_charges(2 * len(elements)) if self.has_charge else None
         m = len(elements)
         self.v = np.zeros((2, m))  # (v_gs, v_gd) of the last load, n-channel frame
-        self.v_accepted = np.zeros((2, m))
         self.lin = None  # (currents, conductances, voltages) in the circuit's frame
 
     def stamp_linear(self, stamps: Stamps) -> None:
@@ -107,7 +106,10 @@ class JfetFamily(TransistorFamily):
         """ngspice's JFET limiting of (v_gs, v_gd), n-channel frame."""
         if ctx.init_junction:
             return np.full_like(v, -1.0)  # JFETload's MODEINITJCT start
-        old = self.v_accepted if ctx.first_iteration else self.v
+        # against the last evaluation, also on a new step's first iteration and after
+        # a failed attempt (ngspice's state0): a retry goes on where the failed
+        # attempt's limiting had got to instead of climbing the same ladder again
+        old = self.v
         out = np.empty_like(v)
         limited = False
         for k in range(2):

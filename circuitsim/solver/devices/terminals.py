@@ -96,10 +96,6 @@ class TransistorFamily(DeviceFamily):
             *self.lin, self.terminal.voltages(x_ext), self.options.reltol, self.options.abstol
         )
 
-    def accept(self, x_ext: np.ndarray, ctx: StepContext) -> bool:
-        self.v_accepted = self.polarity * self.terminal.voltages(x_ext)
-        return False
-
     def kernel_data(self) -> dict | None:
         return None  # the compiled kernels have no transistors: the numpy loop runs them
 
