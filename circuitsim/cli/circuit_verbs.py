@@ -437,7 +437,10 @@ def _add_reproduce(sub: argparse._SubParsersAction) -> None:
         "--opamp", action="append", choices=("ideal", "tl074"), help="repeatable; default both"
     )
     parser.add_argument(
-        "--series", action="append", choices=("exact", "E96"), help="repeatable; default both"
+        "--series",
+        action="append",
+        choices=("exact", "E96", "E24"),
+        help="repeatable; default exact and E96",
     )
     add_jobs_option(parser, "processes at a time, at least 1 (default: every core)", None)
     add_ngspice_timeout(parser)

@@ -487,6 +487,7 @@ def _netlists(result, add) -> None:
             add(f"- warning: {warning}")
         if info.warnings:
             add("")
+        _coefficients(info, add)
         add(f"<details><summary>bill of materials ({len(info.bom)} parts)</summary>")
         add("")
         add("| part | value | series | role | coefficient error |")
@@ -500,6 +501,34 @@ def _netlists(result, add) -> None:
         add("")
         add("</details>")
         add("")
+
+
+def _coefficients(info, add) -> None:
+    """Every coefficient the mapping check compared: model, realized from the file, error."""
+    rows = getattr(info, "coefficients", [])
+    if not rows:
+        return
+    speed = ""
+    if info.critical_speed_realized is not None:
+        speed = (
+            f"; critical speed realized {info.critical_speed_realized:.4f} m/s (model "
+            f"{_fmt(info.critical_speed_model)})"
+        )
+    worst = max(abs(r[3]) for r in rows if r[1] != 0)
+    add(f"<details><summary>coefficients ({len(rows)}, largest error {worst:.2e}{speed})"
+        "</summary>")  # fmt: skip
+    add("")
+    add("| coefficient | model | realized (from the file) | error | parts |")
+    add("|---|---|---|---|---|")
+    for what, model, realized, error, parts in rows:
+        cell = "" if model == 0 else format(error, "+.2e")
+        add(
+            f"| {what.replace('|', chr(92) + '|')} | {model:.6g} | {realized:.6g} | {cell} "
+            f"| {parts} |"
+        )
+    add("")
+    add("</details>")
+    add("")
 
 
 def _value(value: float, unit: str) -> str:

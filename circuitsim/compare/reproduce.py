@@ -119,6 +119,8 @@ class CircuitInfo:
     critical_speed_realized: float | None
     growth_rate_model: float | None = None
     growth_rate_realized: float | None = None
+    # (coefficient, model value, realized value, relative error, parts) from the mapping check
+    coefficients: list[tuple[str, float, float, float, str]] = field(default_factory=list)
 
 
 @dataclass
@@ -231,7 +233,9 @@ def _circuit_job(
                 report.critical_speed_realized,
                 _largest_real(report.eigenvalues_model),
                 _largest_real(report.eigenvalues_realized),
-            )
+                [(e.what, e.model, e.realized, e.error, "+".join(e.parts))
+                 for e in report.entries],
+            )  # fmt: skip
         else:
             from circuitsim.synthesis.translator import synthesize
 

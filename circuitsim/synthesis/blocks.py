@@ -115,13 +115,7 @@ class Builder:
             values: tuple[float, ...] = (round_to_series(wanted, chosen),)
         else:
             values = series_pair(wanted, chosen, self.pair_tolerance, low)
-        kind = "series"
-        if parallel and len(values) == 2 and abs(sum(values) / wanted - 1) > self.pair_tolerance:
-            pair = parallel_pair(wanted, chosen, low)
-            if pair is not None and abs(parallel_value(pair) / wanted - 1) < abs(
-                sum(values) / wanted - 1
-            ):
-                values, kind = pair, "parallel"
+        values, kind = self._with_parallel(values, wanted, chosen, parallel)
         combined = parallel_value(values) if kind == "parallel" else sum(values)
         total = combined + series_extra
         realized = float(target * ideal / total) if not math.isnan(target) else math.nan
@@ -145,6 +139,29 @@ class Builder:
             BomEntry(second, values[1], "ohm", chosen, f"{role}; {kind} pair with {first}")
         )
         return total
+
+    def _with_parallel(self, values, wanted, chosen, parallel) -> tuple[tuple[float, ...], str]:
+        """``values`` (one part or a series pair), or the parallel pair where allowed and closer."""
+        if parallel and len(values) == 2 and abs(sum(values) / wanted - 1) > self.pair_tolerance:
+            pair = parallel_pair(wanted, chosen, self.part_range[0])
+            if pair is not None and abs(parallel_value(pair) / wanted - 1) < abs(
+                sum(values) / wanted - 1
+            ):
+                return pair, "parallel"
+        return values, "series"
+
+    def realization_error(self, ideal: float, series_extra: float, parallel: bool) -> float:
+        """|realized / ideal - 1| of the total resistance :meth:`place_resistor` would build
+        for a coefficient resistor of ``ideal`` ohms (nothing is placed)."""
+        wanted = max(ideal - series_extra, 1e-3)
+        low, high = self.part_range
+        if not low <= wanted <= high:
+            values: tuple[float, ...] = (round_to_series(wanted, self.series),)
+        else:
+            values = series_pair(wanted, self.series, self.pair_tolerance, low)
+        values, kind = self._with_parallel(values, wanted, self.series, parallel)
+        combined = parallel_value(values) if kind == "parallel" else sum(values)
+        return abs((combined + series_extra) / ideal - 1.0)
 
     def summer(
         self,
