@@ -31,6 +31,7 @@ from circuitsim.cli.common import (
     scenario_system,
     translator_options,
 )
+from circuitsim.cli.opamp_options import add_opamp_error_options, opamp_errors
 
 if TYPE_CHECKING:
     pass
@@ -59,6 +60,7 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
     add_model_options(parser)
     add_scenario_options(parser)
     add_translator_options(parser)
+    add_opamp_error_options(parser)
     parser.add_argument(
         "--dialect",
         choices=("ngspice", "ltspice", "multisim"),
@@ -114,6 +116,8 @@ def _check_generate(args: argparse.Namespace) -> None:
 
 
 def _run_generate(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
     from circuitsim.synthesis.generate import generate, switch_at
     from circuitsim.synthesis.knob import knob_summary
 
@@ -121,7 +125,7 @@ def _run_generate(args: argparse.Namespace) -> int:
     model, system = scenario_system(args, with_model=True)
     system = switch_at(system, args.switch_at)
     knob = knob_request(args, model)
-    options = translator_options(args)
+    options = replace(translator_options(args), **opamp_errors(args))
     if args.schematic is not None and Path(args.schematic).suffix.lower() not in (".svg", ".png"):
         raise UsageError(
             f"--schematic {args.schematic}: cannot draw a "
@@ -160,6 +164,7 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:
     add_model_options(parser)
     add_scenario_options(parser)
     add_opamp_options(parser)
+    add_opamp_error_options(parser)
     parser.add_argument(
         "--series",
         choices=("exact", "E96", "E24"),
@@ -299,11 +304,21 @@ def _run_compare(args: argparse.Namespace) -> int:
     )
     if args.max_nrmsd is not None:
         thresholds = replace(thresholds, nrmsd_percent=args.max_nrmsd)
+    errors = opamp_errors(args)
     if args.netlist is not None or args.raw is not None:
+        if args.opamp_offset or args.opamp_bias:
+            raise UsageError(
+                "--opamp-offset/--opamp-bias apply to a generated circuit, not to "
+                "a given --netlist or --raw"
+            )
         return _compare_given(args, thresholds)
     args.engine = args.engine or "builtin"
     options = SynthesisOptions(
-        **fields, series=args.series, t_stop=args.tstop, time_scale=args.time_scale
+        **fields,
+        series=args.series,
+        t_stop=args.tstop,
+        time_scale=args.time_scale,
+        **errors,
     )
     opamp = args.opamp_subckt if args.opamp == "lib" else args.opamp
     label = f"{args.engine}, {opamp}, {args.series}"

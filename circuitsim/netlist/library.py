@@ -10,7 +10,7 @@ Parts
 -----
 ``OPAMP_IDEAL`` (in+ in- out; ``gain``, default 1e6)
     A high-gain voltage-controlled voltage source.
-``TL074`` (in+ in- V+ V- out; ``vos``, default 0 V)
+``TL074`` (in+ in- V+ V- out; ``vos`` 0 V, ``ib`` 0 A, ``ios`` 0 A by default)
     One section of a TL074-like JFET-input op-amp: DC gain 200 V/mV, unity-gain frequency
     3 MHz, slew rate 13 V/us, swing +/-13.5 V into 10 kOhm on +/-15 V.
 ``D1N4148`` (diode model)

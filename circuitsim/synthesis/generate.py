@@ -25,6 +25,7 @@ from circuitsim.synthesis.bom import bom_text, order_text, parse_bom
 from circuitsim.synthesis.check import MappingReport, check_mapping
 from circuitsim.synthesis.errors import SynthesisError
 from circuitsim.synthesis.knob import Knob, KnobRequest, add_knobs, knob_table_text
+from circuitsim.synthesis.offsets import offset_warning
 from circuitsim.synthesis.options import SynthesisOptions
 from circuitsim.synthesis.scalemap import ScaleMap
 from circuitsim.synthesis.schematic import schematic_format, schematic_image
@@ -124,6 +125,9 @@ def generate(
         schematic_format(schematic)
         check_writable(schematic)
     synthesis = synthesize(system, options)
+    offsets = offset_warning(synthesis, system)
+    if offsets is not None:
+        synthesis.warnings.append(offsets)
     knobs = []
     if knob is not None:
         if knob.parameter not in system.parameters:

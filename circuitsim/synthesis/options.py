@@ -56,6 +56,10 @@ class SynthesisOptions:
     scaling_wall_time : float
         Most wall time (s) of the direct solution that sets the scales and predicts the
         peaks; past it a SynthesisError says where it stopped.
+    opamp_offset, opamp_bias : dict of str to float
+        Input offset voltage (V) and input bias current (A) of the ``tl074`` sections, by
+        section name (``"U1A"``) or ``"*"`` for every section not named; empty (default): none
+        (:func:`~circuitsim.synthesis.offsets.apply_opamp_errors`).
     """
 
     opamp: str = "ideal"
@@ -76,6 +80,8 @@ class SynthesisOptions:
     switch_roff: float = 1e12
     points_per_period: int = 200
     scaling_wall_time: float = 60.0
+    opamp_offset: dict[str, float] = field(default_factory=dict)
+    opamp_bias: dict[str, float] = field(default_factory=dict)
 
     def validated(self) -> SynthesisOptions:
         """Self, after checking every field; SynthesisError naming the bad option."""
@@ -114,10 +120,23 @@ class SynthesisOptions:
             raise SynthesisError(f"option t_stop={self.t_stop!r}: must be a positive number")
         if self.r_min >= self.r_max:
             raise SynthesisError("option r_min must be below r_max")
+        self._check_opamp_errors()
         for name, peak in self.ranges.items():
             if not (math.isfinite(peak) and peak > 0):
                 raise SynthesisError(f"option ranges[{name!r}]={peak!r}: must be positive")
         return self
+
+    def _check_opamp_errors(self) -> None:
+        from circuitsim.synthesis.offsets import check_section_values
+
+        check_section_values(self.opamp_offset, "offset", "volts")
+        check_section_values(self.opamp_bias, "bias", "amperes")
+        given = [v for v in (*self.opamp_offset.values(), *self.opamp_bias.values()) if v != 0]
+        if given and self.opamp != "tl074":
+            raise SynthesisError(
+                f"op-amp offsets and bias currents need opamp='tl074' (--opamp tl074); the "
+                f"{self.opamp} op-amp has no input errors"
+            )
 
     @property
     def series_key(self) -> str:

@@ -44,6 +44,7 @@ from circuitsim.synthesis.errors import SynthesisError
 from circuitsim.synthesis.eseries import CAPACITOR_DECADES
 from circuitsim.synthesis.inputs import add_forcing
 from circuitsim.synthesis.naming import PartNames, node_name
+from circuitsim.synthesis.offsets import apply_opamp_errors
 from circuitsim.synthesis.opamp_library import install, load_opamp
 from circuitsim.synthesis.opamps import add_opamp
 from circuitsim.synthesis.options import SWING_LIMIT, SynthesisOptions
@@ -228,6 +229,7 @@ def synthesize(
         },
     )
     round_derived(circuit)  # SIN(0 13.2 3), not 13.200000000000001 (float noise of K * a)
+    apply_opamp_errors(circuit, options.opamp_offset, options.opamp_bias)
     return Synthesis(circuit, scale_map, builder.bom, warnings, t_stop, node_peaks, step)
 
 

@@ -11,14 +11,14 @@ from circuitsim.netlist.circuit import Diode, SubcircuitCall
 from circuitsim.netlist.errors import NetlistError
 
 # Element letters every target simulator (ngspice, LTspice, Multisim) accepts alike.
-PORTABLE_LETTERS = set("RCLEGFHDV")
+PORTABLE_LETTERS = set("RCLEGFHDVI")
 
 
 def test_library_holds_the_parts_with_their_pins_and_parameters():
     subcircuits, models = library.load_library()
     assert set(subcircuits) == {"opamp_ideal", "tl074"}
     assert subcircuits["tl074"].ports == ("inp", "inm", "vcc", "vee", "out")
-    assert subcircuits["tl074"].params == {"vos": 0.0}
+    assert subcircuits["tl074"].params == {"vos": 0.0, "ib": 0.0, "ios": 0.0}
     assert subcircuits["opamp_ideal"].ports == ("inp", "inm", "out")
     assert subcircuits["opamp_ideal"].params == {"gain": 1e6}
     assert models["d1n4148"].kind == "D"
