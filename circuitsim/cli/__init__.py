@@ -2,11 +2,11 @@
 
 The verbs live in small modules, grouped by the room they drive: ``model_verbs``
 (stability, ode), ``netlist_verbs`` (convert, check, simulate), ``circuit_verbs`` (generate,
-compare, reproduce), ``sweep_verbs`` (sweep), ``hunting_verbs`` (hunting) and ``bench_verbs``
-(bench); ``common`` holds the options several verbs share. Each verb is a pair
-``_add_<verb>(subparsers)`` / ``_run_<verb>(args) -> int``. Library errors become one readable
-line on stderr; warnings are printed as ``warning: <message>`` lines. Nothing in the library
-imports this package.
+compare, reproduce), ``sweep_verbs`` (sweep), ``hunting_verbs`` (hunting), ``bench_verbs``
+(bench) and ``tolerance_verbs`` (tolerance); ``common`` holds the options several verbs
+share. Each verb is a pair ``_add_<verb>(subparsers)`` / ``_run_<verb>(args) -> int``. Library
+errors become one readable line on stderr; warnings are printed as ``warning: <message>``
+lines. Nothing in the library imports this package.
 
 Exit codes, one convention for every verb (README.md, "Exit codes"):
 
@@ -43,6 +43,7 @@ from circuitsim.cli import (
     model_verbs,
     netlist_verbs,
     sweep_verbs,
+    tolerance_verbs,
 )
 from circuitsim.cli.common import UsageError, shown, warnings_as_lines
 
@@ -53,6 +54,7 @@ COMMANDS = [
     *sweep_verbs.COMMANDS,
     *hunting_verbs.COMMANDS,
     *bench_verbs.COMMANDS,
+    *tolerance_verbs.COMMANDS,
 ]
 
 
