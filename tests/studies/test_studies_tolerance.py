@@ -133,7 +133,7 @@ def test_the_tolerance_verb_writes_json_and_histograms(tmp_path):
     assert set(data["metrics"]) == {"y", "psi", "y_dot", "psi_dot"}
     assert len(data["passed"]) == 3 and data["yield"] is not None
     assert (out / "tolerance.png").stat().st_size > 10_000
-    assert "simulated 3 of 3 circuits" in done.stderr
+    assert "simulated and compared 3 of 3 circuits" in done.stderr
     assert "yield:" in done.stdout
 
 
@@ -145,3 +145,23 @@ def test_the_tolerance_verb_refuses_an_offset_without_tl074(tmp_path):
     )  # fmt: skip
     assert done.returncode == 2
     assert "--offset needs --opamp tl074" in done.stderr
+
+
+def test_the_studys_metrics_are_the_comparisons(wheelset):
+    """state_metrics leaves out only the phase lag: its numbers are compare_traces' own."""
+    from circuitsim.compare.case import reference_traces
+    from circuitsim.compare.comparison import compare_traces
+    from circuitsim.compare.mapping import map_waveforms
+    from circuitsim.solver import simulate
+    from circuitsim.studies.tolerance import METRICS, state_metrics
+    from circuitsim.synthesis.translator import synthesize
+
+    synthesis = synthesize(wheelset, SynthesisOptions(series="exact"))
+    circuit = draw_circuits(synthesis.circuit, Tolerances(0.01, 0.05), 1, seed=4).circuits[0]
+    traces = map_waveforms(simulate(circuit), synthesis.scale_map, list(wheelset.states))
+    _, reference = reference_traces(wheelset, synthesis.t_stop)
+    ours = state_metrics(reference, traces)
+    theirs = compare_traces(reference, traces).states
+    for state, values in ours.items():
+        for name in METRICS:
+            assert values[name] == getattr(theirs[state], name), (state, name)

@@ -1,11 +1,11 @@
 """Op-amp input offset voltage and bias currents: set per section, the same in both engines,
 their equilibrium shift against the hand value, and generate's warning."""
 
+import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import requires_ngspice
 
 from circuitsim.compare.case import run_case
 from circuitsim.compare.reproduce import Scenario
@@ -24,6 +24,10 @@ from circuitsim.synthesis.offsets import (
 from circuitsim.synthesis.options import SynthesisOptions
 from circuitsim.synthesis.translator import synthesize
 
+requires_ngspice = pytest.mark.skipif(
+    shutil.which("ngspice") is None,
+    reason="ngspice is not installed (apt-get install -y ngspice; CI installs it)",
+)
 LEAK_MODEL = Path(__file__).resolve().parents[1] / "studies" / "leak.toml"
 
 # a follower whose in+ sees 1 GOhm to ground, and an inverter of gain -1 with in+ grounded
