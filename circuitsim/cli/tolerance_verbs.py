@@ -154,11 +154,14 @@ def _run_tolerance(args: argparse.Namespace) -> int:
         opamp=args.opamp, scaling=args.scaling, series=args.series, t_stop=args.tstop
     )
     report = progress_after(0.0)
-    last = [-1.0]
+    last = {"phase": "", "fraction": -1.0}
 
     def progress(fraction_done: float, message: str) -> None:
-        if fraction_done >= 1.0 or fraction_done - last[0] >= 0.1:  # about ten lines per run
-            last[0] = fraction_done
+        phase = message.split(" ", 1)[0]  # "realized", "simulated": each phase from its start
+        if phase != last["phase"]:
+            last.update(phase=phase, fraction=-1.0)
+        if fraction_done >= 1.0 or fraction_done - last["fraction"] >= 0.1:  # ten lines a phase
+            last["fraction"] = fraction_done
             report(f"tolerance: {message}")
 
     result = run_tolerance(
@@ -196,6 +199,11 @@ def _print_summary(result) -> None:
     model = result.critical_speed_model
     print(f"critical speed (model {model:.4f})" if model is not None else "critical speed")
     print(line("  realized", summary["critical_speed"], ".4f"))
+    if result.unstable_fraction is not None:
+        print(
+            f"  at or below the simulated speed {result.speed:g} {result.speed_unit}: "
+            f"{100 * result.unstable_fraction:.1f} % of the circuits (their linear part grows)"
+        )
     for state in result.metrics:
         for name, label in (("nrmsd_percent", "NRMSD %"), ("peak_ratio", "peak ratio"),
                             ("frequency_ratio", "frequency ratio")):  # fmt: skip

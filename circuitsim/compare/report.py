@@ -12,6 +12,8 @@ import math
 import platform
 from datetime import UTC, datetime
 
+from circuitsim.compare.tolerance_report import render_tolerance
+
 # The reference results for the paper coefficient set (docs/model.md, "Reference results").
 MODEL_MD_CRITICAL_SPEED = 55.6455  # m/s
 MODEL_MD_HUNTING_FREQUENCY = 8.477  # Hz
@@ -74,6 +76,7 @@ def render_report(result) -> str:
     _stability(result, add)
     _free(result, add)
     _hunting(result, add)
+    render_tolerance(getattr(result, "tolerance", None), result.figures.get("tolerance"), add)
     _forced(result, add)
     _metrics(result, add)
     _drawing(result, add)
@@ -570,6 +573,7 @@ def reproduction_json(result) -> dict:
         "ode": result.ode_summary,
         "free_response_max_abs_y_9_10s_m": {f"{v:g}": p for v, p in result.free_summary.items()},
         "hunting": getattr(result, "hunting", None),
+        "tolerance": getattr(result, "tolerance", None),
         "rows": [
             {
                 "scenario": row.scenario.name,

@@ -35,6 +35,8 @@ SERIES = ("exact", "E96")
 # the hunting diagram in the report: a coarse grid around the critical speed, short steps
 HUNTING_SPEEDS = (54.0, 55.0, 56.0, 57.0, 58.0)
 HUNTING_PUSH, HUNTING_SETTLE, HUNTING_RECORD = 0.005, 2.0, 1.0
+# the tolerance section: a few tens of circuits of the first scenario (docs/tolerances.md)
+TOLERANCE_SAMPLES = 40
 FREE_SPEEDS = (54.0, 57.0)
 
 
@@ -157,6 +159,7 @@ class Reproduction:
     knobs: list = field(default_factory=list)  # the speed knob of the drawn circuit
     knob_netlist: str = ""
     schematic_problem: str | None = None
+    tolerance: dict | None = None  # the Monte Carlo's summary (compare.tolerance_report)
 
 
 # --- jobs (module-level so the process pool can pickle them) ----------------------------------
@@ -308,6 +311,7 @@ def reproduce(
     free_speeds: tuple[float, ...] = FREE_SPEEDS,
     workers: int | None = None,
     hunting_speeds: tuple[float, ...] = HUNTING_SPEEDS,
+    tolerance_samples: int = TOLERANCE_SAMPLES,
     n_points: int = 4096,
     skip: dict[tuple[str, str], str] | None = None,
     ngspice_timeout: float | None = None,
@@ -329,6 +333,9 @@ def reproduce(
     hunting_speeds : tuple of float
         Increasing speeds of the hunting bifurcation diagram (m/s; ODE and builtin circuit,
         flange on and off, up then down: :mod:`circuitsim.studies.hunting`); empty to skip it.
+    tolerance_samples : int
+        Circuits of the tolerance section (1 % resistors, 5 % capacitors, the first
+        scenario: :mod:`circuitsim.compare.tolerance_report`); 0 to skip it.
     workers : int, optional
         Processes (default: every core).
     n_points : int
@@ -480,6 +487,15 @@ def reproduce(
         hunting = _hunting_diagram(model, v_c, hunting_speeds, out / "figures" / "hunting.png")
         figures["hunting"] = "figures/hunting.png"
         say(f"hunting diagram: {len(hunting_speeds)} speeds, {hunting['wall_s']:.1f} s")
+    tolerance = None
+    if tolerance_samples and scenarios:
+        from circuitsim.compare.tolerance_report import tolerance_study
+
+        first = scenarios[0]
+        tolerance = tolerance_study(first.system(model), first.title, tolerance_samples,
+                                    out / "figures" / "tolerance.png", workers)  # fmt: skip
+        figures["tolerance"] = "figures/tolerance.png"
+        say(f"tolerance: {tolerance_samples} circuits, {tolerance['wall_s']:.1f} s")
     for scenario in scenarios:
         curves = {}
         for variant in _fig6_variants(engines):
@@ -527,6 +543,7 @@ def reproduce(
             figures.pop("schematic", None)
     result.kernel_warm_up_s = warm_up_s
     result.hunting = hunting
+    result.tolerance = tolerance
     write_text_atomic(out / "metrics.json", json.dumps(reproduction_json(result), indent=1) + "\n")
     write_text_atomic(out / "report.md", render_report(result))
     result.wall_s = time.perf_counter() - started

@@ -173,6 +173,8 @@ class ToleranceResult:
     passed : ndarray of bool, shape (N,)
         Every state within ``thresholds``.
     thresholds : Thresholds
+    speed : float or None
+        The simulated speed (the model's speed parameter), if the model names one.
     timings : dict of str to float
         Wall seconds of ``synthesis``, ``realized`` (mapping checks), ``reference`` (the ODE),
         ``simulation`` (with each circuit's comparison, in the worker threads).
@@ -189,6 +191,15 @@ class ToleranceResult:
     thresholds: Thresholds | None = None
     timings: dict[str, float] = field(default_factory=dict)
     speed_unit: str = "m/s"
+    speed: float | None = None
+
+    @property
+    def unstable_fraction(self) -> float | None:
+        """Fraction of drawn circuits whose realized critical speed is at or below the
+        simulated ``speed`` (their linear part grows there); None without a speed."""
+        if self.speed is None or not np.isfinite(self.critical_speed).any():
+            return None
+        return float(np.mean(self.critical_speed <= self.speed))
 
     @property
     def yield_fraction(self) -> float | None:
@@ -222,6 +233,8 @@ class ToleranceResult:
             "n": self.n,
             "critical_speed_model": self.critical_speed_model,
             "critical_speed": listed(self.critical_speed),
+            "speed": self.speed,
+            "unstable_fraction": self.unstable_fraction,
             "metrics": {s: {k: listed(v) for k, v in m.items()} for s, m in self.metrics.items()},
             "passed": None if self.passed is None else [bool(p) for p in self.passed],
             "yield": self.yield_fraction,
@@ -252,9 +265,14 @@ def describe(values: np.ndarray) -> dict:
 
 
 def realized_linear_parts(
-    circuits: list[Circuit], synthesis: Synthesis, system: System
+    circuits: list[Circuit],
+    synthesis: Synthesis,
+    system: System,
+    progress: Progress | None = None,
 ) -> tuple[np.ndarray, np.ndarray, float | None]:
     """Each circuit's realized A (mapping check) and critical speed, and the model's.
+
+    ``progress(fraction, message)`` is called after each circuit.
 
     Returns
     -------
@@ -276,6 +294,8 @@ def realized_linear_parts(
         model = report.critical_speed_model
         if report.critical_speed_realized is not None:
             critical[k] = report.critical_speed_realized
+        if progress:
+            progress((k + 1) / len(circuits), f"realized {k + 1} of {len(circuits)} circuits")
     return A, critical, model
 
 
@@ -329,9 +349,14 @@ def run_tolerance(
     if progress:
         progress(0.0, f"{n} circuits drawn (seed {seed}); realized linear parts")
     started = time.perf_counter()
-    A, critical, model_critical = realized_linear_parts(samples.circuits, synthesis, system)
+    A, critical, model_critical = realized_linear_parts(
+        samples.circuits, synthesis, system, progress
+    )
     timings["realized"] = time.perf_counter() - started
     result = ToleranceResult(tolerances, seed, n, model_critical, critical, A, timings=timings)
+    hint = (system.circuit_hints or {}).get("speed")
+    if isinstance(hint, dict) and hint.get("parameter", "V") in system.parameters:
+        result.speed = float(system.parameters[hint.get("parameter", "V")])
     if not simulate:
         return result
     result.thresholds = thresholds

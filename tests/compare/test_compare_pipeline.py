@@ -86,6 +86,7 @@ def test_reproduce_one_short_scenario_writes_report_figures_and_honest_rows(tmp_
         workers=2,
         skip={("builtin", "tl074"): SKIP_REASON},
         hunting_speeds=(55.0, 56.0, 57.0),
+        tolerance_samples=6,
     )
     unknown = "not available: unknown engine 'no-such-engine' (choose builtin, ngspice)"
     statuses = [(r.variant.opamp, r.variant.engine, r.status) for r in result.rows]
@@ -117,7 +118,13 @@ def test_reproduce_one_short_scenario_writes_report_figures_and_honest_rows(tmp_
         assert hunting[path]["cycle_appears_up"] == 56.0
         assert hunting[path]["cycle_vanishes_down"] == 56.0
     assert "## Hunting: the bifurcation diagram" in report
-    for name in ("critical-speed", "fig4-f10-flange-on", "fig6-f10-flange-on", "hunting"):
+    # the tolerance section: 6 drawn circuits, each with a realized critical speed
+    assert "## Tolerances: a bench build of the circuit" in report
+    tolerance = metrics["tolerance"]
+    assert tolerance["samples"] == 6 and tolerance["summary"]["critical_speed"]["count"] == 6
+    assert tolerance["summary"]["y"]["nrmsd_percent"]["count"] == 6
+    for name in ("critical-speed", "fig4-f10-flange-on", "fig6-f10-flange-on", "hunting",
+                 "tolerance"):  # fmt: skip
         png = tmp_path / result.figures[name]
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (tmp_path / "netlists" / "f10-flange-on-ideal-exact.cir").exists()

@@ -34,6 +34,7 @@ def test_unperturbed_parts_realize_the_models_critical_speed(wheelset):
     )  # fmt: skip
     assert result.critical_speed_model == pytest.approx(55.6455, abs=1e-4)  # MODEL.md
     assert np.allclose(result.critical_speed, result.critical_speed_model, rtol=1e-9)
+    assert result.speed == 55.0 and result.unstable_fraction == 0.0
 
 
 def test_a_seed_draws_the_same_circuits_and_results(wheelset):

@@ -155,3 +155,28 @@ def test_unity_scaling_with_offsets_is_the_same_in_both_engines(wheelset, tmp_pa
     # and the offsets are in the file ngspice ran
     text = (tmp_path / "offsets.cir").read_text()
     assert "XU2C" in text and "vos=-2m" in text.replace("-0.002", "-2m")
+
+
+def test_generate_writes_the_offsets_per_section(tmp_path):
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[2]
+    path = tmp_path / "w.cir"
+    done = subprocess.run(
+        [sys.executable, "-m", "circuitsim", "generate", "--opamp", "tl074", "--opamp-offset",
+         "3m", "--opamp-offset", "U1A=-1m", "--opamp-bias", "30p", "-o", str(path)],
+        capture_output=True, text=True, cwd=root, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    lines = {line.split()[0]: line for line in path.read_text().splitlines() if line[:1] == "X"}
+    assert lines["XU1A"].endswith("TL074 vos=-1m ib=30p")
+    assert lines["XU2D"].endswith("TL074 vos=3m ib=30p")
+    refused = subprocess.run(
+        [sys.executable, "-m", "circuitsim", "generate", "--opamp-offset", "3m", "-o",
+         str(tmp_path / "x.cir")],
+        capture_output=True, text=True, cwd=root, timeout=300,
+    )  # fmt: skip
+    assert refused.returncode == 2
+    assert "--opamp-offset needs --opamp tl074" in refused.stderr
+    assert not (tmp_path / "x.cir").exists()
