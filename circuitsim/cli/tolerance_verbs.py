@@ -56,6 +56,17 @@ def volts(text: str) -> float:
     return value
 
 
+def seed(text: str) -> int:
+    """``--seed``: an integer >= 0 (numpy's generators take no negative seed)."""
+    try:
+        value = int(text)
+        if value < 0:
+            raise ValueError
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    return value
+
+
 def _add_tolerance(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "tolerance",
@@ -112,7 +123,9 @@ def _add_tolerance(sub: argparse._SubParsersAction) -> None:
         "-n", "--samples", type=int, default=100, metavar="N",
         help="circuits drawn (default 100)",
     )  # fmt: skip
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument(
+        "--seed", type=seed, default=0, help="random seed, an integer >= 0 (default 0)"
+    )
     parser.add_argument(
         "--no-simulate", dest="simulate", action="store_false",
         help="the realized critical speeds only (no simulation, no yield)",

@@ -339,6 +339,8 @@ def run_tolerance(
     """
     if not (isinstance(n, int) and n >= 1):
         raise ComparisonError(f"n={n!r}: at least one drawn circuit is needed")
+    if not (isinstance(seed, int) and seed >= 0):
+        raise ComparisonError(f"seed={seed!r}: must be an integer >= 0")
     options = options or SynthesisOptions()
     thresholds = thresholds or Thresholds.for_opamp(options.opamp)
     timings: dict[str, float] = {}

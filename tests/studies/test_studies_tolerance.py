@@ -166,3 +166,20 @@ def test_the_studys_metrics_are_the_comparisons(wheelset):
     for state, values in ours.items():
         for name in METRICS:
             assert values[name] == getattr(theirs[state], name), (state, name)
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--seed", "-1"], "argument --seed: expected an integer >= 0"),
+        (["--resistor-tolerance", "150%"], "expected a tolerance like 1% or 0.01"),
+        (["-n", "0"], "--samples must be at least 1"),
+    ],
+)
+def test_the_tolerance_verb_refuses_bad_values(tmp_path, argv, message):
+    done = subprocess.run(
+        [sys.executable, "-m", "circuitsim", "tolerance", *argv, "--out", str(tmp_path / "x")],
+        capture_output=True, text=True, cwd=ROOT, timeout=120,
+    )  # fmt: skip
+    assert done.returncode == 2
+    assert message in done.stderr
