@@ -479,6 +479,7 @@ def plot_tolerance(result: ToleranceResult, path, state: str | None = None) -> N
             ax.legend(fontsize=8)
         if th is not None and k > 0:
             _threshold_marks(ax, k, th, finite)
+        ax.locator_params(axis="x", nbins=5)  # an offset axis of 1e-6 ratios stays readable
         ax.set_title(title, fontsize=9)
         ax.set_xlabel(unit or "ratio")
         ax.set_ylabel("circuits")
