@@ -150,19 +150,6 @@ class Builder:
                 return pair, "parallel"
         return values, "series"
 
-    def realization_error(self, ideal: float, series_extra: float, parallel: bool) -> float:
-        """|realized / ideal - 1| of the total resistance :meth:`place_resistor` would build
-        for a coefficient resistor of ``ideal`` ohms (nothing is placed)."""
-        wanted = max(ideal - series_extra, 1e-3)
-        low, high = self.part_range
-        if not low <= wanted <= high:
-            values: tuple[float, ...] = (round_to_series(wanted, self.series),)
-        else:
-            values = series_pair(wanted, self.series, self.pair_tolerance, low)
-        values, kind = self._with_parallel(values, wanted, self.series, parallel)
-        combined = parallel_value(values) if kind == "parallel" else sum(values)
-        return abs((combined + series_extra) / ideal - 1.0)
-
     def summer(
         self,
         opamp: str,

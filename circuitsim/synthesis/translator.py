@@ -375,44 +375,6 @@ def _is_linear(inp: _Input) -> bool:
     return inp.switch is None and "(A[" in inp.role
 
 
-def _refine_capacitor(builder, decade: float, inputs: list[_Input], options) -> tuple[float, str]:
-    """The integrator capacitor chosen jointly with its input resistors.
-
-    The decade capacitor stays when every input resistor it asks for is realized within the
-    pair tolerance (always, with E96, on the shipped models). Otherwise (E24) each E6 value
-    from a decade below to the decade itself is tried, keeping every resistor inside
-    [r_min, r_max] if the decade did, and the one whose worst input error is smallest is
-    taken: the capacitor scales every input resistor of the integrator at once.
-    Returns the capacitance (F) and its series label (``decade`` or ``E6``).
-    """
-    if options.series_key == "exact" or not inputs:
-        return decade, "decade"
-
-    def worst(c: float) -> float:
-        return max(
-            builder.realization_error(1.0 / (inp.gain * c), inp.series_extra, _is_linear(inp))
-            for inp in inputs
-        )
-
-    def inside(c: float) -> bool:
-        return all(options.r_min <= 1.0 / (inp.gain * c) <= options.r_max for inp in inputs)
-
-    best = worst(decade)
-    if best <= options.pair_tolerance:
-        return decade, "decade"
-    from circuitsim.synthesis.parts import E6
-
-    keep_range = inside(decade)
-    chosen = decade
-    for c in sorted({float(f"{m * decade / 10:.6g}") for m in (*E6, 10.0)} | {decade}):
-        if keep_range and not inside(c):
-            continue
-        error = worst(c)
-        if error < best * (1 - 1e-9):
-            chosen, best = c, error
-    return chosen, "decade" if chosen == decade else "E6"
-
-
 def _check_gains(state: str, inputs: list[_Input]) -> None:
     """Refuse an input whose resistor 1/(gain C) is no number for any capacitor decade.
 
@@ -440,11 +402,10 @@ def _add_integrator(builder, names, state, state_nodes, state_inputs, options, w
         warnings.append(f"state {state} has no inputs: its integrator only holds x0")
     _check_gains(state, state_inputs)
     capacitance = _choose_capacitor([inp.gain for inp in state_inputs] or [1.0], options)
-    capacitance, label = _refine_capacitor(builder, capacitance, state_inputs, options)
     cap = names.capacitor(state)
     circuit.add(Capacitor(cap, minus, junction, capacitance))
     builder.bom.append(
-        BomEntry(cap, capacitance, "F", label, f"integrator capacitor of {state}")
+        BomEntry(cap, capacitance, "F", "decade", f"integrator capacitor of {state}")
     )
     for inp in state_inputs:
         ideal = 1.0 / (inp.gain * capacitance)

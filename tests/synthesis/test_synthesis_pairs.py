@@ -179,17 +179,3 @@ def test_wheelset_e24_with_parallel_pairs_by_hand(tmp_path):
     assert kinds == {"series", "parallel"}
     assert result.report.ok
 
-
-def test_capacitor_chosen_with_its_resistors(tmp_path):
-    """E24 without the flange: with the decade 100 nF, R32 is 0.16 % off at best (two E24
-    parts); the y_dot integrator's capacitor then comes from E6 (47 nF), every coefficient
-    within 0.1 % (the mapping check of the file). E96 keeps the decades."""
-    system = load_model().system(parameters={"V": 55.0, "f": 3.0}, nonlinear={"flange": False})
-    e24 = generate(system, tmp_path / "a.cir", SynthesisOptions(series="E24"))
-    caps = {e.part: e for e in e24.synthesis.bom if e.unit == "F"}
-    assert caps["C3"].value == pytest.approx(47e-9) and caps["C3"].series == "E6"
-    assert [caps[c].series for c in ("C1", "C2", "C4")] == ["decade"] * 3
-    report = _check_file(e24, system)
-    assert max(abs(e.error) for e in report.entries if e.model != 0) <= 1e-3
-    e96 = generate(system, tmp_path / "b.cir", SynthesisOptions(series="E96"))
-    assert {e.series for e in e96.synthesis.bom if e.unit == "F"} == {"decade"}
