@@ -236,3 +236,27 @@ def test_with_a_speed_range_the_speed_knob_turns_potentiometer_dials():
         assert 0 < new["dial"] < old["dial"] < 1
     with pytest.raises(BenchError, match="outside the knob's range 40:70"):
         session.set_knobs({"speed": 75.0})
+
+
+def test_a_time_scaled_circuit_keeps_the_generator_on_model_time():
+    """K = 10 (one model second in 0.1 circuit seconds): the forcing's phase at each chunk is
+    2 pi f t of the model time reached, also across a frequency change."""
+    history = [
+        (1.0, {"flange": True, "amplitude": 0.04, "freq": 5.0}, {"y": 0.005}),
+        (1.0, {"freq": 3.0}, {}),
+    ]
+    model = load_model(None)
+    system = model.system(None, {"V": 57.0, "a": 0.0}, {"flange": False})
+    options = SynthesisOptions(series="exact", time_scale=10.0)
+    session = BenchSession(BenchSetup.from_system(model, system, options))
+    assert session.scale_map.time_scale == 10.0
+    for duration, knobs, push in history:
+        session.set_knobs(knobs)
+        if push:
+            session.set_state(push)
+        for _ in range(round(duration / session.chunk)):
+            session.step()
+    data = session.trace(since=0.0)
+    _, x_ref = reference(history, session.t)
+    for i, name in enumerate(session.states):
+        assert nrmsd_percent(x_ref[i], np.array(data["states"][name])) < 0.5, name
