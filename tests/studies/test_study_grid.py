@@ -229,3 +229,15 @@ def test_variants_whose_capacitors_differ_are_assembled_on_their_own():
         assert result.sweep.peak_all[k] == pytest.approx(np.max(np.abs(y)), rel=1e-12)
         exact = solve(systems[k], t_span=(0.0, 0.3)).max_abs("y")
         assert result.sweep.peak_all[k] == pytest.approx(exact, rel=2e-3)
+
+
+def test_progress_messages_give_the_time_left():
+    from circuitsim.compare.sweep_measure import Eta
+
+    eta = Eta("dask, 2 workers")
+    eta.started -= 10.0  # ten seconds ago
+    assert eta.message(0, 100) == "dask, 2 workers: 0 of 100 variants"
+    assert eta.message(25, 100) == "dask, 2 workers: 25 of 100 variants, 30 s left"
+    assert eta.message(100, 100) == "dask, 2 workers: 100 of 100 variants"
+    eta.started -= 990.0
+    assert eta.message(10, 100).endswith("2.5 h left")
