@@ -166,7 +166,8 @@ def report_grid(result, grid: ParameterGrid, paths, executor) -> None:
     shared = sweep.stats.get("shared_start")
     own = "" if shared is None else (
         f"; {shared} from the base circuit's shared start (resistor changes), "
-        f"{total - shared} assembled on their own (capacitors, sources or the step differ)"
+        f"{total - shared} assembled on their own (their capacitors, sources, other elements "
+        "or time step differ from the base's)"
     )  # fmt: skip
     kernels = sweep.timings.get("kernels")
     ready = "" if kernels is None else f", compiled kernels ready {kernels:.3g} s"

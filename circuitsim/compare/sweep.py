@@ -99,8 +99,11 @@ def _same_input(a, b) -> bool:
 
 def _same_except_a(a: System, b: System) -> bool:
     """Whether ``b``'s circuit is ``a``'s with other resistors: systems that differ only in
-    entries of A and in the size of forcing directions."""
+    the size of entries of A (the same entries nonzero, with the same signs: an entry that is
+    0 in one has no resistor) and of forcing directions."""
     if a.states != b.states or len(a.forcing) != len(b.forcing):
+        return False
+    if not np.array_equal(np.sign(np.asarray(a.A)), np.sign(np.asarray(b.A))):
         return False
     if not np.array_equal(np.asarray(a.b0), np.asarray(b.b0)):
         return False
@@ -191,10 +194,11 @@ def sweep_circuits(
             # node peaks only, which the sweep measures)
             circuit = synthesize(system, options, peaks=False).circuit
         circuits.append(circuit)
-    changed = []
-    for index, element in enumerate(circuits[0].elements):
-        if any(c.elements[index] != element for c in circuits[1:]):
-            changed.append(element.name)
+    # by name: variants translated on their own may have other elements (an entry of A that
+    # is 0 in some has no resistor there)
+    elements = [{e.name: e for e in c.elements} for c in circuits]
+    names = list(dict.fromkeys(n for c in circuits for n in (e.name for e in c.elements)))
+    changed = [n for n in names if any(e.get(n) != elements[0].get(n) for e in elements[1:])]
     return SweepCircuits(circuits, base.scale_map, changed, ranges, rescaled)
 
 
@@ -397,10 +401,11 @@ def run_sweep(
 
 
 def _changed_resistors(variants: SweepCircuits) -> dict[str, np.ndarray]:
-    """Ohms of every changed resistor, per variant (netlist order)."""
+    """Ohms of every changed resistor that every variant has, per variant (netlist order)."""
     found = {}
+    by_name = [{e.name: e for e in c.elements} for c in variants.circuits]
     for name in variants.changed:
-        elements = [c.element(name) for c in variants.circuits]
+        elements = [c.get(name) for c in by_name]
         if all(isinstance(e, Resistor) for e in elements):
             found[name] = np.array([float(e.resistance) for e in elements])
     return found
