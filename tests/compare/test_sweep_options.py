@@ -35,15 +35,16 @@ def test_sweep_free_response_from_y0_grows_above_the_critical_speed(tmp_path, ca
     assert (out / "sweep.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     header, rows = _read_sweep(out / "sweep.csv")
     assert header[0] == "V (m/s)" and [r[0] for r in rows] == list(SPEEDS)
+    assert header[3:] == ["R33 (ohm)", "R44 (ohm)"]  # the resistors the speed turns
     model = load_model()
     reference = {}
-    for speed, late, whole in rows:
+    for speed, late, whole, *_ in rows:
         system = model.system(parameters={"V": speed, "a": 0.0, "y0": Y0})
         exact = solve(system, t_span=(0.0, T_STOP))
         reference[speed] = exact.max_abs("y"), exact.max_abs("y", t_from=T_STOP - WINDOW)
         assert whole == pytest.approx(reference[speed][0], rel=0.02)
         assert late == pytest.approx(reference[speed][1], rel=0.02)
-    (_, late_below, all_below), (_, late_above, all_above) = rows
+    (_, late_below, all_below, *_), (_, late_above, all_above, *_) = rows
     # the ODE says: growth above, decay below (the whole-run peak below is the push itself)
     assert reference[57.0][0] > reference[54.0][0] and reference[57.0][1] > reference[54.0][1]
     assert all_above > all_below and late_above > late_below
