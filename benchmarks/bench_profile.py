@@ -2,12 +2,12 @@
 
 The ports kernel (what ``kernel="auto"`` runs on both circuits) by ablation: bench_ports.py.
 
-Compiled code cannot be seen by cProfile, so the compiled kernel is taken apart by hand: the
-fixed costs (parsing, assembly, operating point, plan, first factorization) are timed around
-their calls, and the kernel's pieces are timed one by one on the run's own matrices (each
-piece called 20 000 times in a compiled loop). Multiplied by how often a run calls them, they
-should add up to the kernel's measured time. The reference (python) loop is profiled with
-cProfile as before.
+Compiled code cannot be seen by cProfile, so the MNA kernel (``kernel="compiled"``) is taken
+apart by hand: the fixed costs (parsing, assembly, operating point, plan, first pivot order)
+are timed around their calls, and the kernel's pieces are timed one by one on the run's own
+matrices (each piece called 20 000 times in a compiled loop). Multiplied by how often a run
+calls them, they should add up to the kernel's measured time. The reference (python) loop is
+profiled with cProfile as before.
 """
 
 from __future__ import annotations
@@ -33,12 +33,7 @@ from circuitsim.solver.compiled import plan as kp
 from circuitsim.solver.compiled import run_compiled
 from circuitsim.solver.compiled import transient as tr
 from circuitsim.solver.compiled.devices import junction_charge, junction_current
-from circuitsim.solver.compiled.lowrank import (
-    active_columns,
-    add_u_columns,
-    refine,
-    source_solution,
-)
+from circuitsim.solver.compiled.sparse_lu import analyse, assemble, lu_solve, refactor
 from circuitsim.solver.dc import operating_point_solution
 from circuitsim.solver.engine import build_system
 from circuitsim.solver.threads import single_threaded_blas
@@ -67,16 +62,6 @@ def _time_sources(plan, t, k):
         )
         total += rhs[0]
     return total
-
-
-@njit
-def _time_source_solution(plan, st, k):
-    fac = st.fac
-    values = np.ones(plan.src_kind.size)
-    hist = np.ones(plan.lin_slots.size) * 1e-9
-    for _ in range(k):
-        source_solution(fac.yc, fac.cc, fac.Yb, fac.Cb, fac.Zq, fac.Kq, values, hist, st.y0, st.c0)
-    return st.y0[0]
 
 
 @njit
@@ -114,40 +99,27 @@ def _time_junctions(plan, st, x, a0, k):
 
 
 @njit
-def _time_solve(plan, st, a0, k):
-    fac = st.fac
-    d = nw.port_values(st.gd, plan.g_switch, st.state, plan.VT.shape[0], a0) - fac.ref
-    total = 0.0
-    for i in range(k):
-        # a junction current change every call (the response is updated incrementally)
-        st.ieq[0] += 1e-9 if i % 2 else -1e-9
-        nw.junction_response(
-            st.ieq, fac.ZdT, fac.KdT, fac.zrel, st.yd, st.cd_response, st.ieq_applied, i == 0
-        )
-        x, ok = nw.solve_ports(st.y0, st.c0, st.yd, st.cd_response, d, fac.K, fac.ZT)
-        total += x[0]
-    return total, active_columns(d, fac.K).size
+def _time_assemble(lu, a0, gd, g_sw, k):
+    for _ in range(k):
+        assemble(lu.a_val, lu.g_val, lu.m_val, a0, lu.port_pos, gd, g_sw)
+    return lu.a_val[0]
 
 
 @njit
-def _time_refine(plan, st, a0, rhs0, k):
-    fac = st.fac
-    d = nw.port_values(st.gd, plan.g_switch, st.state, plan.VT.shape[0], a0) - fac.ref
-    nw.junction_response(
-        st.ieq, fac.ZdT, fac.KdT, fac.zrel, st.yd, st.cd_response, st.ieq_applied, True
-    )
-    x, ok = nw.solve_ports(st.y0, st.c0, st.yd, st.cd_response, d, fac.K, fac.ZT)
-    vt = (plan.VT_ptr, plan.VT_idx, plan.VT_val)
-    ut = (plan.UT_ptr, plan.UT_idx, plan.UT_val)
-    tol = 1e-3 * np.abs(x) + plan.abs_tol
-    good = 0
+def _time_refactor(lu, k):
+    bad = 0
     for _ in range(k):
-        rhs = add_u_columns(ut, -st.ieq, 0, rhs0.copy())
-        _, ok = refine(
-            fac.b_ptr, fac.b_idx, fac.b_val, fac.Binv, fac.K, fac.ZT, vt, ut, x, d, rhs, tol, 1e-3
-        )
-        good += ok
-    return good
+        bad += refactor(lu.a_ptr, lu.a_row, lu.a_val, lu.l_ptr, lu.l_row, lu.l_val, lu.u_ptr,
+                        lu.u_row, lu.u_val, lu.work) >= 0  # fmt: skip
+    return bad
+
+
+@njit
+def _time_lu_solve(lu, b, x, k):
+    for _ in range(k):
+        lu_solve(lu.l_ptr, lu.l_row, lu.l_val, lu.u_ptr, lu.u_row, lu.u_val, lu.row_to,
+                 lu.col_of, b, lu.work, x)  # fmt: skip
+    return x[0]
 
 
 def _per_call(function, *args) -> float:
@@ -176,12 +148,15 @@ def kernel_breakdown(path: Path) -> dict:
         plan, families = kp.build_plan(
             system, np.array([tran.tstop]), tran.tstop, max_step, 1e-11 * max_step
         )
-        st = kp.initial_state(plan, families, x, ctx.q.copy(), 1000)
+        devices = kp.device_states(families)
         times["plan"] = time.perf_counter() - started
         a0 = 2.0 / max_step
+        g_sw = np.where(devices["state"], plan.g_switch[:, 0], plan.g_switch[:, 1])
         started = time.perf_counter()
-        nw.factor_now(plan, st, a0)
-        times["factorization"] = time.perf_counter() - started
+        lu = analyse(plan.G, plan.M, plan.port_p, plan.port_n,
+                     np.concatenate([devices["gd"], g_sw]), a0)  # fmt: skip
+        times["pivot order (SuperLU, Python)"] = time.perf_counter() - started
+        st = kp.initial_state(plan, families, x, ctx.q.copy(), 1000, lu)
         rhs0, values = tr.source_rhs(
             0.0,
             plan.rhs_const,
@@ -196,16 +171,16 @@ def kernel_breakdown(path: Path) -> dict:
         )
         pieces = {
             "sources (per attempt)": _per_call(_time_sources, plan, 0.0),
-            "y0 = B^-1 rhs0 from kept responses (per attempt)": _per_call(
-                _time_source_solution, plan, st
-            ),
             "junction evaluation (per Newton iteration)": _per_call(
                 _time_junctions, plan, st, x, a0
             ),
-            "junction response + Woodbury solve (per Newton iteration)": _per_call(
-                _time_solve, plan, st, a0
+            "assembly into the sparse pattern (per Newton iteration)": _per_call(
+                _time_assemble, lu, a0, st.gd, g_sw
             ),
-            "refinement check (per accepted iterate)": _per_call(_time_refine, plan, st, a0, rhs0),
+            "numeric LU refactor (per Newton iteration)": _per_call(_time_refactor, lu),
+            "triangular solves (per Newton iteration)": _per_call(
+                _time_lu_solve, lu, rhs0, np.empty(x.size)
+            ),
         }
         system = build_system(circuit, None)
         stats: dict = {}
@@ -215,7 +190,7 @@ def kernel_breakdown(path: Path) -> dict:
     return {
         "unknowns": int(x.size),
         "junctions": int(plan.jp.shape[0]),
-        "low_rank_columns": int(plan.VT.shape[0]),
+        "lu_entries": int(lu.a_row.size + lu.l_ptr[-1] + lu.u_ptr[-1]),
         "fixed_s": times,
         "piece_s": pieces,
         "run_compiled_s": total,
@@ -279,9 +254,8 @@ def report(data: dict) -> str:
         steps = s["accepted"] + s["rejected"]
         iterations = s["newton_iterations"]
         piece = k["piece_s"]
-        # how often each piece runs: per attempt, per iteration, and (at least) once per
-        # accepted step for the refinement check
-        counts = [steps, steps, iterations, iterations, s["accepted"]]
+        # how often each piece runs: per attempt, then per Newton iteration
+        counts = [steps, iterations, iterations, iterations, iterations]
         rows = [
             [name, f"{seconds * 1e6:.3g}", count, f"{seconds * count:.3g}"]
             for (name, seconds), count in zip(piece.items(), counts, strict=True)
@@ -291,9 +265,9 @@ def report(data: dict) -> str:
         )
         fixed = k["fixed_s"]
         parts.append(
-            f"Compiled kernel, wheelset ({opamp} op-amps), 0-{data['t_stop']:g} s: "
-            f"{k['unknowns']} unknowns, {k['junctions']} junctions, {k['low_rank_columns']} "
-            f"low-rank columns; {s['accepted']} steps, {s['rejected']} rejected, {iterations} "
+            f"MNA kernel (kernel=compiled), wheelset ({opamp} op-amps), 0-{data['t_stop']:g} s: "
+            f"{k['unknowns']} unknowns, {k['junctions']} junctions, {k['lu_entries']} "
+            f"entries of A, L and U; {s['accepted']} steps, {s['rejected']} rejected, {iterations} "
             f"Newton iterations, {k['factorizations']} factorizations"
         )
         parts.append(

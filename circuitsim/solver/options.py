@@ -68,12 +68,14 @@ class SimulationOptions:
         solve). 0 (default, as ngspice 39 behaves: its step sequences on the golden netlists
         are those without bypass) evaluates every junction at every iteration.
     kernel : str
-        Which transient loop runs: ``"compiled"`` (numba, solver/compiled/; an error if the
-        circuit or the machine does not allow it), ``"ports"`` (compiled, Newton on the
-        junction voltages alone: solver/compiled/ports.py; same conditions), ``"python"``
-        (the reference engine, solver/transient.py) or ``"auto"`` (default: when numba is
-        installed and the circuit is supported, ports at every size (solver/compiled/runner.py,
-        auto_kernel), else python;
+        Which transient loop runs: ``"compiled"`` (numba, solver/compiled/: Newton on the
+        whole MNA matrix, refactored sparse at every iteration; an error if the circuit or
+        the machine does not allow it), ``"ports"`` (compiled, Newton on the junction
+        voltages alone: solver/compiled/ports.py; same conditions), ``"python"`` (the
+        reference engine, solver/transient.py) or ``"auto"`` (default: when numba is
+        installed and the circuit is supported, ports while at most 8 junctions carry
+        charge, else compiled (solver/compiled/runner.py, auto_kernel, from measurements in
+        docs/solver.md), else python;
         ``Waveforms.stats["kernel"]`` says which ran).
     """
 

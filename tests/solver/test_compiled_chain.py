@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 from circuitsim.mechanics import load_model
 from circuitsim.mechanics.chain import chain_model_text
@@ -30,10 +31,13 @@ def chain_circuit(tmp_path, masses: int, t_stop: float):
     return circuit
 
 
-def test_sparse_factorization_agrees_with_the_reference_loop(tmp_path):
-    """Four masses: 162 unknowns (factored with SuperLU: above SPARSE_FROM), 16 junctions."""
+@pytest.mark.parametrize("kernel", ["ports", "compiled"])
+def test_sparse_factorization_agrees_with_the_reference_loop(tmp_path, kernel):
+    """Four masses: 162 unknowns (the ports kernel factors with SuperLU: above SPARSE_FROM;
+    the MNA kernel refactors sparse at every iteration), 16 junctions."""
     circuit = chain_circuit(tmp_path, 4, 0.5)
-    ports = simulate(circuit, SimulationOptions.from_circuit(circuit, kernel="ports"))
+    ports = simulate(circuit, SimulationOptions.from_circuit(circuit, kernel=kernel))
+    assert ports.stats["kernel"] == kernel
     assert ports.stats["unknowns"] >= SPARSE_FROM
     python = simulate(circuit, SimulationOptions.from_circuit(circuit, kernel="python"))
     devs = kernel_deviation(python, ports)
@@ -60,13 +64,13 @@ def test_refactors_stay_few_as_junctions_grow(tmp_path):
 
 @requires_ngspice
 def test_large_chain_runs_compiled_and_agrees_with_ngspice(tmp_path):
-    """Sixteen masses: 642 unknowns, 64 junctions; the kernel takes it (no fallback to the
-    numpy loop above 600 unknowns any more) and agrees with ngspice."""
+    """Sixteen masses: 642 unknowns, 64 junctions with charge; auto runs the MNA kernel
+    (runner.auto_kernel: more than 8 such junctions) and it agrees with ngspice."""
     from circuitsim.interop.ngspice import run_ngspice
 
     circuit = chain_circuit(tmp_path, 16, 0.5)
     ours = simulate(circuit)
-    assert ours.stats["kernel"] == "ports"
+    assert ours.stats["kernel"] == "compiled"
     assert ours.stats["unknowns"] > 600
     probes = ["v(x1)", "v(x16)"]
     theirs = run_ngspice(circuit, probes)

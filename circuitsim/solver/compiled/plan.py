@@ -139,9 +139,10 @@ def empty_factors(n: int, r: int, md: int, nl: int, ns: int, dense: bool = True)
 
 
 class KernelState(NamedTuple):
-    """Everything the loop changes, kept between calls (see compiled/newton.py indices)."""
+    """Everything the MNA loop (compiled/transient.py) changes, kept between calls (see
+    compiled/newton.py indices)."""
 
-    fs: np.ndarray
+    fs: np.ndarray  # (5,) t, h, saved h, last a0, the a0 of a pivot order that failed
     ints: np.ndarray
     ht: np.ndarray  # (4,) accepted times, newest first
     hx: np.ndarray  # (4, n) solutions there
@@ -155,12 +156,7 @@ class KernelState(NamedTuple):
     vd_accepted: np.ndarray
     state: np.ndarray  # (ms,) switch states, bool
     accepted: np.ndarray
-    fac: Factors
-    y0: np.ndarray
-    c0: np.ndarray
-    yd: np.ndarray  # (n,) B^-1 W ieq_applied: the junction currents' response
-    cd_response: np.ndarray  # (r,) V^T yd
-    ieq_applied: np.ndarray  # (md,) the junction currents yd was last updated with
+    lu: object  # sparse_lu.SparseLU: the whole matrix's pattern, pivot order and factors
     out_t: np.ndarray
     out_x: np.ndarray
     fail_x: np.ndarray
@@ -381,11 +377,11 @@ def start_counters(size: int) -> np.ndarray:
 
 
 def initial_state(
-    plan: KernelPlan, families: dict, x0: np.ndarray, q0: np.ndarray, capacity: int
+    plan: KernelPlan, families: dict, x0: np.ndarray, q0: np.ndarray, capacity: int, lu
 ) -> KernelState:
-    """The loop's state at t = 0 from the start solution and the families' states."""
+    """The MNA loop's state at t = 0 from the start solution, the families' states and the
+    first pivot order ``lu`` (sparse_lu.analyse)."""
     n, nq = x0.size, q0.size
-    md, r = plan.jp.shape[0], plan.VT.shape[0]
     hx = np.zeros((4, n))
     hx[0] = x0
     hq = np.zeros((4, nq))
@@ -393,7 +389,7 @@ def initial_state(
     out_x = np.zeros((capacity, n))
     out_x[0] = x0
     return KernelState(
-        fs=np.array([0.0, 0.0, 0.0, np.nan]),
+        fs=np.array([0.0, 0.0, 0.0, np.nan, 0.0]),
         ints=start_counters(INT_SLOTS),
         ht=np.zeros(4),
         hx=hx,
@@ -401,12 +397,7 @@ def initial_state(
         hi=np.zeros((2, nq)),
         x_prev_ext=np.append(x0, 0.0),
         **device_states(families),
-        fac=empty_factors(n, r, md, plan.lin_slots.size, plan.src_kind.size),
-        y0=np.zeros(n),
-        c0=np.zeros(r),
-        yd=np.zeros(n),
-        cd_response=np.zeros(r),
-        ieq_applied=np.zeros(md),
+        lu=lu,
         out_t=np.zeros(capacity),
         out_x=out_x,
         fail_x=np.zeros(n),

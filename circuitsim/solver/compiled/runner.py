@@ -23,7 +23,15 @@ from circuitsim.solver.compiled.cache import (
     record_compile_seconds,
 )
 from circuitsim.solver.compiled.failures import failure, singular_row
-from circuitsim.solver.compiled.plan import KernelPlan, build_plan, initial_state, unsupported
+from circuitsim.solver.compiled.plan import (
+    CHARGE_PARAMS,
+    KernelPlan,
+    build_plan,
+    device_states,
+    initial_state,
+    unsupported,
+)
+from circuitsim.solver.compiled.sparse_lu import SparseLU, analyse, present_matrix
 from circuitsim.solver.errors import (
     CircuitInputError,
     KernelCompileWarning,
@@ -57,11 +65,34 @@ def kernel_unavailable(system: MnaSystem) -> str | None:
     return unsupported(system)
 
 
+# kernel="auto": the ports kernel while at most this many junctions carry charge (CJO or TT:
+# a generated circuit's contact and precision-rectifier diodes, the junctions that switch
+# during a run; an op-amp macromodel's clamp diodes have none and sit in reverse), else the
+# MNA kernel. Measured (docs/solver.md, "Choosing the kernel"): the ideal wheelset and a
+# chain of one mass (4) run 3-5x faster on the ports kernel, the TL074 wheelset (4 charged of
+# 56) 3.6x and a TL074 chain of 2 masses (8) 2x; a chain of 4 masses (16) is even; from 8
+# masses (32) on the MNA kernel is 2x (8) to 10x (32) faster, its cost linear in the size.
+AUTO_PORTS_MAX_SWITCHING = 8
+
+
+def switching_junctions(system: MnaSystem) -> int:
+    """Junctions with a charge (CJO or TT): those the ports kernel keeps active."""
+    count = 0
+    for family in system.families:
+        part = family.kernel_data()
+        if part is not None and part["kind"] == "junctions" and part["charge"] is not None:
+            charge = np.asarray(part["charge"], dtype=float)
+            cjo, tt = CHARGE_PARAMS.index("cjo"), CHARGE_PARAMS.index("tt")
+            count += int(np.count_nonzero((charge[:, cjo] != 0) | (charge[:, tt] != 0)))
+    return count
+
+
 def auto_kernel(system: MnaSystem) -> str:
-    """The kernel ``kernel="auto"`` runs for a supported system: ``"ports"`` at every size
-    (measured faster than the full compiled kernel on every circuit of the scaling benchmark;
-    docs/performance.md)."""
-    return "ports"
+    """The kernel ``kernel="auto"`` runs for a supported system: ``"ports"`` while few
+    junctions switch (AUTO_PORTS_MAX_SWITCHING), else ``"compiled"`` (the MNA kernel)."""
+    if switching_junctions(system) <= AUTO_PORTS_MAX_SWITCHING:
+        return "ports"
+    return "compiled"
 
 
 def transient_runner(system: MnaSystem, stats: dict) -> Callable:
@@ -237,7 +268,32 @@ def _loop_state(kind, start: PortsStart, plan, rows, capacity):
         return loop, state
     from circuitsim.solver.compiled import transient as loop
 
-    return loop, initial_state(plan, start.families, start.x, start.q0.copy(), capacity)
+    devices = device_states(start.families)
+    lu = _pivot_order(plan, devices["gd"], devices["state"], _a0_start(start))
+    return loop, initial_state(plan, start.families, start.x, start.q0.copy(), capacity, lu)
+
+
+def _a0_start(start: PortsStart) -> float:
+    """The step coefficient the first factorization is made at (the nominal step's)."""
+    options = start.system.options
+    step = options.fixed_step or float(start.plan.real[8])
+    return (2.0 if options.method == "trap" else 1.5) / step
+
+
+def _pivot_order(plan, gd, state, a0, spare: float = 1.5) -> SparseLU:
+    """sparse_lu.analyse at the junction conductances ``gd``, switch states ``state``, a0
+    (with room for ``spare`` times the fill in L and U, for later orders)."""
+    g_switch = np.where(np.asarray(state, dtype=bool), plan.g_switch[:, 0], plan.g_switch[:, 1])
+    values = np.concatenate([np.asarray(gd, dtype=float), g_switch])
+    return analyse(plan.G, plan.M, plan.port_p, plan.port_n, values, a0, spare)
+
+
+def _singular(system, plan, gd, state, a0) -> str:
+    """describe_singular for the whole matrix at these device states (dense: an error path)."""
+    g_switch = np.where(np.asarray(state, dtype=bool), plan.g_switch[:, 0], plan.g_switch[:, 1])
+    values = np.concatenate([np.asarray(gd, dtype=float), g_switch])
+    matrix = present_matrix(plan.G, plan.M, plan.port_p, plan.port_n, values, a0).toarray()
+    return system.describe_singular(singular_row(matrix))
 
 
 def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fixed_pauses=False):
@@ -252,19 +308,25 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     fixed = options.fixed_step
     tstop, max_step = float(plan.real[10]), float(plan.real[8])
     capacity = int(min(max(2 * (tstop / (fixed or max_step)) + 100, 1000), 5_000_000))
-    loop, st = _loop_state(kind, start, plan, rows, capacity)
+    try:
+        loop, st = _loop_state(kind, start, plan, rows, capacity)
+    except np.linalg.LinAlgError:  # the first pivot order: the start's matrix is singular
+        devices = device_states(start.families)
+        raise SingularMatrixError(
+            _singular(system, plan, devices["gd"], devices["state"], _a0_start(start))
+        ) from None
     st.fs[nw.H] = fixed if fixed else min(tstop / 100, tstep) / 10
     st.fs[nw.SAVED_H] = tstop / 50
-    step = fixed or max_step
-    a0_start = (2.0 if options.method == "trap" else 1.5) / step
     compiling = _announce_compile(kind, loop.run)
     deadline = wall_deadline(options)
     report_every = tstop / 10  # progress every tenth of the run
     t_until = report_every
     st.ints[nw.PAUSE_ATTEMPTS] = FIRST_PAUSE
     began = time.perf_counter()
+    pivot_orders, repivoted_at, same_step = 1, -1, 0
     try:
-        nw.factor_now(plan, st, a0_start)
+        if kind == "ports":
+            nw.factor_now(plan, st, _a0_start(start))
         while True:
             chunk_began, attempts = time.perf_counter(), int(st.ints[nw.ATTEMPTS])
             status = loop.run(plan, st, t_until)
@@ -273,6 +335,16 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
                 compiling = False
             if status == loop.FULL:
                 st = _grown(st)
+            elif kind != "ports" and status == loop.REPIVOT:
+                # the step is attempted again: each new order lets it go further (at most
+                # one per Newton iteration), unless the matrix is singular
+                same_step += repivoted_at == st.ints[nw.ATTEMPTS]
+                if same_step > options.itl4 + 1:
+                    raise np.linalg.LinAlgError("no pivot order suits the matrix")
+                repivoted_at = int(st.ints[nw.ATTEMPTS])
+                lu = _pivot_order(plan, st.gd, st.state, float(st.fs[loop.REPIVOT_A0]), 2.0)
+                st = st._replace(lu=lu)
+                pivot_orders += 1
             elif status == loop.PAUSED:
                 if st.fs[nw.T] >= t_until:
                     if progress is not None:
@@ -295,12 +367,24 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
             else:
                 break
     except np.linalg.LinAlgError:
-        raise SingularMatrixError(system.describe_singular(singular_row(st.fac.B))) from None
+        if kind == "ports":
+            raise SingularMatrixError(system.describe_singular(singular_row(st.fac.B))) from None
+        raise SingularMatrixError(
+            _singular(system, plan, st.gd, st.state, float(st.fs[loop.REPIVOT_A0]))
+        ) from None
     finally:
         stats["accepted"] = int(st.ints[nw.ACCEPTED])
         stats["rejected"] = int(st.ints[nw.REJECTED])
         stats["newton_iterations"] += int(st.ints[nw.NEWTON])
         stats["kernel"] = kind
+        if kind == "ports":  # eliminations of the switch and charge ports (new a0 or switch)
+            from circuitsim.solver.compiled.port_state import CFG_COUNT
+
+            stats["configurations"] = int(st.ints[CFG_COUNT])
+        else:
+            from circuitsim.solver.compiled.mna_newton import PIVOT_ORDERS
+
+            stats["pivot_orders"] = pivot_orders + int(st.ints[PIVOT_ORDERS])
         counted.append(int(st.ints[nw.FACTORIZATIONS]))
     if status != loop.FINISHED:
         raise failure(system, st, status, tstop)

@@ -21,17 +21,17 @@ from circuitsim.solver.compiled.devices import (
     transition_retry,
 )
 from circuitsim.solver.compiled.lowrank import add_u_columns, csr_matvec
+from circuitsim.solver.compiled.mna_newton import CONVERGED, mna_newton
+from circuitsim.solver.compiled.mna_newton import REPIVOT as NEWTON_REPIVOT
 from circuitsim.solver.compiled.newton import (
     ACCEPTED,
-    ACTIVE_JUNCTIONS,
-    AFTER_REFACTOR,
     AT_BREAK,
     ATTEMPTS,
     BI,
     COUNT,
+    FACTORIZATIONS,
     FIRST,
     LAST_A0,
-    MEASURED_VERSION,
     NEWTON,
     NHIST,
     ORDER,
@@ -39,13 +39,9 @@ from circuitsim.solver.compiled.newton import (
     REJECTED,
     SAME_A0,
     SAVED_H,
-    VERSION,
     H,
     T,
     extend,
-    factor_now,
-    newton,
-    rebase_wanted,
 )
 
 REBASE_STEPS = 8  # refactor when this many accepted steps in a row used one new a0
@@ -58,7 +54,8 @@ REBASE_STEPS = 8  # refactor when this many accepted steps in a row used one new
 RETRY_RATIO = 16.0
 
 # return codes
-PAUSED, FINISHED, FULL = 0, 1, 2
+PAUSED, FINISHED, FULL, REPIVOT = 0, 1, 2, 3
+REPIVOT_A0 = 4  # fs: the a0 at which the pivot order failed
 NEWTON_FAILED_FIXED, STEP_TOO_SMALL, STEP_TOO_SMALL_LTE, TOO_MANY_STEPS = -1, -2, -3, -4
 
 
@@ -230,16 +227,18 @@ def finish_step(fs, si, t, new_h, a0, order, landing, toggled, fixed, maxord, nh
 
 @njit(cache=True)
 def run(plan, st, t_until):
-    """Integrate from st.fs[T] until t_until (or tstop); returns a status code."""
+    """Integrate from st.fs[T] until t_until (or tstop); returns a status code. REPIVOT: the
+    pivot order no longer suits the matrix at a0 = st.fs[REPIVOT_A0] and the devices' present
+    state; the step is undone (the scalars restored), to be attempted again on a new order."""
     real, ints = plan.real, plan.ints
     method, maxord, max_steps = ints[0], ints[1], ints[3]
     fixed, max_step, min_step, tstop = real[7], real[8], real[9], real[10]
     md, ms = plan.jp.shape[0], plan.sw.shape[0]
     nports = md + ms
     lin = plan.lin_slots
-    n, nq = plan.G.shape[0], st.hq.shape[1]
+    n, nq = plan.abs_tol.size, st.hq.shape[1]
     fs, si = st.fs, st.ints
-    stale_streak = 0  # accepted steps in a row ending with many active junctions
+    fs_start, si_start = fs.copy(), si.copy()
     breaks = plan.breaks
     x_ext = np.empty(n + 1)
     vt = (plan.VT_ptr, plan.VT_idx, plan.VT_val)
@@ -249,17 +248,27 @@ def run(plan, st, t_until):
     ht, hx, hq, hi = st.ht, st.hx, st.hq, st.hi
     x_prev_ext, state, accepted, vd_accepted = st.x_prev_ext, st.state, st.accepted, st.vd_accepted
     out_t, out_x, fail_x, fail_prev = st.out_t, st.out_x, st.fail_x, st.fail_prev
-    ref = st.fac.ref
     port_p, port_n, sw, approach = plan.port_p, plan.port_n, plan.sw, plan.approach
     rhs_const, src_kind, src_par, src_dc = plan.rhs_const, plan.src_kind, plan.src_par, plan.src_dc
     pwl_start, pwl_t, pwl_v = plan.pwl_start, plan.pwl_t, plan.pwl_v
     src_rows, src_signs = plan.src_rows, plan.src_signs
     live, zeros = charge_slots(nq, plan.jslot, plan.charged, plan.has_charge)
+    hist = np.empty(nq)
+    x_guess = np.empty(n)
+    x_new = np.empty(n)
+    b = np.empty(n)
+    g_sw = np.empty(ms)
+    q = np.zeros(nq)
+    qdot = np.zeros(nq)
+    times = np.empty(4)
+    charges_lin = np.empty(nports + lin.size)
     while tstop - fs[T] > min_step:
         if fs[T] >= t_until or si[ATTEMPTS] >= si[PAUSE_ATTEMPTS]:
             return PAUSED
         if si[COUNT] >= out_t.size:
             return FULL
+        fs_start[:] = fs
+        si_start[:] = si
         t, next_break, h, order, landing = step_start(fs, si, breaks, fixed, max_step, min_step)
         nh = si[NHIST]
         while True:
@@ -269,47 +278,31 @@ def run(plan, st, t_until):
                 return TOO_MANY_STEPS
             h_prev = ht[0] - ht[1] if nh > 1 else h
             a0, a1, a2, b1 = coefficients(method, order, h, h_prev)
-            hist = np.empty(nq)
             for j in range(nq):
                 hist[j] = a1 * hq[0, j] + b1 * hi[0, j] + a2 * hq[1, j]
-            ref_a0 = ref[nports] if lin.size else a0
-            settled = a0 != ref_a0 and a0 == fs[LAST_A0] and si[SAME_A0] >= REBASE_STEPS
-            # or the junctions have left the factored conductances (newton.REBASE_ACTIVE)
-            if (lin.size and settled) or stale_streak >= REBASE_STEPS:
-                factor_now(plan, st, a0)
-                stale_streak = 0
             rhs0, src_values = source_rhs(
-                t + h,
-                rhs_const,
-                src_kind,
-                src_par,
-                src_dc,
-                pwl_start,
-                pwl_t,
-                pwl_v,
-                src_rows,
-                src_signs,
-            )
+                t + h, rhs_const, src_kind, src_par, src_dc, pwl_start, pwl_t, pwl_v,
+                src_rows, src_signs,
+            )  # fmt: skip
             if lin.size:
                 add_u_columns(ut, -hist[lin], nports, rhs0)
-            x_guess = np.empty(n)
             ratio = h / h_prev if nh > 1 else 0.0
             for i in range(n):
                 x_guess[i] = hx[0, i] + ratio * (hx[0, i] - hx[1, i])
-            q = np.zeros(nq)
-            qdot = np.zeros(nq)
-            ok, iterations, x_new, x_before = newton(
-                plan, st, x_guess, a0, hist, rhs0, src_values, q, qdot
+            for j in range(nq):
+                q[j] = 0.0
+                qdot[j] = 0.0
+            outcome, iterations, x_before = mna_newton(
+                plan, st, x_guess, a0, hist, rhs0, q, qdot, g_sw, x_new, b
             )
+            if outcome == NEWTON_REPIVOT:
+                fs[:] = fs_start
+                si[:] = si_start
+                fs[REPIVOT_A0] = a0
+                return REPIVOT
             si[NEWTON] += iterations
-            if not ok and lin.size and not (a0 / RETRY_RATIO < ref[nports] < RETRY_RATIO * a0):
-                # the update's round-off, not the step, may be what failed (RETRY_RATIO)
-                factor_now(plan, st, a0)
-                ok, iterations, x_new, x_before = newton(
-                    plan, st, x_guess, a0, hist, rhs0, src_values, q, qdot
-                )
-                si[NEWTON] += iterations
-            if not ok:
+            si[FACTORIZATIONS] += iterations
+            if outcome != CONVERGED:
                 si[REJECTED] += 1
                 fail_x[:] = x_new
                 fail_prev[:] = x_before
@@ -324,10 +317,11 @@ def run(plan, st, t_until):
                     return STEP_TOO_SMALL
                 continue
             if lin.size:
-                ql = csr_matvec(vt[0], vt[1], vt[2], x_new, np.empty(nports + lin.size))[nports:]
+                csr_matvec(vt[0], vt[1], vt[2], x_new, charges_lin)
                 for j in range(lin.size):
-                    q[lin[j]] = ql[j]
-                    qdot[lin[j]] = a0 * ql[j] + hist[lin[j]]
+                    ql = charges_lin[nports + j]
+                    q[lin[j]] = ql
+                    qdot[lin[j]] = a0 * ql + hist[lin[j]]
             extend(x_new, x_ext)
             transition = False
             if fixed == 0 and ms and not (ints[4] and si[FIRST]):  # uic: solver/transient.py
@@ -341,7 +335,6 @@ def run(plan, st, t_until):
                 transition = fraction < 1.0  # a breakpoint: no truncation-error rejection
             new_h = h if fixed > 0 else 2 * h
             if fixed == 0 and not si[FIRST]:
-                times = np.empty(4)
                 times[0] = t + h
                 for j in range(3):
                     times[j + 1] = ht[j]
@@ -373,11 +366,6 @@ def run(plan, st, t_until):
             break
 
         # accept
-        if si[VERSION] != si[MEASURED_VERSION]:  # the first accepted step on a new refactor
-            si[AFTER_REFACTOR] = si[ACTIVE_JUNCTIONS]
-            si[MEASURED_VERSION] = si[VERSION]
-        wanted = rebase_wanted(si[ACTIVE_JUNCTIONS], si[AFTER_REFACTOR])
-        stale_streak = stale_streak + 1 if wanted else 0
         t = next_break if landing else t + h
         for i in range(n + 1):
             x_prev_ext[i] = x_ext[i]

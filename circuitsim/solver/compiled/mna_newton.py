@@ -1,0 +1,159 @@
+"""Compiled Newton iteration of one time point on the whole MNA matrix (sparse_lu.py).
+
+The reference engine's general Newton (solver/newton.py), as ngspice runs it: at every
+iteration the devices are linearized at the iterate, the matrix is assembled into its fixed
+sparse pattern, refactored numerically (the pivot order is kept) and solved. Switch states
+are re-decided against the accepted state at the first iteration, junctions limited with
+pnjlim against the accepted junction voltage at the first iteration and the last
+linearization afterwards; convergence when nothing was limited or toggled, every unknown is
+within reltol/vntol/abstol of the previous iterate and every junction passes SPICE's current
+check. The solve is exact (no low-rank update), so there is no refinement step.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, objmode
+
+from circuitsim.solver.compiled.devices import junction_charge, junction_current, pnjlim
+from circuitsim.solver.compiled.sparse_lu import assemble, lu_solve, refactor, repivot_arrays
+
+PIVOT_ORDERS = 14  # KernelState.ints: pivot orders made during the run (after the first)
+
+# mna_newton's outcomes besides converged (True) / not converged (False): the pivot order no
+# longer suits the matrix (the loop returns to Python, which analyses it again)
+CONVERGED, FAILED, REPIVOT = 1, 0, 2
+
+
+@njit(cache=True)
+def repivot_now(lu, port_p, port_n, values, a0) -> int:
+    """sparse_lu.repivot_arrays from compiled code (it runs SuperLU, in Python)."""
+    a_ptr, a_row, g_val, m_val, port_pos = lu.a_ptr, lu.a_row, lu.g_val, lu.m_val, lu.port_pos
+    l_ptr, l_row, u_ptr, u_row = lu.l_ptr, lu.l_row, lu.u_ptr, lu.u_row
+    row_to, col_of = lu.row_to, lu.col_of
+    with objmode(status="int64"):
+        status = repivot_arrays(
+            a_ptr, a_row, g_val, m_val, port_pos, l_ptr, l_row, u_ptr, u_row, row_to, col_of,
+            port_p, port_n, values, a0,
+        )  # fmt: skip
+    return status
+
+
+@njit(cache=True, inline="always")
+def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b):
+    """Newton at one time point. Returns (outcome, iterations, x_previous); the last iterate
+    is in ``x_new``.
+
+    rhs0 : the x-independent right-hand side (sources, charge history), shape (n,);
+    g_sw, b : scratch, shapes (ms,), (n,).
+    """
+    reltol, abstol = plan.real[0], plan.real[1]
+    itl4 = plan.ints[2]
+    jp, cp, jslot, has_charge, charged = plan.jp, plan.cp, plan.jslot, plan.has_charge, plan.charged
+    port_p, port_n, abs_tol = plan.port_p, plan.port_n, plan.abs_tol
+    sw, approach, g_switch = plan.sw, plan.approach, plan.g_switch
+    vd_accepted, vd, cd, gd, ieq = st.vd_accepted, st.vd, st.cd, st.gd, st.ieq
+    state, accepted = st.state, st.accepted
+    lu = st.lu
+    a_ptr, a_row, a_val, g_val, m_val, port_pos = (
+        lu.a_ptr,
+        lu.a_row,
+        lu.a_val,
+        lu.g_val,
+        lu.m_val,
+        lu.port_pos,
+    )
+    l_ptr, l_row, l_val, u_ptr, u_row, u_val = (
+        lu.l_ptr,
+        lu.l_row,
+        lu.l_val,
+        lu.u_ptr,
+        lu.u_row,
+        lu.u_val,
+    )
+    row_to, col_of, work = lu.row_to, lu.col_of, lu.work
+    ms = sw.shape[0]
+    md = jp.shape[0]
+    # no junctions or switches: the first solve is exact (one iteration, as MnaSystem's)
+    linear = md == 0 and ms == 0
+    n = x0.size
+    x = x0.copy()
+    x_ext = np.empty(n + 1)
+    for i in range(n):
+        x_ext[i] = x[i]
+    x_ext[n] = 0.0
+    for iteration in range(1, itl4 + 1):
+        first = iteration == 1
+        noncon = 0
+        for k in range(ms):  # switch states (SwitchFamily.update_state)
+            vc = x_ext[sw[k, 2]] - x_ext[sw[k, 3]]
+            keep = accepted[k] if first else state[k]
+            new = (keep or vc > approach[k, 0]) and vc >= approach[k, 1]
+            if new != state[k]:
+                state[k] = new
+                noncon += 1
+            g_sw[k] = g_switch[k, 0] if state[k] else g_switch[k, 1]
+        for k in range(md):  # the junctions, linearized at x (DiodeFamily.port_load)
+            v = x_ext[port_p[k]] - x_ext[port_n[k]]
+            vold = vd_accepted[k] if first else vd[k]
+            vk = v
+            if abs(v - vold) > jp[k, 9]:
+                vk, was = pnjlim(v, vold, jp[k, 1], jp[k, 8])
+                if was:
+                    noncon += 1
+            ck, gk = junction_current(
+                vk, jp[k, 0], jp[k, 2], jp[k, 3], jp[k, 4], jp[k, 5], jp[k, 6], jp[k, 7]
+            )
+            if has_charge and charged[k]:  # else q = C = 0
+                qk, capk = junction_charge(
+                    vk, ck, gk, cp[k, 0], cp[k, 1], cp[k, 2], cp[k, 3], cp[k, 4], cp[k, 5],
+                    cp[k, 6], cp[k, 7], cp[k, 8],
+                )  # fmt: skip
+                slot = jslot[k]
+                icap = a0 * qk + hist[slot]
+                q[slot] = qk
+                qdot[slot] = icap
+                ck += icap
+                gk += a0 * capk
+            vd[k], cd[k], gd[k] = vk, ck, gk
+            ieq[k] = ck - gk * vk
+        assemble(a_val, g_val, m_val, a0, port_pos, gd, g_sw)
+        if refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work) >= 0:
+            # a pivot became too small: a new order at this matrix, and on (ngspice's
+            # spOrderAndFactor); in Python (SuperLU), rare
+            st.ints[PIVOT_ORDERS] += 1
+            # no room for its fill, or singular: the caller decides
+            if repivot_now(lu, port_p, port_n, np.concatenate((gd, g_sw)), a0) != 0:
+                return REPIVOT, iteration, x
+            assemble(a_val, g_val, m_val, a0, port_pos, gd, g_sw)
+            if refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work) >= 0:
+                return REPIVOT, iteration, x
+        for i in range(n):  # rhs0 - W ieq
+            b[i] = rhs0[i]
+        for k in range(md):
+            if port_p[k] >= 0:
+                b[port_p[k]] -= ieq[k]
+            if port_n[k] >= 0:
+                b[port_n[k]] += ieq[k]
+        lu_solve(l_ptr, l_row, l_val, u_ptr, u_row, u_val, row_to, col_of, b, work, x_new)
+        for i in range(n):
+            if not np.isfinite(x_new[i]):
+                return FAILED, iteration, x
+        done = noncon == 0 and (iteration > 1 or linear)
+        for i in range(n if done and not linear else 0):  # MnaSystem.close
+            if abs(x_new[i] - x[i]) > reltol * max(abs(x_new[i]), abs(x[i])) + abs_tol[i]:
+                done = False
+                break
+        for i in range(n):
+            x_ext[i] = x_new[i]
+        for k in range(md if done else 0):  # DiodeFamily.port_converged
+            delta = gd[k] * (x_ext[port_p[k]] - x_ext[port_n[k]] - vd[k])
+            if abs(delta) > reltol * max(abs(cd[k] + delta), abs(cd[k])) + abstol:
+                done = False
+                break
+        if done:
+            return CONVERGED, iteration, x
+        if iteration < itl4:  # else x stays the iterate before the last (failure reports)
+            for i in range(n):
+                x[i] = x_new[i]
+    return FAILED, itl4, x

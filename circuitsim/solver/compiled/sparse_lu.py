@@ -1,0 +1,290 @@
+"""Sparse LU of the whole MNA matrix with a fixed pivot order, refactored in compiled code.
+
+What ngspice's Sparse 1.3 does per Newton iteration: the matrix keeps its pattern from one
+iteration to the next (the devices change values, never positions), so the ordering and the
+fill pattern are found once and every later factorization is numeric only.
+
+- :func:`analyse` (Python, once per run and again only when a pivot has become too small):
+  SuperLU (``scipy.sparse.linalg.splu``, COLAMD column order, threshold partial pivoting) on
+  the present matrix gives the row and column permutations; a second symbolic pass on the
+  permuted pattern with generic values gives the pattern of L and U without pivoting.
+- :func:`refactor` (numba): left-looking LU on that pattern, no pivoting; it reports a pivot
+  smaller than ``PIVOT_THRESHOLD`` times the largest entry of its column, on which the caller
+  analyses again at the present values.
+- :func:`lu_solve` (numba): the two triangular solves with the permutations.
+
+The matrix is ``A = G + a0 M + sum_k g_k w_k w_k^T`` (w_k = e_p - e_n: junction and switch
+ports); its values in the permuted column-compressed order are assembled by
+:func:`assemble` from the constant parts and the port conductances, through positions
+computed once.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import scipy.sparse as sp
+from numba import njit
+from scipy.sparse.linalg import splu
+
+# a pivot below this fraction of its column's largest entry asks for a new pivot order (the
+# relative threshold of ngspice's spOrderAndFactor, PivRelThreshold 1e-3)
+PIVOT_THRESHOLD = 1e-3
+
+
+class SparseLU(NamedTuple):
+    """A fixed-pattern LU of the permuted matrix P = A[row_of, col_of] (n unknowns).
+
+    ``a_*``: P in compressed columns; G, M and each port's four stamps as positions into
+    ``a_val``. ``l_*``: the strictly lower part of L (unit diagonal), ``u_*``: U with its
+    diagonal last in each column.
+    """
+
+    a_ptr: np.ndarray  # (n + 1,) int64
+    a_row: np.ndarray  # (nnz,) int64
+    a_val: np.ndarray  # (nnz,) the present values
+    g_val: np.ndarray  # (nnz,) G's part of each entry
+    m_val: np.ndarray  # (nnz,) M's part (times a0)
+    port_pos: np.ndarray  # (nports, 4) int64: entries of (p,p), (n,n), (p,n), (n,p); -1 none
+    l_ptr: np.ndarray
+    l_row: np.ndarray
+    l_val: np.ndarray
+    u_ptr: np.ndarray
+    u_row: np.ndarray
+    u_val: np.ndarray
+    row_to: np.ndarray  # (n,) int64: row i of A is row row_to[i] of P
+    col_of: np.ndarray  # (n,) int64: column j of P is column col_of[j] of A
+    work: np.ndarray  # (n,) scratch, zero between calls
+    flops: float  # about the multiply-adds of one refactor (for profiles)
+
+
+def port_stamps(n: int, port_p: np.ndarray, port_n: np.ndarray):
+    """(rows, cols, signs, port) of the four stamps of every port (ground entries left out)."""
+    rows, cols, signs, which = [], [], [], []
+    for k, (p, m) in enumerate(zip(port_p, port_n, strict=True)):
+        for (i, j), sign in (((p, p), 1.0), ((m, m), 1.0), ((p, m), -1.0), ((m, p), -1.0)):
+            if i >= 0 and j >= 0:
+                rows.append(i)
+                cols.append(j)
+                signs.append(sign)
+                which.append(k)
+    return (np.array(rows, dtype=np.int64), np.array(cols, dtype=np.int64),
+            np.array(signs), np.array(which, dtype=np.int64))  # fmt: skip
+
+
+def present_matrix(G, M, port_p, port_n, values, a0) -> sp.csc_matrix:
+    """A = G + a0 M + W diag(values) W^T as a sparse matrix (values: port conductances)."""
+    n = G.shape[0]
+    rows, cols, signs, which = port_stamps(n, port_p, port_n)
+    ports = sp.coo_matrix((signs * values[which], (rows, cols)), shape=(n, n))
+    return sp.csc_matrix(sp.csc_matrix(G) + a0 * sp.csc_matrix(M) + ports)
+
+
+def analyse(G, M, port_p, port_n, values, a0, spare: float = 1.0) -> SparseLU:
+    """The pivot order at the present values and the fixed pattern it gives; L and U get
+    room for ``spare`` times their fill (a later order, :func:`repivot`, may need more).
+
+    Raises
+    ------
+    np.linalg.LinAlgError
+        The present matrix is singular.
+    """
+    n = G.shape[0]
+    A = present_matrix(G, M, port_p, port_n, values, a0)
+    try:
+        # no equilibration: refactor's pivot test is on the unscaled columns
+        lu = splu(A, permc_spec="COLAMD", diag_pivot_thresh=0.1, options={"Equil": False})
+    except RuntimeError as exc:  # "Factor is exactly singular"
+        raise np.linalg.LinAlgError(str(exc)) from None
+    row_to = np.asarray(lu.perm_r, dtype=np.int64)
+    col_rank = np.asarray(lu.perm_c, dtype=np.int64)  # column j of A is column col_rank[j]
+    col_of = np.argsort(col_rank)
+    # the pattern of every matrix of the run: G, M and all port stamps, whatever the values
+    rows, cols, _, _ = port_stamps(n, port_p, port_n)
+    ones = np.ones(rows.size)
+    pattern = (abs(sp.csc_matrix(G)) + abs(sp.csc_matrix(M))
+               + sp.csc_matrix((ones, (rows, cols)), shape=(n, n))).tocoo()  # fmt: skip
+    pattern = sp.csc_matrix(
+        (np.ones(pattern.nnz), (row_to[pattern.row], col_rank[pattern.col])),
+        shape=(n, n),
+    )
+    pattern.sum_duplicates()
+    pattern.sort_indices()
+    # L and U of the permuted pattern without pivoting: generic values (no cancellation) on
+    # it, and a diagonal that dominates so that SuperLU keeps the natural order
+    rng = np.random.default_rng(0)
+    generic = pattern.copy()
+    generic.data = 1.0 + rng.random(generic.nnz)
+    generic = generic + sp.identity(n, format="csc") * (2.0 * n)
+    symbolic = splu(generic.tocsc(), permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                    options={"SymmetricMode": True})  # fmt: skip
+    if not (np.array_equal(symbolic.perm_r, np.arange(n))
+            and np.array_equal(symbolic.perm_c, np.arange(n))):  # fmt: skip
+        raise AssertionError("sparse_lu.analyse: the symbolic pass pivoted")
+    L = sp.csc_matrix(symbolic.L)
+    L.sort_indices()
+    U = sp.csc_matrix(symbolic.U)
+    U.sort_indices()
+    L = sp.tril(L, k=-1, format="csc")
+    L.sort_indices()
+    # every stored entry of P, with its positions for G, M and the ports: entries are
+    # sorted by (column, row), so the key column * n + row finds them by bisection
+    a_ptr, a_row = pattern.indptr.astype(np.int64), pattern.indices.astype(np.int64)
+    keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(a_ptr)) * n + a_row
+
+    def positions(i, j) -> np.ndarray:
+        return np.searchsorted(keys, col_rank[j] * n + row_to[i])
+
+    def scatter(matrix) -> np.ndarray:
+        coo = sp.coo_matrix(matrix)
+        out = np.zeros(a_row.size)
+        np.add.at(out, positions(coo.row, coo.col), coo.data)
+        return out
+
+    port_pos = -np.ones((len(port_p), 4), dtype=np.int64)
+    for slot, (i, j) in enumerate(((port_p, port_p), (port_n, port_n),
+                                   (port_p, port_n), (port_n, port_p))):  # fmt: skip
+        i, j = np.asarray(i, dtype=np.int64), np.asarray(j, dtype=np.int64)
+        stamped = (i >= 0) & (j >= 0)
+        port_pos[stamped, slot] = positions(i[stamped], j[stamped])
+    l_count = np.diff(L.indptr)
+    flops = float(np.sum(l_count * np.diff(U.indptr)) + L.nnz)
+    return SparseLU(
+        a_ptr=a_ptr,
+        a_row=a_row,
+        a_val=np.zeros(a_row.size),
+        g_val=scatter(G),
+        m_val=scatter(M),
+        port_pos=port_pos,
+        l_ptr=L.indptr.astype(np.int64),
+        l_row=_room(L.indices, spare),
+        l_val=np.zeros(_room(L.indices, spare).size),
+        u_ptr=U.indptr.astype(np.int64),
+        u_row=_room(U.indices, spare),
+        u_val=np.zeros(_room(U.indices, spare).size),
+        row_to=row_to,
+        col_of=col_of,
+        work=np.zeros(n),
+        flops=flops,
+    )
+
+
+def _room(indices: np.ndarray, spare: float) -> np.ndarray:
+    out = np.zeros(int(indices.size * spare) + 1, dtype=np.int64)
+    out[: indices.size] = indices
+    return out
+
+
+def repivot_arrays(a_ptr, a_row, g_val, m_val, port_pos, l_ptr, l_row, u_ptr, u_row, row_to,
+                   col_of, port_p, port_n, values, a0) -> int:  # fmt: skip
+    """:func:`repivot` on a SparseLU's arrays (what compiled code can hand over); 2 when the
+    matrix is singular."""
+    empty = np.zeros(0)
+    lu = SparseLU(a_ptr, a_row, empty, g_val, m_val, port_pos, l_ptr, l_row, empty, u_ptr,
+                  u_row, empty, row_to, col_of, empty, 0.0)  # fmt: skip
+    try:
+        return repivot(lu, port_p, port_n, values, a0)
+    except np.linalg.LinAlgError:
+        return 2
+
+
+def repivot(lu: SparseLU, port_p, port_n, values, a0) -> int:
+    """A new pivot order at the present values, written into ``lu``'s arrays in place (the
+    compiled Newton asks for it when a pivot has become too small, and goes on with it).
+    Returns 0, or 1 when L and U have not room enough for the new fill (the caller then
+    makes new arrays with :func:`analyse`).
+
+    Raises
+    ------
+    np.linalg.LinAlgError
+        The present matrix is singular.
+    """
+    n = lu.row_to.size
+    rows = np.argsort(lu.row_to)[lu.a_row]  # the present P's entries back in A's numbering
+    cols = lu.col_of[np.repeat(np.arange(n), np.diff(lu.a_ptr))]
+    G = sp.csc_matrix((lu.g_val, (rows, cols)), shape=(n, n))
+    M = sp.csc_matrix((lu.m_val, (rows, cols)), shape=(n, n))
+    new = analyse(G, M, port_p, port_n, values, a0)
+    used_l, used_u = new.l_ptr[-1], new.u_ptr[-1]
+    if used_l > lu.l_row.size or used_u > lu.u_row.size:
+        return 1
+    for name in ("a_ptr", "a_row", "g_val", "m_val", "port_pos", "l_ptr", "u_ptr", "row_to",
+                 "col_of"):  # fmt: skip
+        getattr(lu, name)[...] = getattr(new, name)
+    lu.l_row[:used_l] = new.l_row[:used_l]
+    lu.u_row[:used_u] = new.u_row[:used_u]
+    return 0
+
+
+@njit(cache=True, inline="always")
+def assemble(a_val, g_val, m_val, a0, port_pos, gd, g_sw_present):
+    """a_val = G + a0 M + the ports' stamps (junction conductances gd (md,), then the
+    switches' present conductances (ms,))."""
+    for e in range(a_val.size):
+        a_val[e] = g_val[e] + a0 * m_val[e]
+    md = gd.size
+    for k in range(port_pos.shape[0]):
+        g = gd[k] if k < md else g_sw_present[k - md]
+        for slot in range(4):
+            pos = port_pos[k, slot]
+            if pos >= 0:
+                a_val[pos] += g if slot < 2 else -g
+
+
+@njit(cache=True)
+def refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work) -> int:
+    """Left-looking LU of P (compressed columns) on the fixed pattern: -1 when done, else the
+    column whose pivot is below PIVOT_THRESHOLD of its column (a new pivot order is due)."""
+    n = a_ptr.size - 1
+    for j in range(n):
+        for e in range(a_ptr[j], a_ptr[j + 1]):
+            work[a_row[e]] = a_val[e]
+        last = u_ptr[j + 1] - 1  # the diagonal
+        for e in range(u_ptr[j], last):  # rows k < j, ascending: a topological order
+            k = u_row[e]
+            ukj = work[k]
+            u_val[e] = ukj
+            work[k] = 0.0
+            if ukj != 0.0:
+                for f in range(l_ptr[k], l_ptr[k + 1]):
+                    work[l_row[f]] -= l_val[f] * ukj
+        pivot = work[j]
+        work[j] = 0.0
+        big = 0.0
+        for f in range(l_ptr[j], l_ptr[j + 1]):
+            big = max(big, abs(work[l_row[f]]))
+        if not abs(pivot) > PIVOT_THRESHOLD * big or pivot == 0.0:
+            for f in range(l_ptr[j], l_ptr[j + 1]):
+                work[l_row[f]] = 0.0
+            return j
+        u_val[last] = pivot
+        inv = 1.0 / pivot
+        for f in range(l_ptr[j], l_ptr[j + 1]):
+            i = l_row[f]
+            l_val[f] = work[i] * inv
+            work[i] = 0.0
+    return -1
+
+
+@njit(cache=True)
+def lu_solve(l_ptr, l_row, l_val, u_ptr, u_row, u_val, row_to, col_of, b, work, x):
+    """x = A^-1 b through the factors of P (work: scratch of size n, zero on return)."""
+    n = b.size
+    for i in range(n):
+        work[row_to[i]] = b[i]
+    for j in range(n):  # L y = P_r b (unit diagonal)
+        yj = work[j]
+        if yj != 0.0:
+            for f in range(l_ptr[j], l_ptr[j + 1]):
+                work[l_row[f]] -= l_val[f] * yj
+    for j in range(n - 1, -1, -1):  # U z = y, column by column
+        last = u_ptr[j + 1] - 1
+        zj = work[j] / u_val[last]
+        work[j] = zj
+        if zj != 0.0:
+            for e in range(u_ptr[j], last):
+                work[u_row[e]] -= u_val[e] * zj
+    for j in range(n):
+        x[col_of[j]] = work[j]
+        work[j] = 0.0

@@ -1,0 +1,83 @@
+"""The MNA kernel's sparse LU (compiled/sparse_lu.py) against dense solves: MNA-shaped
+matrices with zero diagonals (voltage-source branches), port stamps that change by orders of
+magnitude, and a new pivot order when a pivot becomes too small."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from circuitsim.solver.compiled.sparse_lu import (
+    analyse,
+    assemble,
+    lu_solve,
+    present_matrix,
+    refactor,
+    repivot,
+)
+
+
+def mna_like(n: int, seed: int):
+    """A random sparse matrix with a zero diagonal at every third unknown (like the branch
+    rows of voltage sources), a capacitor-like M, and four ports (one to ground)."""
+    rng = np.random.default_rng(seed)
+    G = sp.random(n, n, density=4.0 / n, random_state=seed).toarray()
+    G[np.arange(n), (np.arange(n) + 1) % n] += 1.0 + rng.random(n)
+    G[np.arange(0, n, 3), np.arange(0, n, 3)] = 0.0
+    M = np.zeros((n, n))
+    M[5, 5], M[7, 7] = 1e-6, 2e-6
+    return G, M, np.array([1, 4, -1, 10]), np.array([2, -1, 8, 11])
+
+
+def factor_and_solve(lu, a0, g_ports, b):
+    md = 2  # the first two ports are "junctions", the others "switches"
+    assemble(lu.a_val, lu.g_val, lu.m_val, a0, lu.port_pos, g_ports[:md], g_ports[md:])
+    column = refactor(lu.a_ptr, lu.a_row, lu.a_val, lu.l_ptr, lu.l_row, lu.l_val, lu.u_ptr,
+                      lu.u_row, lu.u_val, lu.work)  # fmt: skip
+    x = np.zeros(b.size)
+    if column < 0:
+        lu_solve(lu.l_ptr, lu.l_row, lu.l_val, lu.u_ptr, lu.u_row, lu.u_val, lu.row_to,
+                 lu.col_of, b, lu.work, x)  # fmt: skip
+    return column, x
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_refactor_solves_as_a_dense_solve(seed):
+    n = 60
+    G, M, port_p, port_n = mna_like(n, seed)
+    values = np.array([1e-3, 5.0, 1e-12, 0.1])
+    lu = analyse(G, M, port_p, port_n, values, 1e5)
+    rng = np.random.default_rng(seed)
+    for scale in (1.0, 3.0, 10.0):  # the same pattern at other port values
+        g = values * (1.0 + scale * rng.random(4))
+        b = rng.random(n)
+        column, x = factor_and_solve(lu, 1e5, g, b)
+        assert column < 0
+        dense = present_matrix(G, M, port_p, port_n, g, 1e5).toarray()
+        reference = np.linalg.solve(dense, b)
+        assert np.max(np.abs(x - reference)) <= 1e-9 * np.max(np.abs(reference))
+
+
+def test_a_too_small_pivot_asks_for_a_new_order_that_then_solves():
+    # a 2 x 2 block whose pivot order flips when the port conductance crosses the other entry
+    G = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]])
+    M = np.zeros((3, 3))
+    port_p, port_n = np.array([0, 2]), np.array([-1, -1])
+    lu = analyse(G, M, port_p, port_n, np.array([1e-9, 1.0]), 0.0)
+    b = np.array([1.0, 2.0, 3.0])
+    g = np.array([1e3, 1.0])
+    column, _ = factor_and_solve(lu, 0.0, g, b)
+    assert column >= 0  # the order made at 1e-9 S does not suit 1e3 S
+    assert repivot(lu, port_p, port_n, g, 0.0) == 0
+    column, x = factor_and_solve(lu, 0.0, g, b)
+    assert column < 0
+    dense = present_matrix(G, M, port_p, port_n, g, 0.0).toarray()
+    assert np.allclose(dense @ x, b, rtol=0, atol=1e-12)
+
+
+def test_a_singular_matrix_is_reported():
+    G = np.array([[1.0, 1.0], [1.0, 1.0]])
+    with pytest.raises(np.linalg.LinAlgError):
+        analyse(G, np.zeros((2, 2)), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64),
+                np.zeros(0), 0.0)  # fmt: skip
