@@ -5,9 +5,10 @@ a chain of N = 1, 2, 4 ... 64 masses with a dead-zone contact on each
 (:func:`circuitsim.mechanics.chain.chain_model_text`; 4 diodes per mass with ``--nonlinear
 abs``), and the wheelset. Both engines run the same netlist file, side by side in one run:
 
-- in-process: ngspice's own ``Transient analysis time`` (``rusage trantime``; the netlist is
-  parsed and the operating point solved outside it) against our ``simulate()`` on the parsed
-  Circuit (assembly, operating point and transient: more than ngspice's figure counts);
+- in-process: ngspice's own ``Transient analysis time`` (``rusage all``, which also gives
+  its step and Newton counts; the netlist is parsed and the operating point solved outside
+  it) against our ``simulate()`` on the parsed Circuit (assembly, operating point and
+  transient: more than ngspice's figure counts);
 - whole process: ``ngspice -b deck`` against ``python -m circuitsim simulate deck --csv``
   (start-up, imports, parsing, compiled-kernel loading, output of the probed states);
 - CPU time (user + system), which a loaded machine disturbs far less than wall time: the
@@ -45,7 +46,7 @@ from circuitsim.synthesis.options import SynthesisOptions
 
 CHAIN_SIZES = (1, 2, 4, 8, 16, 32, 64)
 QUICK_SIZES = (1, 4, 8)
-TL074_SIZES = (1, 2)  # the macromodel's chains (7 junctions per op-amp; larger ones: see docs)
+TL074_SIZES = (1, 2, 4, 8)  # the macromodel's chains (about 4 junctions per op-amp)
 T_STOP = 5.0
 WHEELSET = {"V": 55.0, "f": 3.0, "a": 0.040}
 FIT_FROM = 4  # growth exponents over N >= this
@@ -120,7 +121,7 @@ def ngspice_run(netlist: Path) -> dict:
         raw = Path(tmp) / "out.raw"
         body = re.sub(r"(?im)^\.end\s*$", "", text)
         deck = Path(tmp) / "deck.cir"
-        deck.write_text(body + f"\n.control\nrun\nrusage trantime\nwrite {raw}\n.endc\n.end\n")
+        deck.write_text(body + f"\n.control\nrun\nrusage all\nwrite {raw}\n.endc\n.end\n")
         started = time.perf_counter()
         children = resource.getrusage(resource.RUSAGE_CHILDREN)
         done = subprocess.run(
@@ -138,7 +139,13 @@ def ngspice_run(netlist: Path) -> dict:
             tail = (done.stdout + done.stderr).strip().splitlines()[-3:]
             return {"error": "ngspice: " + " / ".join(tail), "process_s": process}
         waves = parse_rawfile(raw.read_bytes())
-    return {"solve_s": float(found.group(1)), "process_s": process, "cpu_s": cpu, "waves": waves}
+    counts = {
+        key: int(float(m.group(1)))
+        for key, label in (("steps", "Accepted timepoints"), ("newton", "Transient iterations"))
+        if (m := re.search(label + r"\s*=\s*([0-9.eE+-]+)", done.stdout))
+    }
+    return {"solve_s": float(found.group(1)), "process_s": process, "cpu_s": cpu, "waves": waves,
+            **counts}  # fmt: skip
 
 
 def ours_in_process(case: dict) -> dict:
@@ -158,6 +165,7 @@ def ours_in_process(case: dict) -> dict:
         "waves": waves,
         "kernel": stats.get("kernel"),
         "steps": stats.get("accepted"),
+        "newton": stats.get("newton_iterations"),
         "factorizations": stats.get("factorizations"),
         "unknowns": stats.get("unknowns"),
     }
@@ -214,6 +222,9 @@ def measure(case: dict, log) -> dict:
         ours_error=ours.get("error") or process["error"],
         kernel=ours.get("kernel"),
         steps=ours.get("steps"),
+        newton=ours.get("newton"),
+        ngspice_steps=ngspice.get("steps"),
+        ngspice_newton=ngspice.get("newton"),
         factorizations=ours.get("factorizations"),
         unknowns=ours.get("unknowns"),
     )
@@ -297,7 +308,8 @@ def run(folder: Path, quick: bool, log, sizes=None, opamps=("ideal", "tl074")) -
 def report(data: dict) -> str:
     """The scaling table and the growth exponents."""
     headers = [
-        "case", "op-amps", "unknowns", "diodes", "kernel", "factorizations",
+        "case", "op-amps", "unknowns", "diodes", "kernel", "factorizations", "steps ours",
+        "steps ngspice", "Newton it. ours", "Newton it. ngspice",
         "ours (s)", "ngspice (s)", "ratio", "ours process (s)", "ngspice process (s)",
         "ratio (process)", "ours CPU (s)", "ngspice CPU (s)", "ratio (CPU)", "%NRMSD ours",
         "%NRMSD ngspice", "failure",
@@ -308,7 +320,8 @@ def report(data: dict) -> str:
         rows.append(
             [
                 r["label"], r["opamp"], r.get("unknowns"), elements.get("D"), r.get("kernel"),
-                r.get("factorizations"), r.get("ours_s"), r.get("ngspice_s"), r.get("ratio"),
+                r.get("factorizations"), r.get("steps"), r.get("ngspice_steps"), r.get("newton"),
+                r.get("ngspice_newton"), r.get("ours_s"), r.get("ngspice_s"), r.get("ratio"),
                 r.get("ours_process_s"), r.get("ngspice_process_s"), r.get("ratio_process"),
                 r.get("ours_cpu_s"), r.get("ngspice_cpu_s"), r.get("ratio_cpu"),
                 r.get("ours_nrmsd"), r.get("ngspice_nrmsd"),
