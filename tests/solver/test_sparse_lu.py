@@ -66,9 +66,9 @@ def test_a_too_small_pivot_asks_for_a_new_order_that_then_solves():
     port_p, port_n = np.array([0, 2]), np.array([-1, -1])
     lu = analyse(G, M, port_p, port_n, np.array([1e-9, 1.0]), 0.0)
     b = np.array([1.0, 2.0, 3.0])
-    g = np.array([1e3, 1.0])
+    g = np.array([1e4, 1.0])
     column, _ = factor_and_solve(lu, 0.0, g, b)
-    assert column >= 0  # the order made at 1e-9 S does not suit 1e3 S
+    assert column >= 0  # the order made at 1e-9 S does not suit 1e4 S
     assert repivot(lu, port_p, port_n, g, 0.0) == 0
     column, x = factor_and_solve(lu, 0.0, g, b)
     assert column < 0

@@ -38,7 +38,7 @@ class SparseLU(NamedTuple):
 
     ``a_*``: P in compressed columns; G, M and each port's four stamps as positions into
     ``a_val``. ``l_*``: the strictly lower part of L (unit diagonal), ``u_*``: U with its
-    diagonal last in each column.
+    diagonal last in each column, stored as its inverse.
     """
 
     a_ptr: np.ndarray  # (n + 1,) int64
@@ -235,8 +235,10 @@ def assemble(a_val, g_val, m_val, a0, port_pos, gd, g_sw_present):
 @njit(cache=True)
 def refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work) -> int:
     """Left-looking LU of P (compressed columns) on the fixed pattern: -1 when done, else the
-    column whose pivot is below PIVOT_THRESHOLD of its column (a new pivot order is due)."""
+    column whose pivot is below PIVOT_THRESHOLD of its column (a new pivot order is due).
+    U's diagonal is stored inverted (the solves multiply by it)."""
     n = a_ptr.size - 1
+    limit = 1.0 / PIVOT_THRESHOLD
     for j in range(n):
         for e in range(a_ptr[j], a_ptr[j + 1]):
             work[a_row[e]] = a_val[e]
@@ -251,19 +253,17 @@ def refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work
                     work[l_row[f]] -= l_val[f] * ukj
         pivot = work[j]
         work[j] = 0.0
-        big = 0.0
-        for f in range(l_ptr[j], l_ptr[j + 1]):
-            big = max(big, abs(work[l_row[f]]))
-        if not abs(pivot) > PIVOT_THRESHOLD * big or pivot == 0.0:
-            for f in range(l_ptr[j], l_ptr[j + 1]):
-                work[l_row[f]] = 0.0
-            return j
-        u_val[last] = pivot
-        inv = 1.0 / pivot
+        inv = 1.0 / pivot if pivot != 0.0 else 0.0
+        u_val[last] = inv
+        largest = 0.0  # |L| entries above 1 / PIVOT_THRESHOLD: the pivot is too small
         for f in range(l_ptr[j], l_ptr[j + 1]):
             i = l_row[f]
-            l_val[f] = work[i] * inv
+            value = work[i] * inv
+            l_val[f] = value
+            largest = max(largest, abs(value))
             work[i] = 0.0
+        if pivot == 0.0 or not largest <= limit:
+            return j
     return -1
 
 
@@ -280,7 +280,7 @@ def lu_solve(l_ptr, l_row, l_val, u_ptr, u_row, u_val, row_to, col_of, b, work, 
                 work[l_row[f]] -= l_val[f] * yj
     for j in range(n - 1, -1, -1):  # U z = y, column by column
         last = u_ptr[j + 1] - 1
-        zj = work[j] / u_val[last]
+        zj = work[j] * u_val[last]  # the inverted diagonal
         work[j] = zj
         if zj != 0.0:
             for e in range(u_ptr[j], last):
