@@ -3,9 +3,14 @@
 This package only re-exports. Where things are:
 
 - runner.py: kernel choice (``SimulationOptions.kernel``: ``auto``, ``compiled``, ``ports``,
-  ``python``), the start of a run and its loop in chunks (progress, wall-time limit);
-- transient.py, port_loop.py: the two compiled loops; newton.py, lowrank.py, ports.py,
-  devices.py, plan.py, port_state.py: what they run on;
+  ``python``; auto_kernel, from measurements in docs/solver.md), the start of a run and its
+  loop in chunks (progress, wall-time limit, a new pivot order when the loop asks);
+- transient.py + mna_newton.py + sparse_lu.py: the MNA kernel (``kernel="compiled"``: Newton
+  on the whole matrix, refactored sparse at every iteration on a fixed pivot order);
+- port_loop.py + ports.py + port_state.py + lowrank.py: the ports kernel (Newton on the
+  junction voltages, one factorization updated at low rank);
+- newton.py (shared state slots, the ports kernel's factorization), devices.py (the device
+  equations both loops inline), plan.py (the arrays they run on);
 - cache.py: where numba keeps the machine code (a user cache directory), stale-code removal,
   whether a run must compile first (announced by a KernelCompileWarning);
 - failures.py: the loops' return codes as the engine's typed errors;
