@@ -27,7 +27,7 @@ def no_long_work(monkeypatch):
     for module, name in [
         ("circuitsim.compare.sweep", "run_sweep"),
         ("circuitsim.compare.case", "run_case"),
-        ("circuitsim.compare.reproduce", "reproduce"),
+        ("circuitsim.studies.reproduce", "reproduce"),
         ("circuitsim.mechanics", "solve"),
         ("circuitsim.mechanics", "critical_speed"),
         ("circuitsim.solver", "simulate"),

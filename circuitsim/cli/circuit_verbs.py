@@ -463,7 +463,7 @@ def _add_reproduce(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_reproduce(args: argparse.Namespace) -> int:
-    from circuitsim.compare.reproduce import OPAMPS, SERIES, reproduce
+    from circuitsim.studies.reproduce import OPAMPS, SERIES, reproduce
 
     require_jobs(args)
     require_positive("--ngspice-timeout", args.ngspice_timeout)

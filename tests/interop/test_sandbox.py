@@ -332,7 +332,7 @@ def test_cli_ngspice_timeout_reaches_compare_and_sweep(verb, tmp_path, capsys):
 @pytest.mark.ngspice
 def test_reproduce_passes_ngspice_timeout(tmp_path):
     """reproduce's ngspice rows are stopped at its ngspice_timeout, a failed row naming it."""
-    from circuitsim.compare.reproduce import PAPER_SCENARIOS, reproduce
+    from circuitsim.studies.reproduce import PAPER_SCENARIOS, reproduce
 
     result = reproduce(
         tmp_path,

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from circuitsim.compare.errors import ComparisonError
-from circuitsim.compare.reproduce import Scenario
 from circuitsim.mechanics import load_model
 from circuitsim.netlist.circuit import Capacitor, Resistor
+from circuitsim.studies.reproduce import Scenario
 from circuitsim.studies.tolerance import Tolerances, draw_circuits, run_tolerance
 from circuitsim.synthesis.options import SynthesisOptions
 

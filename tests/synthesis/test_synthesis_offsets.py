@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from circuitsim.compare.case import run_case
-from circuitsim.compare.reproduce import Scenario
 from circuitsim.compare.signals import nrmsd_percent
 from circuitsim.interop.ngspice import run_ngspice
 from circuitsim.mechanics import load_model
 from circuitsim.netlist.reader import parse_netlist
 from circuitsim.solver import simulate
+from circuitsim.studies.reproduce import Scenario
 from circuitsim.synthesis.errors import SynthesisError
 from circuitsim.synthesis.offsets import (
     apply_opamp_errors,

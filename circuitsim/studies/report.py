@@ -1,4 +1,4 @@
-"""report.md and metrics.json of a reproduction run (:mod:`circuitsim.compare.reproduce`).
+"""report.md and metrics.json of a reproduction run (:mod:`circuitsim.studies.reproduce`).
 
 Every number in the report comes from the run itself, except the reference columns: the
 project's independent reference values (docs/model.md, "Reference results"; numpy/scipy,
@@ -12,7 +12,7 @@ import math
 import platform
 from datetime import UTC, datetime
 
-from circuitsim.compare.tolerance_report import render_tolerance
+from circuitsim.studies.tolerance_report import render_tolerance
 
 # The reference results for the paper coefficient set (docs/model.md, "Reference results").
 MODEL_MD_CRITICAL_SPEED = 55.6455  # m/s
@@ -45,7 +45,7 @@ def _metric(comparison, state: str, name: str, spec: str) -> str:
 
 
 def render_report(result) -> str:
-    """The Markdown report of a :class:`~circuitsim.compare.reproduce.Reproduction`."""
+    """The Markdown report of a :class:`~circuitsim.studies.reproduce.Reproduction`."""
     lines: list[str] = []
     add = lines.append
     stamp = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")

@@ -139,7 +139,7 @@ class Row:
 
 @dataclass
 class Reproduction:
-    """Everything a run produced (what :mod:`circuitsim.compare.report` renders)."""
+    """Everything a run produced (what :mod:`circuitsim.studies.report` renders)."""
 
     out_dir: Path
     scenarios: tuple[Scenario, ...]
@@ -159,7 +159,7 @@ class Reproduction:
     knobs: list = field(default_factory=list)  # the speed knob of the drawn circuit
     knob_netlist: str = ""
     schematic_problem: str | None = None
-    tolerance: dict | None = None  # the Monte Carlo's summary (compare.tolerance_report)
+    tolerance: dict | None = None  # the Monte Carlo's summary (studies.tolerance_report)
 
 
 # --- jobs (module-level so the process pool can pickle them) ----------------------------------
@@ -335,7 +335,7 @@ def reproduce(
         flange on and off, up then down: :mod:`circuitsim.studies.hunting`); empty to skip it.
     tolerance_samples : int
         Circuits of the tolerance section (1 % resistors, 5 % capacitors, the first
-        scenario: :mod:`circuitsim.compare.tolerance_report`); 0 to skip it.
+        scenario: :mod:`circuitsim.studies.tolerance_report`); 0 to skip it.
     workers : int, optional
         Processes (default: every core).
     n_points : int
@@ -353,8 +353,8 @@ def reproduce(
     """
     from circuitsim.compare.paper_figures import plot_free_response, plot_growth_rate
     from circuitsim.compare.plots import plot_overlay
-    from circuitsim.compare.report import render_report, reproduction_json
     from circuitsim.mechanics import critical_speed, eigenvalues, load_model
+    from circuitsim.studies.report import render_report, reproduction_json
 
     say = progress or (lambda message: None)
     started = time.perf_counter()
@@ -489,7 +489,7 @@ def reproduce(
         say(f"hunting diagram: {len(hunting_speeds)} speeds, {hunting['wall_s']:.1f} s")
     tolerance = None
     if tolerance_samples and scenarios:
-        from circuitsim.compare.tolerance_report import tolerance_study
+        from circuitsim.studies.tolerance_report import tolerance_study
 
         first = scenarios[0]
         tolerance = tolerance_study(first.system(model), first.title, tolerance_samples,

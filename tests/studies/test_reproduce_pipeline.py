@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from circuitsim.compare.case import run_case
-from circuitsim.compare.reproduce import Scenario, reproduce
 from circuitsim.mechanics import eigenvalues, load_model
+from circuitsim.studies.reproduce import Scenario, reproduce
 from circuitsim.synthesis.options import SynthesisOptions
 
 requires_ngspice = pytest.mark.skipif(
