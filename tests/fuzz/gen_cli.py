@@ -123,22 +123,29 @@ def base_command(rng: random.Random, verb: str) -> list[str]:
     if verb == "simulate":
         return ["simulate", netlist, "--max-steps", "2000", "--max-wall-time", "8",
                 "--csv", str(out / "s.csv")]  # fmt: skip
+    if verb == "tolerance":
+        return ["tolerance", *_model(rng), "-n", "3", "--tstop", "0.05", "--jobs", "1",
+                "--seed", "7", "--out", str(out / "tol")]  # fmt: skip
+    if verb == "hunting":
+        return ["hunting", "--speeds", "54:55:1", "--settle", "0.05", "--record", "0.05",
+                rng.choice(["--no-circuit", "--flange"]), "--out", str(out / "hunt")]  # fmt: skip
     raise ValueError(verb)
 
 
 VERBS = ("ode", "stability", "generate", "compare", "sweep", "reproduce", "check", "convert",
-         "simulate")  # fmt: skip
+         "simulate", "tolerance", "hunting")  # fmt: skip
 """Every verb of the command line (``circuitsim --help``)."""
 
 # options whose valid values make a run long: a mutation gives them only refused values
 LONG_RUNS = {"--tstop", "--values", "--window", "--max-steps", "--max-wall-time", "--workers",
-             "--jobs", "--dt", "--freq", "--speed", "--time-scale"}  # fmt: skip
+             "--jobs", "--dt", "--freq", "--speed", "--time-scale", "-n", "--speeds",
+             "--settle", "--record"}  # fmt: skip
 REFUSED = ["nan", "inf", "-1", "0", "", "abc", "1" * 400, "\x00", "-inf", "1e-320:1:1"]
 
 
 def _value_for(rng: random.Random, option: str, verb: str) -> str:
     if option in LONG_RUNS and verb in ("ode", "generate", "compare", "sweep", "reproduce",
-                                        "simulate"):  # fmt: skip
+                                        "simulate", "tolerance", "hunting"):  # fmt: skip
         return rng.choice(REFUSED)
     if option in PATH_OPTIONS:
         return rng.choice(hostile_paths())
