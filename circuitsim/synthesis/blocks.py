@@ -83,6 +83,15 @@ class Builder:
         self.part_range = part_range
         self.bom: list[BomEntry] = []
 
+    @property
+    def chain_tolerance(self) -> float:
+        """Pair tolerance of the resistors on a nonlinear term's path (its summers and its
+        switched resistor): a coefficient there is the product of up to four rounded
+        resistors (argument summer, term summer, inverter, switched resistor), and the terms
+        into one state may partly cancel (quarter_car: constants -404 and +1000 into zu_dot
+        amplify the errors by 1.7), so each gets a quarter of the tolerance."""
+        return self.pair_tolerance / 4
+
     def place_resistor(
         self,
         name: str,
@@ -94,6 +103,7 @@ class Builder:
         series_extra: float = 0.0,
         series: str | None = None,
         parallel: bool = False,
+        pair_tolerance: float | None = None,
     ) -> float:
         """Add a resistor whose ideal value is ``ideal`` ohms (total, including
         ``series_extra``, e.g. a switch's on resistance); returns the realized total.
@@ -107,15 +117,17 @@ class Builder:
         two nodes take a second one, i.e. no switch in its path), a pair that still misses the
         tolerance is compared with the best parallel pair ``{name}A`` || ``{name}B``
         (:func:`~circuitsim.synthesis.eseries.parallel_pair`), and the closer one is used.
+        ``pair_tolerance`` replaces the builder's (e.g. :attr:`chain_tolerance`).
         """
+        tolerance = self.pair_tolerance if pair_tolerance is None else pair_tolerance
         chosen = series or self.series
         wanted = max(ideal - series_extra, 1e-3)
         low, high = self.part_range
         if math.isnan(target) or not low <= wanted <= high:
             values: tuple[float, ...] = (round_to_series(wanted, chosen),)
         else:
-            values = series_pair(wanted, chosen, self.pair_tolerance, low)
-        values, kind = self._with_parallel(values, wanted, chosen, parallel)
+            values = series_pair(wanted, chosen, tolerance, low)
+        values, kind = self._with_parallel(values, wanted, chosen, parallel, tolerance)
         combined = parallel_value(values) if kind == "parallel" else sum(values)
         total = combined + series_extra
         realized = float(target * ideal / total) if not math.isnan(target) else math.nan
@@ -140,9 +152,11 @@ class Builder:
         )
         return total
 
-    def _with_parallel(self, values, wanted, chosen, parallel) -> tuple[tuple[float, ...], str]:
+    def _with_parallel(
+        self, values, wanted, chosen, parallel, tolerance
+    ) -> tuple[tuple[float, ...], str]:
         """``values`` (one part or a series pair), or the parallel pair where allowed and closer."""
-        if parallel and len(values) == 2 and abs(sum(values) / wanted - 1) > self.pair_tolerance:
+        if parallel and len(values) == 2 and abs(sum(values) / wanted - 1) > tolerance:
             pair = parallel_pair(wanted, chosen, self.part_range[0])
             if pair is not None and abs(parallel_value(pair) / wanted - 1) < abs(
                 sum(values) / wanted - 1
@@ -157,17 +171,20 @@ class Builder:
         output: str,
         inputs: list[tuple[str, str, float, float, str]],
         r_feedback: float,
+        pair_tolerance: float | None = None,
     ) -> None:
         """Inverting summer: v(output) = -sum_k w_k v(node_k).
 
         ``inputs`` holds (suffix, node, weight w_k > 0, target coefficient, role); the input
         resistor R{prefix}_{suffix} = r_feedback / w_k is rounded to the series, the feedback
-        resistor R{prefix}_F is r_feedback exactly (a standard value).
+        resistor R{prefix}_F is r_feedback exactly (a standard value). ``pair_tolerance``: as
+        in :meth:`place_resistor`.
         """
         junction = f"{prefix.lower()}_j"
         for suffix, node, weight, target, role in inputs:
             self.place_resistor(
-                f"R{prefix}_{suffix}", node, junction, r_feedback / weight, role, target
+                f"R{prefix}_{suffix}", node, junction, r_feedback / weight, role, target,
+                pair_tolerance=pair_tolerance,
             )
         self.circuit.add(Resistor(f"R{prefix}_F", junction, output, r_feedback))
         self.bom.append(

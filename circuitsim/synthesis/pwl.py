@@ -151,6 +151,7 @@ class TermBuilder:
                 negated,
                 [("IN", node, 1.0, 1.0, f"inverter of {term.name} signal")],
                 self.r_unit,
+                self.b.chain_tolerance,
             )
         return TermSignal(node, negated, sigma, beta, tuple(self.inner))
 
@@ -175,7 +176,7 @@ class TermBuilder:
             # the summer inverts: feed -s_in*sign(row_j) G_j x_j
             node = self._node_for(int(j), -want_sign * row[j])
             inputs.append((node_name(self.states[j]).upper(), node, weight, weight, "argument"))
-        self.b.summer(prefix, prefix, out, inputs, self.r_unit)
+        self.b.summer(prefix, prefix, out, inputs, self.r_unit, self.b.chain_tolerance)
         self.inner.append(InnerNode(out, f"argument summer {prefix}", alpha, row))
         return out, alpha, want_sign
 
@@ -241,7 +242,9 @@ class TermBuilder:
             self.b.circuit.add(VoltageSource(f"V{prefix}_CONST", source, "0", dc=volts / weight))
             inputs.append(("CONST", source, weight, weight, f"{term.name}: constant"))
         out = f"{n}_sig"
-        self.b.summer(f"{prefix}_SUM", f"{prefix}_SUM", out, inputs, self.r_unit)
+        self.b.summer(
+            f"{prefix}_SUM", f"{prefix}_SUM", out, inputs, self.r_unit, self.b.chain_tolerance
+        )
         return out, beta
 
     def _dead_zone(

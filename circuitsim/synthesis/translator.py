@@ -416,6 +416,7 @@ def _add_integrator(builder, names, state, state_nodes, state_inputs, options, w
         total = builder.place_resistor(
             inp.name, far, junction, ideal, inp.role, inp.target, inp.series_extra,
             parallel=_is_linear(inp),
+            pair_tolerance=builder.chain_tolerance if inp.switch is not None else None,
         )  # fmt: skip
         if not options.r_min <= total <= options.r_max:
             warnings.append(
