@@ -64,6 +64,14 @@ def start_transient(
         raise CircuitInputError(f".tran tmax {tmax:g} must be > 0")
     stats.update(accepted=0, rejected=0, newton_iterations=stats.get("newton_iterations", 0))
     max_step = tmax if tmax else min(tstep, (tstop - tstart) / 50)
+    # below a few ulps of tstop, t + h == t: no step could advance time (a 1e-320 s tstep once
+    # reached 1/h = inf in the integration coefficients)
+    resolution = 4.0 * np.finfo(float).eps * tstop
+    if not max_step > resolution:
+        raise CircuitInputError(
+            f".tran {tstep:g} {tstop:g}: the largest step, {max_step:g} s, is below the "
+            f"resolution of time near tstop ({resolution:.3g} s); give a larger tstep or tmax"
+        )
     min_step = 1e-11 * max_step
     for family in system.families:
         family.set_timing(tstep, tstop)

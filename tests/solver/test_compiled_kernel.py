@@ -356,6 +356,22 @@ def test_resistive_circuit_is_refused_by_the_compiled_kernel():
     assert auto.stats["kernel"].startswith("python (no charges")
 
 
+@pytest.mark.parametrize("kernel", ["python", "ports", "compiled"])
+def test_a_step_below_the_resolution_of_time_is_refused(kernel):
+    """tstep 1e-320 s (fuzz seed 20261206 #421): t + h == t near tstop, and the numpy loop
+    reached 1/h = inf; every kernel refuses it before the run, naming the step."""
+    c = Circuit(
+        elements=[
+            VoltageSource("V1", "in", "0", dc=1.0),
+            Resistor("R1", "in", "out", 1e3),
+            Capacitor("C1", "out", "0", 1e-6),
+        ]
+    )
+    with pytest.raises(CircuitInputError, match="below the resolution of time near tstop"):
+        run(c, kernel, 1e-320, 4e-3)
+    assert len(run(c, kernel, 1e-5, 4e-3).time) > 50  # a small but representable step runs
+
+
 def test_large_circuit_runs_on_the_sparse_factorization():
     """651 unknowns: the ports kernel factors with SuperLU (sparse_factors.py) instead of
     stopping at a dense size limit; the RC ladder's signals match the reference loop."""
