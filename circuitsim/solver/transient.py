@@ -28,6 +28,7 @@ from circuitsim.solver.newton import newton
 from circuitsim.solver.system import MnaSystem
 
 HISTORY = 4  # accepted points kept: order 2 truncation needs t_n+1 and three before
+SMALLEST_STEP = 1e-100  # s: far below any time constant; its 1e-11 squared is still normal
 
 
 def start_transient(
@@ -64,9 +65,10 @@ def start_transient(
         raise CircuitInputError(f".tran tmax {tmax:g} must be > 0")
     stats.update(accepted=0, rejected=0, newton_iterations=stats.get("newton_iterations", 0))
     max_step = tmax if tmax else min(tstep, (tstop - tstart) / 50)
-    # below a few ulps of tstop, t + h == t: no step could advance time (a 1e-320 s tstep once
-    # reached 1/h = inf in the integration coefficients)
-    resolution = 4.0 * np.finfo(float).eps * tstop
+    # below a few ulps of tstop, t + h == t: no step could advance time; below SMALLEST_STEP the
+    # smallest step (1e-11 of it) and its powers in the error estimate leave the normal floats
+    # (a 1e-320 s tstep once reached 1/h = inf in the integration coefficients)
+    resolution = max(4.0 * np.finfo(float).eps * tstop, SMALLEST_STEP)
     if not max_step > resolution:
         raise CircuitInputError(
             f".tran {tstep:g} {tstop:g}: the largest step, {max_step:g} s, is below the "
