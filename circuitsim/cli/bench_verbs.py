@@ -8,16 +8,18 @@ import sys
 
 from circuitsim.cli.common import (
     UsageError,
-    add_knob_options,
     add_model_options,
     add_scenario_options,
-    add_translator_options,
     check_scenario_options,
-    check_translator_options,
-    knob_request,
     progress,
     require_positive,
     scenario_system,
+)
+from circuitsim.cli.translator_options import (
+    add_knob_options,
+    add_translator_options,
+    check_translator_options,
+    knob_request,
     translator_options,
 )
 

@@ -10,17 +10,10 @@ from typing import TYPE_CHECKING
 from circuitsim.cli.common import (
     UsageError,
     add_jobs_option,
-    add_knob_options,
     add_model_options,
     add_ngspice_timeout,
-    add_opamp_options,
     add_scenario_options,
-    add_time_scale,
-    add_translator_options,
     check_scenario_options,
-    check_translator_options,
-    knob_request,
-    opamp_fields,
     prepare_output_folder,
     print_warning,
     progress,
@@ -29,9 +22,18 @@ from circuitsim.cli.common import (
     require_positive,
     require_writable,
     scenario_system,
-    translator_options,
 )
 from circuitsim.cli.opamp_options import add_opamp_error_options, opamp_errors
+from circuitsim.cli.translator_options import (
+    add_knob_options,
+    add_opamp_options,
+    add_time_scale,
+    add_translator_options,
+    check_translator_options,
+    knob_request,
+    opamp_fields,
+    translator_options,
+)
 
 if TYPE_CHECKING:
     pass
