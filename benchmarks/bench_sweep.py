@@ -22,7 +22,8 @@ import numpy as np
 from bench_common import REPEAT, machine, table
 
 from circuitsim.compare.mapping import map_waveforms, resample
-from circuitsim.compare.sweep import run_sweep, save_sweep, sweep_circuits
+from circuitsim.compare.sweep import run_sweep, sweep_circuits
+from circuitsim.compare.sweep_plot import save_sweep
 from circuitsim.compare.values import parse_values
 from circuitsim.mechanics import critical_speed, load_model
 from circuitsim.netlist.reader import parse_netlist

@@ -50,6 +50,7 @@ import matplotlib
 matplotlib.use("pdf")
 import circuitsim.compare, circuitsim.compare.plots, circuitsim.compare.figures
 import circuitsim.compare.paper_figures, circuitsim.compare.sweep, circuitsim.cli
+import circuitsim.compare.sweep_plot
 from tests.test_figures_io import _waves
 from circuitsim.solver.plotting import plot_waveforms
 plot_waveforms(_waves(), {str(tmp_path / "w.png")!r})

@@ -160,8 +160,9 @@ def _default_speeds(critical: float | None):
 
 def _run_hunting(args: argparse.Namespace) -> int:
     from circuitsim.mechanics import ModelError, critical_speed, load_model
-    from circuitsim.studies.hunting import HuntingError, HuntingSettings, run_hunting, speed_grid
+    from circuitsim.studies.hunting import run_hunting, speed_grid
     from circuitsim.studies.hunting_plot import save_hunting
+    from circuitsim.studies.hunting_result import HuntingError, HuntingSettings
 
     check_scenario_options(args)
     for option in ("settle", "record", "threshold", "bound"):

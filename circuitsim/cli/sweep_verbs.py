@@ -295,7 +295,7 @@ def _run_sweep(args: argparse.Namespace) -> int:
         result.critical = critical_curve(args, model, grid, fixed)
         report_grid(result, grid, save_grid(result, args.out, log=args.log), executor)
         return 0
-    from circuitsim.compare.sweep import save_sweep
+    from circuitsim.compare.sweep_plot import save_sweep
 
     for warning in result.warnings:
         print_warning(warning)

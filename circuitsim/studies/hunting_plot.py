@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from circuitsim.atomic import write_figure_atomic, write_text_atomic
-from circuitsim.studies.hunting import PATHS, HuntingResult
+from circuitsim.studies.hunting_result import PATHS, HuntingResult
 
 _STYLE = {  # (path, direction): line style, marker, colour
     ("ode", "up"): ("-", "^", "C0"),

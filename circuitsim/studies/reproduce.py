@@ -554,8 +554,9 @@ def reproduce(
 def _hunting_diagram(model, v_c: float, speeds, path: Path) -> dict:
     """The hunting bifurcation diagram of the wheelset (free response from a 5 mm push), its
     figure written to ``path``; returns its summary with ``wall_s``."""
-    from circuitsim.studies.hunting import HuntingSettings, run_hunting
+    from circuitsim.studies.hunting import run_hunting
     from circuitsim.studies.hunting_plot import plot_hunting
+    from circuitsim.studies.hunting_result import HuntingSettings
 
     started = time.perf_counter()
 

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from circuitsim.cli import build_parser, main
-from circuitsim.compare.sweep import SweepPlotWarning, SweepResult, plot_sweep
+from circuitsim.compare.sweep import SweepResult
+from circuitsim.compare.sweep_plot import SweepPlotWarning, plot_sweep
 from circuitsim.mechanics import load_model, solve
 
 SPEEDS = (54.0, 57.0)  # m/s, either side of the wheelset's linear critical speed 55.6455 m/s

@@ -15,15 +15,8 @@ import pytest
 from scipy.linalg import expm
 
 from circuitsim.mechanics import load_model
-from circuitsim.studies.hunting import (
-    HuntingBranch,
-    HuntingError,
-    HuntingSettings,
-    measure,
-    ode_branch,
-    run_hunting,
-    speed_grid,
-)
+from circuitsim.studies.hunting import measure, ode_branch, run_hunting, speed_grid
+from circuitsim.studies.hunting_result import HuntingBranch, HuntingError, HuntingSettings
 
 ROOT = Path(__file__).resolve().parents[2]
 PUSH = 0.005
