@@ -169,7 +169,7 @@ def _checked_system(circuit: Circuit, probes: list[str], k: int):
     if circuit.transient is None:
         raise CircuitInputError(f"variant {k}: the circuit has no .tran")
     system = build_system(circuit, None, kernel="ports")
-    reason = kernel_unavailable(system)
+    reason = kernel_unavailable(system, "ports")
     if reason is not None:
         raise CircuitInputError(f"variant {k}: the ports kernel cannot run it: {reason}")
     unknown = [p for p in probes if p not in system.signals]

@@ -6,6 +6,7 @@ run) and the operating point (absolute difference relative to the largest node v
 The limit is the issue's: 1e-3 of range.
 """
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -30,13 +31,15 @@ def test_every_vendor_golden_netlist_is_tested():
 
 
 @requires_ngspice
+@pytest.mark.parametrize("kernel", ["python", "compiled"])
 @pytest.mark.parametrize("name", NETLISTS)
-def test_transient_against_ngspice(name):
+def test_transient_against_ngspice(name, kernel):
     from circuitsim.interop.ngspice import run_ngspice
 
     path = GOLDEN / name
-    with pytest.warns(KernelFallbackWarning):
-        ours = simulate(read_netlist(path))
+    circuit = read_netlist(path)
+    ours = simulate(circuit, SimulationOptions.from_circuit(circuit, kernel=kernel))
+    assert ours.stats["kernel"] == kernel
     reference = run_ngspice(path)
     devs = deviations(ours, reference, "all")
     missing = [n for n in reference.names if n.startswith("v(") and n not in ours.signals]
@@ -109,14 +112,17 @@ def test_linear_poly_runs_on_the_compiled_kernel():
 
 
 @pytest.mark.parametrize("device", ["jfet.cir", "bjt.cir", "poly_g.cir"])
-def test_kernel_choice_names_the_family_it_cannot_compile(device):
+def test_auto_runs_transistors_and_poly_on_the_mna_kernel_and_ports_refuses(device):
+    """kernel=auto: the MNA kernel, without a fallback warning; the ports kernel has no
+    multi-terminal devices and says so, naming the family."""
     circuit = read_netlist(GOLDEN / device)
     family = {"jfet.cir": "JfetFamily", "bjt.cir": "BjtFamily", "poly_g.cir": "PolyVccsFamily"}
-    with pytest.warns(KernelFallbackWarning, match=family[device]):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", KernelFallbackWarning)
         waves = simulate(circuit, SimulationOptions.from_circuit(circuit, max_steps=50_000))
-    assert waves.stats["kernel"] == f"python (no compiled model for {family[device]})"
+    assert waves.stats["kernel"] == "compiled"
     with pytest.raises(
-        CircuitInputError, match=f"kernel=ports: no compiled model for {family[device]}"
+        CircuitInputError, match=f"kernel=ports: no compiled model for {family[device]} in the"
     ):
         simulate(circuit, SimulationOptions.from_circuit(circuit, kernel="ports"))
 

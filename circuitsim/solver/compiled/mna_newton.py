@@ -16,6 +16,13 @@ import numpy as np
 from numba import njit, objmode
 
 from circuitsim.solver.compiled.devices import junction_charge, junction_current, pnjlim
+from circuitsim.solver.compiled.mna_terminals import (
+    entry_values,
+    load_terminals,
+    stamp_terminals,
+    terminal_rhs,
+    terminals_converged,
+)
 from circuitsim.solver.compiled.sparse_lu import assemble, lu_solve, refactor, repivot_arrays
 
 PIVOT_ORDERS = 14  # KernelState.ints: pivot orders made during the run (after the first)
@@ -26,15 +33,18 @@ CONVERGED, FAILED, REPIVOT = 1, 0, 2
 
 
 @njit(cache=True)
-def repivot_now(lu, port_p, port_n, values, a0) -> int:
+def repivot_now(lu, port_p, port_n, values, a0, tp, ts) -> int:
     """sparse_lu.repivot_arrays from compiled code (it runs SuperLU, in Python)."""
     a_ptr, a_row, g_val, m_val, port_pos = lu.a_ptr, lu.a_row, lu.g_val, lu.m_val, lu.port_pos
     l_ptr, l_row, u_ptr, u_row = lu.l_ptr, lu.l_row, lu.u_ptr, lu.u_row
     row_to, col_of = lu.row_to, lu.col_of
+    extra_row, extra_col, extra_pos = lu.extra_row, lu.extra_col, lu.extra_pos
+    extra_val = np.empty(extra_pos.size)
+    entry_values(tp, ts, extra_val)
     with objmode(status="int64"):
         status = repivot_arrays(
             a_ptr, a_row, g_val, m_val, port_pos, l_ptr, l_row, u_ptr, u_row, row_to, col_of,
-            port_p, port_n, values, a0,
+            port_p, port_n, values, a0, extra_row, extra_col, extra_pos, extra_val,
         )  # fmt: skip
     return status
 
@@ -72,10 +82,12 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b):
         lu.u_val,
     )
     row_to, col_of, work = lu.row_to, lu.col_of, lu.work
+    tp, ts, extra_pos = plan.terms, st.terms, lu.extra_pos  # JFETs, BJTs, POLY: mna_terminals
     ms = sw.shape[0]
     md = jp.shape[0]
-    # no junctions or switches: the first solve is exact (one iteration, as MnaSystem's)
-    linear = md == 0 and ms == 0
+    # no junctions, switches or transistors: the first solve is exact (one iteration, as
+    # MnaSystem's)
+    linear = md == 0 and ms == 0 and tp.kind.size == 0
     n = x0.size
     x = x0.copy()
     x_ext = np.empty(n + 1)
@@ -117,15 +129,18 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b):
                 gk += a0 * capk
             vd[k], cd[k], gd[k] = vk, ck, gk
             ieq[k] = ck - gk * vk
+        noncon += load_terminals(tp, ts, x_ext, a0, hist, q, qdot)
         assemble(a_val, g_val, m_val, a0, port_pos, gd, g_sw)
+        stamp_terminals(tp, ts, extra_pos, a_val)
         if refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work) >= 0:
             # a pivot became too small: a new order at this matrix, and on (ngspice's
             # spOrderAndFactor); in Python (SuperLU), rare
             st.ints[PIVOT_ORDERS] += 1
             # no room for its fill, or singular: the caller decides
-            if repivot_now(lu, port_p, port_n, np.concatenate((gd, g_sw)), a0) != 0:
+            if repivot_now(lu, port_p, port_n, np.concatenate((gd, g_sw)), a0, tp, ts) != 0:
                 return REPIVOT, iteration, x
             assemble(a_val, g_val, m_val, a0, port_pos, gd, g_sw)
+            stamp_terminals(tp, ts, extra_pos, a_val)
             if refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work) >= 0:
                 return REPIVOT, iteration, x
         for i in range(n):  # rhs0 - W ieq
@@ -135,6 +150,7 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b):
                 b[port_p[k]] -= ieq[k]
             if port_n[k] >= 0:
                 b[port_n[k]] += ieq[k]
+        terminal_rhs(tp, ts, b)
         lu_solve(l_ptr, l_row, l_val, u_ptr, u_row, u_val, row_to, col_of, b, work, x_new)
         for i in range(n):
             if not np.isfinite(x_new[i]):
@@ -151,6 +167,8 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b):
             if abs(delta) > reltol * max(abs(cd[k] + delta), abs(cd[k])) + abstol:
                 done = False
                 break
+        if done and not terminals_converged(tp, ts, x_ext, reltol):
+            done = False
         if done:
             return CONVERGED, iteration, x
         if iteration < itl4:  # else x stays the iterate before the last (failure reports)

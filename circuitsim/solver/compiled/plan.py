@@ -12,6 +12,12 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
+from circuitsim.solver.compiled.terminal_plan import (
+    TerminalPlan,
+    TerminalState,
+    terminal_plan,
+    terminal_state,
+)
 from circuitsim.solver.integration import METHODS
 from circuitsim.solver.system import MnaSystem
 
@@ -85,6 +91,7 @@ class KernelPlan(NamedTuple):
     breaks: np.ndarray  # sorted breakpoints, seconds, ending with tstop
     real: np.ndarray  # reltol abstol vntol chgtol trtol err1 err2 fixed tmax min_step tstop
     ints: np.ndarray  # method (0 trap, 1 gear), maxord, itl4, max_steps
+    terms: TerminalPlan  # JFETs, BJTs, nonlinear POLY sources (MNA kernel only)
 
 
 class Factors(NamedTuple):
@@ -161,21 +168,29 @@ class KernelState(NamedTuple):
     out_x: np.ndarray
     fail_x: np.ndarray
     fail_prev: np.ndarray
+    terms: TerminalState
 
 
-def unsupported(system: MnaSystem) -> str | None:
-    """Why the kernel cannot run this system, or None when it can."""
+def unsupported(system: MnaSystem, kernel: str = "compiled") -> str | None:
+    """Why ``kernel`` (``"compiled"``, the MNA kernel, or ``"ports"``) cannot run this
+    system, or None when it can."""
     parts = []
     for family in system.families:
         part = family.kernel_data()
         if part is None:
             return f"no compiled model for {type(family).__name__}"
+        if part["kind"] == "terminals" and kernel == "ports":
+            return (
+                f"no compiled model for {type(family).__name__} in the ports kernel (the MNA "
+                "kernel, kernel=compiled, runs it)"
+            )
         parts.append(part)
     ranks = system.linear_slots.size + sum(
-        len(p["p"]) if p["kind"] == "junctions" else len(p["nodes"])
+        len(p["p"]) if p["kind"] == "junctions" else len(p["nodes"]) if p["kind"] == "switches"
+        else len(p["rows"])
         for p in parts
-        if p["kind"] in ("junctions", "switches")
-    )
+        if p["kind"] in ("junctions", "switches", "terminals")
+    )  # fmt: skip
     if ranks == 0:
         return "no charges, junctions or switches (nothing for the kernel to integrate)"
     return None
@@ -334,9 +349,10 @@ def build_plan(
             ],
             dtype=np.int64,
         ),
+        terms=terminal_plan(parts),
     )
     assert ns == plan.src_kind.size
-    return plan, {"junctions": junctions, "switches": switches}
+    return plan, {"junctions": junctions, "switches": switches, "terminals": parts}
 
 
 def device_states(families: dict) -> dict:
@@ -402,4 +418,5 @@ def initial_state(
         out_x=out_x,
         fail_x=np.zeros(n),
         fail_prev=np.zeros(n),
+        terms=terminal_state(families["terminals"], plan.terms),
     )

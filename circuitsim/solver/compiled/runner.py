@@ -32,6 +32,7 @@ from circuitsim.solver.compiled.plan import (
     unsupported,
 )
 from circuitsim.solver.compiled.sparse_lu import SparseLU, analyse, present_matrix
+from circuitsim.solver.compiled.terminal_plan import entry_pattern, entry_values, terminal_state
 from circuitsim.solver.errors import (
     CircuitInputError,
     KernelCompileWarning,
@@ -55,14 +56,14 @@ PAUSE_SECONDS = 1.0
 _ANNOUNCED: set[str] = set()
 
 
-def kernel_unavailable(system: MnaSystem) -> str | None:
-    """Why the compiled kernel cannot run ``system`` (numba missing, unsupported device,
-    too large), or None."""
+def kernel_unavailable(system: MnaSystem, kernel: str = "compiled") -> str | None:
+    """Why the compiled ``kernel`` (``"compiled"``, the MNA kernel, or ``"ports"``) cannot
+    run ``system`` (numba missing, unsupported device), or None."""
     try:
         import numba  # noqa: F401
     except ImportError:
         return "numba is not installed"
-    return unsupported(system)
+    return unsupported(system, kernel)
 
 
 # kernel="auto": the ports kernel while at most this many junctions carry charge (CJO or TT:
@@ -89,8 +90,11 @@ def switching_junctions(system: MnaSystem) -> int:
 
 def auto_kernel(system: MnaSystem) -> str:
     """The kernel ``kernel="auto"`` runs for a supported system: ``"ports"`` while few
-    junctions switch (AUTO_PORTS_MAX_SWITCHING), else ``"compiled"`` (the MNA kernel)."""
-    if switching_junctions(system) <= AUTO_PORTS_MAX_SWITCHING:
+    junctions switch (AUTO_PORTS_MAX_SWITCHING), else ``"compiled"`` (the MNA kernel); and
+    the MNA kernel for JFETs, BJTs and nonlinear POLY sources, which only it models."""
+    if unsupported(system, "ports") is None and (
+        switching_junctions(system) <= AUTO_PORTS_MAX_SWITCHING
+    ):
         return "ports"
     return "compiled"
 
@@ -114,7 +118,11 @@ def transient_runner(system: MnaSystem, stats: dict) -> Callable:
     if reason is None:
         if choice == "auto":
             choice = auto_kernel(system)
-        return run_ports if choice == "ports" else run_compiled
+        if choice != "ports":
+            return run_compiled
+        reason = kernel_unavailable(system, "ports")
+        if reason is None:
+            return run_ports
     if choice in ("compiled", "ports"):
         raise CircuitInputError(f"option kernel={choice}: {reason}")
     stats["kernel"] = f"python ({reason})"
@@ -269,7 +277,8 @@ def _loop_state(kind, start: PortsStart, plan, rows, capacity):
     from circuitsim.solver.compiled import transient as loop
 
     devices = device_states(start.families)
-    lu = _pivot_order(plan, devices["gd"], devices["state"], _a0_start(start))
+    terms = terminal_state(start.families["terminals"], plan.terms)
+    lu = _pivot_order(plan, devices["gd"], devices["state"], _a0_start(start), terms)
     return loop, initial_state(plan, start.families, start.x, start.q0.copy(), capacity, lu)
 
 
@@ -280,20 +289,26 @@ def _a0_start(start: PortsStart) -> float:
     return (2.0 if options.method == "trap" else 1.5) / step
 
 
-def _pivot_order(plan, gd, state, a0, spare: float = 1.5) -> SparseLU:
-    """sparse_lu.analyse at the junction conductances ``gd``, switch states ``state``, a0
-    (with room for ``spare`` times the fill in L and U, for later orders)."""
+def _pivot_order(plan, gd, state, a0, terms, spare: float = 1.5) -> SparseLU:
+    """sparse_lu.analyse at the junction conductances ``gd``, switch states ``state``, a0 and
+    the multi-terminal elements' state ``terms`` (with room for ``spare`` times the fill in L
+    and U, for later orders)."""
+    values, extra = _present(plan, gd, state, terms)
+    return analyse(plan.G, plan.M, plan.port_p, plan.port_n, values, a0, spare, extra)
+
+
+def _present(plan, gd, state, terms):
+    """The ports' conductances and the extra entries (rows, cols, values) at these states."""
     g_switch = np.where(np.asarray(state, dtype=bool), plan.g_switch[:, 0], plan.g_switch[:, 1])
     values = np.concatenate([np.asarray(gd, dtype=float), g_switch])
-    return analyse(plan.G, plan.M, plan.port_p, plan.port_n, values, a0, spare)
+    return values, (*entry_pattern(plan.terms), entry_values(plan.terms, terms))
 
 
-def _singular(system, plan, gd, state, a0) -> str:
+def _singular(system, plan, gd, state, a0, terms) -> str:
     """describe_singular for the whole matrix at these device states (dense: an error path)."""
-    g_switch = np.where(np.asarray(state, dtype=bool), plan.g_switch[:, 0], plan.g_switch[:, 1])
-    values = np.concatenate([np.asarray(gd, dtype=float), g_switch])
-    matrix = present_matrix(plan.G, plan.M, plan.port_p, plan.port_n, values, a0).toarray()
-    return system.describe_singular(singular_row(matrix))
+    values, extra = _present(plan, gd, state, terms)
+    matrix = present_matrix(plan.G, plan.M, plan.port_p, plan.port_n, values, a0, extra)
+    return system.describe_singular(singular_row(matrix.toarray()))
 
 
 def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fixed_pauses=False):
@@ -312,8 +327,9 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
         loop, st = _loop_state(kind, start, plan, rows, capacity)
     except np.linalg.LinAlgError:  # the first pivot order: the start's matrix is singular
         devices = device_states(start.families)
+        terms = terminal_state(start.families["terminals"], plan.terms)
         raise SingularMatrixError(
-            _singular(system, plan, devices["gd"], devices["state"], _a0_start(start))
+            _singular(system, plan, devices["gd"], devices["state"], _a0_start(start), terms)
         ) from None
     st.fs[nw.H] = fixed if fixed else min(tstop / 100, tstep) / 10
     st.fs[nw.SAVED_H] = tstop / 50
@@ -342,7 +358,8 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
                 if same_step > options.itl4 + 1:
                     raise np.linalg.LinAlgError("no pivot order suits the matrix")
                 repivoted_at = int(st.ints[nw.ATTEMPTS])
-                lu = _pivot_order(plan, st.gd, st.state, float(st.fs[loop.REPIVOT_A0]), 2.0)
+                a0 = float(st.fs[loop.REPIVOT_A0])
+                lu = _pivot_order(plan, st.gd, st.state, a0, st.terms, 2.0)
                 st = st._replace(lu=lu)
                 pivot_orders += 1
             elif status == loop.PAUSED:
@@ -370,7 +387,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
         if kind == "ports":
             raise SingularMatrixError(system.describe_singular(singular_row(st.fac.B))) from None
         raise SingularMatrixError(
-            _singular(system, plan, st.gd, st.state, float(st.fs[loop.REPIVOT_A0]))
+            _singular(system, plan, st.gd, st.state, float(st.fs[loop.REPIVOT_A0]), st.terms)
         ) from None
     finally:
         stats["accepted"] = int(st.ints[nw.ACCEPTED])

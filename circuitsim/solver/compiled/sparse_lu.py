@@ -13,10 +13,11 @@ fill pattern are found once and every later factorization is numeric only.
   analyses again at the present values.
 - :func:`lu_solve` (numba): the two triangular solves with the permutations.
 
-The matrix is ``A = G + a0 M + sum_k g_k w_k w_k^T`` (w_k = e_p - e_n: junction and switch
-ports); its values in the permuted column-compressed order are assembled by
+The matrix is ``A = G + a0 M + sum_k g_k w_k w_k^T + T`` (w_k = e_p - e_n: junction and
+switch ports; T: the entries of multi-terminal devices, ``extra`` below, at fixed (row,
+column) positions); its values in the permuted column-compressed order are assembled by
 :func:`assemble` from the constant parts and the port conductances, through positions
-computed once.
+computed once, and the extra entries are added at ``extra_pos`` (compiled/mna_terminals.py).
 """
 
 from __future__ import annotations
@@ -57,6 +58,9 @@ class SparseLU(NamedTuple):
     col_of: np.ndarray  # (n,) int64: column j of P is column col_of[j] of A
     work: np.ndarray  # (n,) scratch, zero between calls
     flops: float  # about the multiply-adds of one refactor (for profiles)
+    extra_row: np.ndarray  # (ne,) int64: row and column in A of each extra entry (-1 ground)
+    extra_col: np.ndarray
+    extra_pos: np.ndarray  # (ne,) int64: its position in a_val (-1: a ground entry)
 
 
 def port_stamps(n: int, port_p: np.ndarray, port_n: np.ndarray):
@@ -73,17 +77,28 @@ def port_stamps(n: int, port_p: np.ndarray, port_n: np.ndarray):
             np.array(signs), np.array(which, dtype=np.int64))  # fmt: skip
 
 
-def present_matrix(G, M, port_p, port_n, values, a0) -> sp.csc_matrix:
-    """A = G + a0 M + W diag(values) W^T as a sparse matrix (values: port conductances)."""
+def _no_extra():
+    empty = np.zeros(0, dtype=np.int64)
+    return empty, empty, np.zeros(0)
+
+
+def present_matrix(G, M, port_p, port_n, values, a0, extra=None) -> sp.csc_matrix:
+    """A = G + a0 M + W diag(values) W^T + T as a sparse matrix (values: port conductances;
+    ``extra`` = (rows, cols, values) of T, ground entries (-1) left out)."""
     n = G.shape[0]
     rows, cols, signs, which = port_stamps(n, port_p, port_n)
     ports = sp.coo_matrix((signs * values[which], (rows, cols)), shape=(n, n))
-    return sp.csc_matrix(sp.csc_matrix(G) + a0 * sp.csc_matrix(M) + ports)
+    e_row, e_col, e_val = _no_extra() if extra is None else extra
+    inside = (e_row >= 0) & (e_col >= 0)
+    terminals = sp.coo_matrix((e_val[inside], (e_row[inside], e_col[inside])), shape=(n, n))
+    return sp.csc_matrix(sp.csc_matrix(G) + a0 * sp.csc_matrix(M) + ports + terminals)
 
 
-def analyse(G, M, port_p, port_n, values, a0, spare: float = 1.0) -> SparseLU:
+def analyse(G, M, port_p, port_n, values, a0, spare: float = 1.0, extra=None) -> SparseLU:
     """The pivot order at the present values and the fixed pattern it gives; L and U get
     room for ``spare`` times their fill (a later order, :func:`repivot`, may need more).
+    ``extra``: (rows, cols, values) of entries besides G, M and the ports (multi-terminal
+    devices; -1: ground, left out), part of the pattern whatever their values.
 
     Raises
     ------
@@ -91,7 +106,9 @@ def analyse(G, M, port_p, port_n, values, a0, spare: float = 1.0) -> SparseLU:
         The present matrix is singular.
     """
     n = G.shape[0]
-    A = present_matrix(G, M, port_p, port_n, values, a0)
+    extra = _no_extra() if extra is None else extra
+    e_row, e_col = (np.asarray(e, dtype=np.int64) for e in extra[:2])
+    A = present_matrix(G, M, port_p, port_n, values, a0, (e_row, e_col, extra[2]))
     try:
         # no equilibration: refactor's pivot test is on the unscaled columns
         lu = splu(A, permc_spec="COLAMD", diag_pivot_thresh=0.1, options={"Equil": False})
@@ -102,6 +119,8 @@ def analyse(G, M, port_p, port_n, values, a0, spare: float = 1.0) -> SparseLU:
     col_of = np.argsort(col_rank)
     # the pattern of every matrix of the run: G, M and all port stamps, whatever the values
     rows, cols, _, _ = port_stamps(n, port_p, port_n)
+    inside = (e_row >= 0) & (e_col >= 0)
+    rows, cols = np.concatenate([rows, e_row[inside]]), np.concatenate([cols, e_col[inside]])
     ones = np.ones(rows.size)
     pattern = (abs(sp.csc_matrix(G)) + abs(sp.csc_matrix(M))
                + sp.csc_matrix((ones, (rows, cols)), shape=(n, n))).tocoo()  # fmt: skip
@@ -148,6 +167,8 @@ def analyse(G, M, port_p, port_n, values, a0, spare: float = 1.0) -> SparseLU:
         i, j = np.asarray(i, dtype=np.int64), np.asarray(j, dtype=np.int64)
         stamped = (i >= 0) & (j >= 0)
         port_pos[stamped, slot] = positions(i[stamped], j[stamped])
+    extra_pos = -np.ones(e_row.size, dtype=np.int64)
+    extra_pos[inside] = positions(e_row[inside], e_col[inside])
     l_count = np.diff(L.indptr)
     flops = float(np.sum(l_count * np.diff(U.indptr)) + L.nnz)
     return SparseLU(
@@ -167,6 +188,9 @@ def analyse(G, M, port_p, port_n, values, a0, spare: float = 1.0) -> SparseLU:
         col_of=col_of,
         work=np.zeros(n),
         flops=flops,
+        extra_row=e_row,
+        extra_col=e_col,
+        extra_pos=extra_pos,
     )
 
 
@@ -177,21 +201,24 @@ def _room(indices: np.ndarray, spare: float) -> np.ndarray:
 
 
 def repivot_arrays(a_ptr, a_row, g_val, m_val, port_pos, l_ptr, l_row, u_ptr, u_row, row_to,
-                   col_of, port_p, port_n, values, a0) -> int:  # fmt: skip
+                   col_of, port_p, port_n, values, a0, extra_row, extra_col, extra_pos,
+                   extra_val) -> int:  # fmt: skip
     """:func:`repivot` on a SparseLU's arrays (what compiled code can hand over); 2 when the
     matrix is singular."""
     empty = np.zeros(0)
     lu = SparseLU(a_ptr, a_row, empty, g_val, m_val, port_pos, l_ptr, l_row, empty, u_ptr,
-                  u_row, empty, row_to, col_of, empty, 0.0)  # fmt: skip
+                  u_row, empty, row_to, col_of, empty, 0.0, extra_row, extra_col,
+                  extra_pos)  # fmt: skip
     try:
-        return repivot(lu, port_p, port_n, values, a0)
+        return repivot(lu, port_p, port_n, values, a0, extra_val)
     except np.linalg.LinAlgError:
         return 2
 
 
-def repivot(lu: SparseLU, port_p, port_n, values, a0) -> int:
-    """A new pivot order at the present values, written into ``lu``'s arrays in place (the
-    compiled Newton asks for it when a pivot has become too small, and goes on with it).
+def repivot(lu: SparseLU, port_p, port_n, values, a0, extra_val=None) -> int:
+    """A new pivot order at the present values (``extra_val``: of the extra entries, zero if
+    not given), written into ``lu``'s arrays in place (the compiled Newton asks for it when
+    a pivot has become too small, and goes on with it).
     Returns 0, or 1 when L and U have not room enough for the new fill (the caller then
     makes new arrays with :func:`analyse`).
 
@@ -205,12 +232,14 @@ def repivot(lu: SparseLU, port_p, port_n, values, a0) -> int:
     cols = lu.col_of[np.repeat(np.arange(n), np.diff(lu.a_ptr))]
     G = sp.csc_matrix((lu.g_val, (rows, cols)), shape=(n, n))
     M = sp.csc_matrix((lu.m_val, (rows, cols)), shape=(n, n))
-    new = analyse(G, M, port_p, port_n, values, a0)
+    extra_val = np.zeros(lu.extra_row.size) if extra_val is None else extra_val
+    # G's and M's stored zeros drop out here: the extra entries put their positions back
+    new = analyse(G, M, port_p, port_n, values, a0, extra=(lu.extra_row, lu.extra_col, extra_val))
     used_l, used_u = new.l_ptr[-1], new.u_ptr[-1]
     if used_l > lu.l_row.size or used_u > lu.u_row.size:
         return 1
     for name in ("a_ptr", "a_row", "g_val", "m_val", "port_pos", "l_ptr", "u_ptr", "row_to",
-                 "col_of"):  # fmt: skip
+                 "col_of", "extra_pos"):  # fmt: skip
         getattr(lu, name)[...] = getattr(new, name)
     lu.l_row[:used_l] = new.l_row[:used_l]
     lu.u_row[:used_u] = new.u_row[:used_u]

@@ -18,6 +18,10 @@ ngspice's XTF/VTF/ITF transit-time modulation of I_f' = I_f (1 + argtf) / q_b, a
 Q_bc = TR I_r + depletion(CJC). RB with RBM != RB is ngspice's q_b-modulated base resistance,
 stamped as a conductance at the present q_b. Newton steps of v_be and v_bc are limited by
 pnjlim (with Vt, ngspice's BJTload).
+
+Kernel twin: :mod:`circuitsim.solver.devices.bjt_kernel` (the same equations for one element,
+for the compiled MNA kernel; :meth:`BjtFamily.kernel_data` hands over its parameters in
+``bjt_kernel.PARAMS``'s order).
 """
 
 from __future__ import annotations
@@ -88,6 +92,11 @@ IGNORED = (
 ALLOWED = {"level": (1.0,), "xcjc": (1.0,), "cjs": (0.0,), "ccs": (0.0,), "iss": (0.0,),
            "ptf": (0.0,), "irb": (0.0,)}  # fmt: skip
 KINDS = ("NPN", "PNP")
+# the kernel twin's parameter columns (bjt_kernel.PARAMS; that module imports numba)
+KERNEL_PARAMS = ("polarity", "vt", "vcrit", "isat", "vtf", "isat_bc", "vtr", "ise", "vte",
+                 "isc", "vtc", "bf", "br", "inv_vaf", "inv_var", "inv_ikf", "inv_ikr", "gmin",
+                 "tf", "tr", "xtf", "inv_vtf_scaled", "itf", "cje", "vje", "mje", "cjc", "vjc",
+                 "mjc", "fc", "rb_min", "rb_excess", "modulated_rb")  # fmt: skip
 
 
 def _normalized(model: Model) -> Model:
@@ -243,6 +252,21 @@ class BjtFamily(TransistorFamily):
             i = self.modulated_rb
             g = 1.0 / (self.rb_min[i] + self.rb_excess[i] / qb[i])
             stamps.add(self.rb_pattern, np.stack([g, -g, -g, g]))
+
+    def kernel_data(self) -> dict:
+        m = len(self.elements)
+        modulated = np.zeros(m, dtype=bool)
+        modulated[self.modulated_rb] = True
+        columns = {name: getattr(self, name, None) for name in KERNEL_PARAMS}
+        columns.update(modulated_rb=modulated.astype(float), gmin=self.gmin, vt=self.vt)
+        data = self.terminal_data(
+            "bjt", [np.broadcast_to(columns[name], m) for name in KERNEL_PARAMS]
+        )
+        # the outer base node of a modulated RB: a fourth row (its conductance's entries)
+        rows = np.concatenate([data["rows"], self.base_res.outer[:, None]], axis=1)
+        rb_g = np.zeros(m)
+        rb_g[modulated] = 1.0 / (self.rb_min[modulated] + self.rb_excess[modulated])
+        return data | {"rows": rows, "rb": modulated, "rb_g": rb_g}
 
     def _base_charge(self, vbe, vbc, cbe, gbe, cbc, gbc):
         """Normalized base charge q_b and its slopes in v_be, v_bc (1/V)."""

@@ -13,6 +13,10 @@ SPICE), each with gmin in parallel; the drain current, for v_ds >= 0 and v_gst =
 BETA (1 + LAMBDA v_ds) v_gst^2 above (B = 1), mirrored for v_ds < 0. Junction charges are the
 depletion charges of CGS, CGD (grading 1/2, linear above FC PB). Newton steps are limited as
 ngspice's JFETload: pnjlim on both junction voltages, then fetlim against VTO.
+
+Kernel twin: :mod:`circuitsim.solver.devices.jfet_kernel` (the same equations for one
+element, for the compiled MNA kernel; :meth:`JfetFamily.kernel_data` hands over its
+parameters in ``jfet_kernel.PARAMS``'s order).
 """
 
 from __future__ import annotations
@@ -53,6 +57,9 @@ DEFAULTS = {
 # coefficients) or naming the model level: accepted and ignored
 IGNORED = ("kf", "af", "tnom", "tcv", "bex", "xti", "nlev", "gdsnoi", "level", "vtotc", "betatce")
 KINDS = ("NJF", "PJF")
+# the kernel twin's parameter columns (jfet_kernel.PARAMS; that module imports numba)
+KERNEL_PARAMS = ("polarity", "isat", "vt", "vcrit", "gmin", "vto", "beta", "lambda", "b",
+                 "b_factor", "cgs", "cgd", "pb", "fc")  # fmt: skip
 
 
 class JfetFamily(TransistorFamily):
@@ -148,6 +155,18 @@ class JfetFamily(TransistorFamily):
         # back to the circuit's frame: voltages and currents flip, slopes do not
         self.lin = (pol * current, slope, pol * v)
         self.terminal.add(stamps, rhs, *self.lin)
+
+    def kernel_data(self) -> dict:
+        m = len(self.elements)
+        columns = {
+            "polarity": self.polarity, "isat": self.isat, "vt": self.vt, "vcrit": self.vcrit,
+            "gmin": self.gmin, "vto": self.vto, "beta": self.beta, "lambda": self.lam,
+            "b": self.b, "b_factor": self.b_factor, "cgs": self.cgs, "cgd": self.cgd,
+            "pb": self.pb, "fc": self.fc,
+        }  # fmt: skip
+        return self.terminal_data(
+            "jfet", [np.broadcast_to(columns[name], m) for name in KERNEL_PARAMS]
+        )
 
     def _drain_current(self, vgs, vgd):
         """Drain current (A, drain' to source') and its slopes in v_gs and v_gd (S),

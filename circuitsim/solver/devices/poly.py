@@ -10,6 +10,9 @@ voltage sources (F, H).
 A family whose polynomials are all of degree <= 1 with p0 = 0 (the usual vendor macromodel
 summer) is linear: its stamps are constant and the compiled kernels run it. Otherwise it is
 a nonlinear family linearized at every Newton iteration (:mod:`terminals`).
+
+Kernel twin: :mod:`circuitsim.solver.devices.poly_kernel` (the same evaluation for one
+element, for the compiled MNA kernel; ``kernel_data`` hands over the term table).
 """
 
 from __future__ import annotations
@@ -173,8 +176,23 @@ class _PolyFamily(DeviceFamily):
             self.options.vntol if self.voltage_output else self.options.abstol,
         )
 
-    def kernel_data(self) -> dict | None:
-        return None if self.nonlinear else {"kind": "linear"}
+    def kernel_data(self) -> dict:
+        if not self.nonlinear:
+            return {"kind": "linear"}
+        m = len(self.elements)
+        terminal = self.terminal
+        return {
+            "kind": "terminals",
+            "model": "poly_voltage" if self.voltage_output else "poly_current",
+            "rows": terminal.rows_of.T,
+            "controls": np.stack([terminal.plus.T, terminal.minus.T], axis=2),
+            "params": np.zeros((m, 0)),
+            "slots": None,
+            "tol": self.options.vntol if self.voltage_output else self.options.abstol,
+            "v_last": np.zeros((m, self.poly.dimension)),
+            "slope": None if self.lin_g is None else np.transpose(self.lin_g, (2, 0, 1)),
+            "terms": (self.poly.owner, self.poly.coefficient, self.poly.power),
+        }
 
 
 class PolyVcvsFamily(_PolyFamily):

@@ -47,6 +47,7 @@ class TerminalStamp:
             np.stack([np.broadcast_to(plus, (t, c, m)), np.broadcast_to(minus, (t, c, m))]),
         )
         self.rows = VectorPattern(terminals)
+        self.rows_of = terminals  # (T, m)
         self.plus, self.minus = plus, minus
 
     def voltages(self, x_ext: np.ndarray) -> np.ndarray:
@@ -96,8 +97,23 @@ class TransistorFamily(DeviceFamily):
             *self.lin, self.terminal.voltages(x_ext), self.options.reltol, self.options.abstol
         )
 
-    def kernel_data(self) -> dict | None:
-        return None  # the compiled kernels have no transistors: the numpy loop runs them
+    def terminal_data(self, model: str, columns: list[np.ndarray]) -> dict:
+        """The family's ``kernel_data`` for the compiled MNA kernel (compiled/terminal_plan.py
+        describes the keys): its terminals and controls, parameter ``columns`` (each (m,),
+        in its kernel twin's PARAMS order), charge slots and last evaluation."""
+        m = len(self.elements)
+        terminal = self.terminal
+        return {
+            "kind": "terminals",
+            "model": model,
+            "rows": terminal.rows_of.T,
+            "controls": np.stack([terminal.plus.T, terminal.minus.T], axis=2),
+            "params": np.stack(columns, axis=1),
+            "slots": None if self.slots is None else self.slots.reshape(2, m).T,
+            "tol": self.options.abstol,
+            "v_last": self.v.T,
+            "slope": None if self.lin is None else np.transpose(self.lin[1], (2, 0, 1)),
+        }
 
 
 def find_model_any(circuit: Circuit, name: str, kinds: tuple[str, ...], owner: str) -> Model:
