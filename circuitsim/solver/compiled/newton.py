@@ -1,25 +1,19 @@
 """The compiled loops' shared state indices and the ports kernel's factorization.
 
 The state slots (``fs`` floats, ``ints`` counters) both loops use; ``factor_now``, the ports
-kernel's refactor at the present port values (dense, lowrank.rebuild, or SuperLU above
-SPARSE_FROM unknowns); the rule that asks for it when many junctions stay active. The MNA
+kernel's refactor at the present port values (dense, lowrank.rebuild; above SPARSE_FROM
+unknowns the loop returns FACTOR and the runner factors with SuperLU, then the loop goes on
+where it stopped); the rule that asks for a refactor when many junctions stay active. The MNA
 kernel's Newton is mna_newton.py, the ports kernel's is written out in port_loop.py.
 """
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
-from numba import njit, objmode
-from numba.core.errors import NumbaWarning
+from numba import njit
 
+from circuitsim.solver.compiled.devices import junction_charge, junction_current
 from circuitsim.solver.compiled.lowrank import rebuild
-from circuitsim.solver.compiled.sparse_factors import sparse_port_factors
-
-# factor_now leaves compiled code for SuperLU holding the GIL (nogil loops run in threads:
-# only the factorizations, a few per run, are serialized); numba warns about it when compiling
-warnings.filterwarnings("ignore", "Code running in object mode", NumbaWarning)
 
 # a junction current change that moves no unknown by more than this fraction of its absolute
 # tolerance (vntol, abstol) is not applied until it grows (port_loop.py, ports.all_unknowns)
@@ -76,23 +70,83 @@ def port_values(gd, g_switch, state, r, a0):
     return values
 
 
+# The loops' return to Python in the middle of a step, for a factorization made there (the
+# ports kernel above SPARSE_FROM unknowns: SuperLU; the MNA kernel: a new pivot order). numba
+# compiles a block of Python inside a compiled function (objmode) again in every process, at
+# its first call; a return costs microseconds against the factorization's milliseconds. The
+# loop keeps what it needs to go on in the slots below and goes on bit for bit where it
+# stopped: the step's scalars, and which of the step's points to re-enter (RESUME_AT).
+FACTOR = 5  # return code: factor at st.fs[FACTOR_A0] and the present port values, then re-enter
+# where to re-enter (ints[RESUME_AT]): not at all, after the step's refactor test, at the
+# start of the step's second Newton attempt, inside Newton iteration ints[RESUME_ITERATION]
+# after its linearization (attempt ints[RESUME_ATTEMPT], ints[RESUME_NONCON] limited or
+# toggled so far)
+NOT_RESUMING, AT_REFACTOR_TEST, AT_SECOND_ATTEMPT, IN_ITERATION = 0, 1, 2, 3
+# slots the runner appends to fs and ints (negative: after whatever the state's owner has)
+RESUME_H, FACTOR_A0 = -2, -1  # fs: the step's h; the a0 to factor at (1/s)
+RESUME_AT, RESUME_ORDER, RESUME_LANDING, RESUME_ATTEMPT, RESUME_ITERATION, RESUME_NONCON = (
+    -6, -5, -4, -3, -2, -1
+)  # fmt: skip
+FACTOR_IN_PYTHON = -7  # ints: 1 when the ports kernel's factorizations are made in Python
+RESUME_FLOATS, RESUME_INTS = 2, 7
+
+
 @njit(cache=True)
 def factor_now(plan, st, a0):
-    """Refactor at the present values and bump the factorization version: densely in
-    compiled code (lowrank.rebuild), or with SuperLU when the state has no room for the dense
-    matrices (sparse_factors.py; the ports kernel above SPARSE_FROM unknowns)."""
+    """Refactor at the present values and bump the factorization version (dense, in compiled
+    code: lowrank.rebuild); False when the factorization is to be made in Python
+    (ints[FACTOR_IN_PYTHON]: SuperLU for a state without dense matrices, sparse_factors.py):
+    then ``fs[FACTOR_A0] = a0`` and the loop returns FACTOR (:func:`wait_for_factor`)."""
+    if st.ints[FACTOR_IN_PYTHON]:
+        st.fs[FACTOR_A0] = a0
+        return False
+    dense_factor(plan, st, a0)
+    return True
+
+
+@njit(cache=True)
+def dense_factor(plan, st, a0):
+    """lowrank.rebuild at the present port values and a0 (1/s); the version bumped."""
     values = port_values(st.gd, plan.g_switch, st.state, plan.VT.shape[0], a0)
-    fac = st.fac
-    if fac.Binv.shape[0] == fac.yc.size:
-        rebuild(fac, plan, a0, values)
-    else:
-        with objmode(singular="int64"):
-            singular = sparse_port_factors(
-                plan.G, plan.M, plan.U, plan.VT, plan.port_p, plan.port_n, values, a0,
-                plan.rhs_const, plan.src_unit, plan.abs_tol, fac.Z, fac.ZT, fac.K, fac.ZdT,
-                fac.KdT, fac.zrel, fac.Zq, fac.Kq, fac.yc, fac.cc, fac.Yb, fac.Cb, fac.ref,
-            )  # fmt: skip
-        if singular:
-            raise np.linalg.LinAlgError("singular matrix")
+    rebuild(st.fac, plan, a0, values)
     st.ints[FACTORIZATIONS] += 1
     st.ints[VERSION] += 1
+
+
+@njit(cache=True, inline="always")
+def wait_for_factor(fs, si, at, h, order, landing, attempt, iteration, noncon):
+    """Keep the step's place (RESUME_*) and return FACTOR."""
+    si[RESUME_AT] = at
+    fs[RESUME_H] = h
+    si[RESUME_ORDER] = order
+    si[RESUME_LANDING] = 1 if landing else 0
+    si[RESUME_ATTEMPT] = attempt
+    si[RESUME_ITERATION] = iteration
+    si[RESUME_NONCON] = noncon
+    return FACTOR
+
+
+@njit(cache=True, inline="always")
+def resumed_step(fs, si, breaks):
+    """The step's (t, next breakpoint, h, order, landing) as kept by :func:`wait_for_factor`
+    (step_start already ran for it)."""
+    return fs[T], breaks[si[BI]], fs[RESUME_H], si[RESUME_ORDER], si[RESUME_LANDING] != 0
+
+
+@njit(cache=True, inline="always")
+def junction_charges(vd, a0, hist, jp, cp, jslot, has_charge, charged, q, qdot):
+    """The charged junctions' charge and its current at their linearization voltages ``vd``
+    (as the Newton iteration computed them), into q and qdot: what an iteration re-entered
+    after its linearization needs."""
+    for k in range(vd.size):
+        if has_charge and charged[k]:
+            ck, gk = junction_current(
+                vd[k], jp[k, 0], jp[k, 2], jp[k, 3], jp[k, 4], jp[k, 5], jp[k, 6], jp[k, 7]
+            )
+            qk, _ = junction_charge(
+                vd[k], ck, gk, cp[k, 0], cp[k, 1], cp[k, 2], cp[k, 3], cp[k, 4], cp[k, 5],
+                cp[k, 6], cp[k, 7], cp[k, 8],
+            )  # fmt: skip
+            slot = jslot[k]
+            q[slot] = qk
+            qdot[slot] = a0 * qk + hist[slot]

@@ -29,22 +29,33 @@ from circuitsim.solver.compiled.devices import (
 from circuitsim.solver.compiled.lowrank import NEGLIGIBLE
 from circuitsim.solver.compiled.newton import (
     AFTER_REFACTOR,
+    AT_REFACTOR_TEST,
+    AT_SECOND_ATTEMPT,
     ATTEMPTS,
     COUNT,
     FIRST,
+    IN_ITERATION,
     JUNCTION_NEGLIGIBLE,
     LAST_A0,
     MEASURED_VERSION,
     NEWTON,
     NHIST,
+    NOT_RESUMING,
     PAUSE_ATTEMPTS,
     REJECTED,
+    RESUME_AT,
+    RESUME_ATTEMPT,
+    RESUME_ITERATION,
+    RESUME_NONCON,
     SAME_A0,
     VERSION,
     H,
     T,
     factor_now,
+    junction_charges,
     rebase_wanted,
+    resumed_step,
+    wait_for_factor,
 )
 from circuitsim.solver.compiled.port_state import (
     ACTIVE_STREAK,
@@ -82,7 +93,7 @@ from circuitsim.solver.compiled.transient import (
 @njit(cache=True, nogil=True)
 def run(plan, st, t_until):
     """Integrate from st.fs[T] until t_until (or tstop); returns compiled/transient.py's
-    status codes."""
+    status codes, or newton.FACTOR (then re-entered where it stopped, newton.RESUME_AT)."""
     real, ints = plan.real, plan.ints
     method, maxord, max_steps = ints[0], ints[1], ints[3]
     fixed, max_step, min_step, tstop = real[7], real[8], real[9], real[10]
@@ -134,15 +145,21 @@ def run(plan, st, t_until):
     live, zeros = charge_slots(nq, jslot, charged, has_charge)
     negligible_v = JUNCTION_NEGLIGIBLE * vntol
     m_last = 0  # active junctions in the last Newton iteration
+    resume = si[RESUME_AT]  # back from a factorization made in Python: where the step was
+    si[RESUME_AT] = NOT_RESUMING
     while tstop - fs[T] > min_step:
-        if fs[T] >= t_until or si[ATTEMPTS] >= si[PAUSE_ATTEMPTS]:
-            return PAUSED
-        if si[COUNT] >= out_t.size:
-            return FULL
-        t, next_break, h, order, landing = step_start(fs, si, breaks, fixed, max_step, min_step)
+        if resume != NOT_RESUMING:
+            t, next_break, h, order, landing = resumed_step(fs, si, breaks)
+        else:
+            if fs[T] >= t_until or si[ATTEMPTS] >= si[PAUSE_ATTEMPTS]:
+                return PAUSED
+            if si[COUNT] >= out_t.size:
+                return FULL
+            t, next_break, h, order, landing = step_start(fs, si, breaks, fixed, max_step, min_step)
         nh = si[NHIST]
         while True:
-            si[ATTEMPTS] += 1
+            if resume == NOT_RESUMING:
+                si[ATTEMPTS] += 1
             if si[ATTEMPTS] > max_steps:
                 fs[H] = h
                 return TOO_MANY_STEPS
@@ -158,19 +175,25 @@ def run(plan, st, t_until):
             # of them at 0 V; then the op-amps' output stages settle far from there): each
             # iteration then eliminates many active columns, which a refactor makes few
             stale = si[ACTIVE_STREAK] >= REBASE_STEPS
-            if (nl and settled) or stale:
-                factor_now(plan, st, a0)
+            if resume == NOT_RESUMING and ((nl and settled) or stale):
                 si[ACTIVE_STREAK] = 0
+                if not factor_now(plan, st, a0):
+                    return wait_for_factor(fs, si, AT_REFACTOR_TEST, h, order, landing, 0, 0, 0)
+            if resume == AT_REFACTOR_TEST:
+                resume = NOT_RESUMING
             for k in range(ns):
                 src_values[k] = source_value(
                     t + h, k, src_kind, src_par, src_dc, pwl_start, pwl_t, pwl_v
                 )
             ratio = h / h_prev if nh > 1 else 0.0
             ok = False
-            for attempt in range(2):
-                for k in range(md):  # the predictor (transient.py extrapolates every unknown)
+            first_attempt = si[RESUME_ATTEMPT] if resume != NOT_RESUMING else 0
+            if resume == AT_SECOND_ATTEMPT:
+                resume = NOT_RESUMING
+            for attempt in range(first_attempt, 2):
+                for k in range(md if resume == NOT_RESUMING else 0):  # the predictor
                     pJ[k] = hv[0, k] + ratio * (hv[0, k] - hv[1, k])
-                for k in range(ms):
+                for k in range(ms if resume == NOT_RESUMING else 0):
                     vc[k] = hc[0, k] + ratio * (hc[0, k] - hc[1, k])
                 for k in range(nq):
                     q[k] = 0.0
@@ -181,11 +204,17 @@ def run(plan, st, t_until):
                 ok = False
                 iterations = 0
                 fresh = True  # the time point's responses are to be (re)computed
-                for iteration in range(1, itl4 + 1):
+                first_iteration = si[RESUME_ITERATION] if resume == IN_ITERATION else 1
+                for iteration in range(first_iteration, itl4 + 1):
                     iterations = iteration
                     first = iteration == 1
                     noncon = 0
-                    for k in range(ms):  # SwitchFamily.update_state
+                    first_again = 0
+                    if resume == IN_ITERATION:  # linearized before the factorization
+                        noncon = si[RESUME_NONCON]
+                        junction_charges(vd, a0, hist, jp, cp, jslot, has_charge, charged, q, qdot)
+                        first_again = 1
+                    for k in range(ms if resume == NOT_RESUMING else 0):  # update_state
                         keep = accepted[k] if first else state[k]
                         new = (keep or vc[k] > approach[k, 0]) and vc[k] >= approach[k, 1]
                         if new != state[k]:
@@ -194,7 +223,7 @@ def run(plan, st, t_until):
                             si[CFG_STALE] = 1
                     # DiodeFamily.port_load, as in newton.py: a shared inline helper taking the
                     # parameter arrays measured 19-22 % slower per step (its reference counts)
-                    for k in range(md):
+                    for k in range(md if resume == NOT_RESUMING else 0):
                         v = pJ[k]
                         vold = vd_accepted[k] if first else vd[k]
                         vk = v
@@ -221,8 +250,9 @@ def run(plan, st, t_until):
                             gk += a0 * capk
                         vd[k], cd[k], gd[k] = vk, ck, gk
                         ieq[k] = ck - gk * vk
+                    resume = NOT_RESUMING
                     solved = False
-                    for again in range(2):  # the second on a factorization at this iterate
+                    for again in range(first_again, 2):  # the second on a refactor here
                         if si[CFG_STALE] == 1 or si[CFG_VERSION] != si[VERSION] or fs[CFG_A0] != a0:
                             # eliminate the switch and charge ports at a0 and the switch states
                             for k in range(ms):
@@ -233,7 +263,11 @@ def run(plan, st, t_until):
                             if not configure(K, md, dR, F, G, bound):
                                 if again == 1:
                                     break
-                                factor_now(plan, st, a0)
+                                if not factor_now(plan, st, a0):
+                                    return wait_for_factor(
+                                        fs, si, IN_ITERATION, h, order, landing, attempt,
+                                        iteration, noncon,
+                                    )  # fmt: skip
                                 continue
                             fs[CFG_A0] = a0
                             si[CFG_VERSION] = si[VERSION]
@@ -365,7 +399,10 @@ def run(plan, st, t_until):
                                 pJ_new[act[c]] = xa[c]
                         if solved or again == 1:
                             break
-                        factor_now(plan, st, a0)
+                        if not factor_now(plan, st, a0):
+                            return wait_for_factor(
+                                fs, si, IN_ITERATION, h, order, landing, attempt, iteration, noncon
+                            )
                     if not solved:
                         break
                     # j = ieq + D_J p_J, p_R = F c0_R - F K_RJ j, w = D_R p_R (ports.py)
@@ -413,7 +450,8 @@ def run(plan, st, t_until):
                 far = nl and not (a0 / RETRY_RATIO < ref[nports] < RETRY_RATIO * a0)
                 if ok or attempt == 1 or not far:
                     break
-                factor_now(plan, st, a0)
+                if not factor_now(plan, st, a0):
+                    return wait_for_factor(fs, si, AT_SECOND_ATTEMPT, h, order, landing, 1, 0, 0)
             if not ok:
                 si[REJECTED] += 1
                 fs[H] = h

@@ -4,7 +4,8 @@
 :func:`circuitsim.solver.transient.run_transient`. The operating point is still solved by the
 reference engine (dc.py); the time loop runs compiled (transient.py or port_loop.py here). The
 loop returns to Python every tenth of the run (progress) and after a bounded number of steps
-(the wall-time limit, Ctrl-C), and when its output arrays are full.
+(the wall-time limit, Ctrl-C), when its output arrays are full, and for a factorization it
+cannot make in compiled code (SuperLU: newton.FACTOR, then it goes on where it stopped).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from circuitsim.solver.compiled.plan import (
     initial_state,
     unsupported,
 )
+from circuitsim.solver.compiled.sparse_factors import factor_sparse
 from circuitsim.solver.compiled.sparse_lu import SparseLU, analyse, present_matrix
 from circuitsim.solver.compiled.terminal_plan import entry_pattern, entry_values, terminal_state
 from circuitsim.solver.errors import (
@@ -266,20 +268,47 @@ def _run(kind, system, tstep, tstop, tstart, tmax, uic, progress, stats, rows, f
 
 
 def _loop_state(kind, start: PortsStart, plan, rows, capacity):
-    """The kernel module and its state at t = 0 (with the rows it records)."""
+    """The kernel module and its state at t = 0 (with the rows it records, and the slots of
+    a return to Python in the middle of a step: newton.RESUME_*)."""
     if kind == "ports":
         from circuitsim.solver.compiled import port_loop as loop
         from circuitsim.solver.compiled.port_state import initial_port_state
 
         rows = np.arange(start.system.size) if rows is None else np.asarray(rows, dtype=np.int64)
         state = initial_port_state(plan, start.families, start.x, start.q0.copy(), capacity, rows)
-        return loop, state
-    from circuitsim.solver.compiled import transient as loop
+    else:
+        from circuitsim.solver.compiled import transient as loop
 
-    devices = device_states(start.families)
-    terms = terminal_state(start.families["terminals"], plan.terms)
-    lu = _pivot_order(plan, devices["gd"], devices["state"], _a0_start(start), terms)
-    return loop, initial_state(plan, start.families, start.x, start.q0.copy(), capacity, lu)
+        devices = device_states(start.families)
+        terms = terminal_state(start.families["terminals"], plan.terms)
+        lu = _pivot_order(plan, devices["gd"], devices["state"], _a0_start(start), terms)
+        state = initial_state(plan, start.families, start.x, start.q0.copy(), capacity, lu)
+    from circuitsim.solver.compiled import newton as nw
+
+    state = state._replace(
+        fs=np.concatenate([state.fs, np.full(nw.RESUME_FLOATS, np.nan)]),
+        ints=np.concatenate([state.ints, np.zeros(nw.RESUME_INTS, dtype=np.int64)]),
+    )
+    if kind == "ports" and factors_in_python(state):
+        state.ints[nw.FACTOR_IN_PYTHON] = 1
+    return loop, state
+
+
+def factors_in_python(state) -> bool:
+    """Whether the ports kernel's factorizations are made in Python (SuperLU, for a state
+    without room for the dense matrices: above sparse_factors.SPARSE_FROM unknowns)."""
+    return state.fac.Binv.shape[0] != state.fac.yc.size
+
+
+def _factor(plan, st, a0: float) -> None:
+    """The ports kernel's factorization at the present port values and a0 (1/s), as the loop
+    asks (newton.factor_now): compiled (dense), or SuperLU in Python (sparse_factors.py)."""
+    from circuitsim.solver.compiled import newton as nw
+
+    if st.fac.Binv.shape[0] == st.fac.yc.size:
+        nw.dense_factor(plan, st, a0)
+    else:
+        factor_sparse(plan, st, a0)
 
 
 def _a0_start(start: PortsStart) -> float:
@@ -340,16 +369,20 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     st.ints[nw.PAUSE_ATTEMPTS] = FIRST_PAUSE
     began = time.perf_counter()
     pivot_orders, repivoted_at, same_step = 1, -1, 0
+    factored_in_python = 0  # FACTOR returns
     try:
         if kind == "ports":
-            nw.factor_now(plan, st, _a0_start(start))
+            _factor(plan, st, _a0_start(start))
         while True:
             chunk_began, attempts = time.perf_counter(), int(st.ints[nw.ATTEMPTS])
             status = loop.run(plan, st, t_until)
             if compiling:
                 record_compile_seconds(kind, time.perf_counter() - began)
                 compiling = False
-            if status == loop.FULL:
+            if status == nw.FACTOR:
+                _factor(plan, st, float(st.fs[nw.FACTOR_A0]))
+                factored_in_python += 1
+            elif status == loop.FULL:
                 st = _grown(st)
             elif kind != "ports" and status == loop.REPIVOT:
                 # the step is attempted again: each new order lets it go further (at most
@@ -398,6 +431,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
             from circuitsim.solver.compiled.port_state import CFG_COUNT
 
             stats["configurations"] = int(st.ints[CFG_COUNT])
+            stats["factor_returns"] = factored_in_python
         else:
             from circuitsim.solver.compiled.mna_newton import PIVOT_ORDERS
 

@@ -5,8 +5,8 @@ B and its inverse), which past a hundred-odd unknowns costs more than the whole 
 ports kernel needs no inverse: only B^-1 applied to the low-rank columns U, the constant
 right-hand side and the sources' unit right-hand sides (r + 1 + ns columns). So above
 ``SPARSE_FROM`` unknowns the loop factors B = G + a0 M + W diag(g) W^T with SuperLU and solves
-for those columns; numba cannot call SuperLU, so the loop leaves compiled code for it (numba's
-``objmode``: a few tens of microseconds, against the milliseconds of the factorization).
+for those columns; numba cannot call SuperLU, so the loop returns to Python for it
+(newton.FACTOR; :func:`factor_sparse`) and is re-entered where it stopped.
 """
 
 from __future__ import annotations
@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
+
+from circuitsim.solver.compiled.newton import FACTORIZATIONS, VERSION
 
 # Unknowns from which the ports kernel factors sparsely. Measured (docs/solver.md): one dense
 # rebuild took 0.09 ms at 54 unknowns and 4.6 ms at 162, SuperLU's about 1 ms at 162.
@@ -70,3 +72,30 @@ def sparse_port_factors(
     ref[:] = values
     ref[nports:] = a0
     return 0
+
+
+def factor_sparse(plan, st, a0: float) -> None:
+    """What newton.factor_now does in compiled code, with SuperLU: factor at the present port
+    values (junction conductances st.gd, switch states st.state) and ``a0`` (1/s) into
+    st.fac and bump the factorization version.
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        The matrix is singular.
+    """
+    md, ms = st.gd.size, st.state.size
+    values = np.empty(plan.VT.shape[0])
+    values[:md] = st.gd
+    values[md : md + ms] = np.where(st.state, plan.g_switch[:, 0], plan.g_switch[:, 1])
+    values[md + ms :] = a0
+    fac = st.fac
+    singular = sparse_port_factors(
+        plan.G, plan.M, plan.U, plan.VT, plan.port_p, plan.port_n, values, a0, plan.rhs_const,
+        plan.src_unit, plan.abs_tol, fac.Z, fac.ZT, fac.K, fac.ZdT, fac.KdT, fac.zrel, fac.Zq,
+        fac.Kq, fac.yc, fac.cc, fac.Yb, fac.Cb, fac.ref,
+    )  # fmt: skip
+    if singular:
+        raise np.linalg.LinAlgError("singular matrix")
+    st.ints[FACTORIZATIONS] += 1
+    st.ints[VERSION] += 1
