@@ -373,12 +373,14 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     try:
         if kind == "ports":
             _factor(plan, st, _a0_start(start))
+        # the rate of attempted steps since the last pause sizes the next chunk; a chunk
+        # that compiled has no rate (its own would make every later chunk 100 steps)
+        chunk_began, attempts, compiled = time.perf_counter(), int(st.ints[nw.ATTEMPTS]), False
         while True:
-            chunk_began, attempts = time.perf_counter(), int(st.ints[nw.ATTEMPTS])
             status = loop.run(plan, st, t_until)
             if compiling:
                 record_compile_seconds(kind, time.perf_counter() - began)
-                compiling = False
+                compiling, compiled = False, True
             if status == nw.FACTOR:
                 _factor(plan, st, float(st.fs[nw.FACTOR_A0]))
                 factored_in_python += 1
@@ -408,12 +410,13 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
                     raise RunLimitError(
                         "max_wall_time", options.max_wall_time, float(st.fs[nw.T]), tstop, done
                     )
-                if fixed_pauses:
+                if fixed_pauses or compiled:
                     st.ints[nw.PAUSE_ATTEMPTS] = done + FIRST_PAUSE
                 else:
                     rate = (done - attempts) / max(time.perf_counter() - chunk_began, 1e-6)
                     pause = int(min(max(rate * PAUSE_SECONDS, 100), 1e7))
                     st.ints[nw.PAUSE_ATTEMPTS] = done + pause
+                chunk_began, attempts, compiled = time.perf_counter(), done, False
             else:
                 break
     except np.linalg.LinAlgError:
