@@ -246,6 +246,7 @@ def run_transient(
 
         t = next_break if landing else t + h
         x_prev_ext = x_ext
+        retry_from = None  # only for attempts at this time point (not after a later toggle)
         toggled = [family.accept(x_ext, ctx) for family in accepting]
         times.insert(0, t)
         xs.insert(0, x_new)

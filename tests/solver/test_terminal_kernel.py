@@ -101,3 +101,30 @@ def _one(family, k, m):
     for name in ("vto", "beta", "lam", "b", "b_factor"):
         setattr(one, name, np.full(m, getattr(family, name)[k]))
     return one
+
+
+def test_a_failed_first_step_from_uic_goes_on_from_its_last_iterate(tmp_path):
+    """The wheelset with the bipolar Boyle op-amp from uic: its first attempt fails and the
+    retry starts where that attempt's Newton got to (solver/transient.py's retry_from), in
+    both loops; the compiled one restarting from the initial conditions ended in "time step
+    too small" at t = 4e-16 s."""
+    from dataclasses import replace
+
+    from circuitsim.mechanics import load_model
+    from circuitsim.synthesis.generate import generate
+    from circuitsim.synthesis.options import SynthesisOptions
+
+    library = Path(__import__("circuitsim").__file__).parent / "netlist/library/macromodels.lib"
+    system = load_model().system(parameters={"V": 55.0, "f": 3.0, "a": 0.040})
+    options = SynthesisOptions(opamp="lib", opamp_lib=str(library), opamp_subckt="BOYLE_UA741",
+                               series="exact", t_stop=1.0)  # fmt: skip
+    circuit = read_netlist(generate(system, tmp_path / "w.cir", options).netlist)
+    tran = circuit.transient
+    circuit.analyses = [replace(tran, tstop=1e-6) if a is tran else a for a in circuit.analyses]
+    runs = [
+        simulate(circuit, SimulationOptions.from_circuit(circuit, kernel=kernel))
+        for kernel in ("python", "compiled")
+    ]
+    assert runs[0].stats["rejected"] >= 1
+    for count in ("accepted", "rejected", "newton_iterations"):
+        assert runs[1].stats[count] == runs[0].stats[count], count

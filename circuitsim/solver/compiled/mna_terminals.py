@@ -8,7 +8,9 @@ devices/terminals.py's TerminalStamp does, g_tc at (row t, column c+) and -g_tc 
 column c-) into the assembled matrix (the sparse LU's extra entries) and sum_c g_tc v_c - I_t
 to the right-hand side of row t, and checks SPICE's device current test at the new iterate
 (terminals.current_converged). Each function takes the plan's and the state's terminal tuples
-and loops over the elements itself: one call per Newton iteration, not one per element.
+and loops over the elements itself: one call per Newton iteration, not one per element. They
+are compiled once, not inlined into the Newton loop (inlining the device equations there
+doubled the kernel's first compile); the twins' ``load`` are inlined here.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from circuitsim.solver.compiled.terminal_plan import BJT, JFET
 from circuitsim.solver.devices import bjt_kernel, jfet_kernel, poly_kernel
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def load_terminals(tp, ts, x_ext, a0, hist, q, qdot) -> int:
     """Linearize every element at ``x_ext`` (charges integrated with a0 and the history
     ``hist`` into the slots' q, qdot); returns how many limited a voltage (noncon)."""
@@ -35,7 +37,7 @@ def load_terminals(tp, ts, x_ext, a0, hist, q, qdot) -> int:
     return noncon
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def stamp_terminals(tp, ts, extra_pos, a_val) -> None:
     """Add the elements' entries to the assembled values ``a_val`` (positions ``extra_pos``
     of the sparse LU, in terminal_plan.entry_pattern's order)."""
@@ -57,7 +59,7 @@ def stamp_terminals(tp, ts, extra_pos, a_val) -> None:
                     a_val[extra_pos[e + j]] += g if j < 2 else -g
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def terminal_rhs(tp, ts, b) -> None:
     """Add the companion currents sum_c g_tc v_c - I_t to each terminal's row of ``b``."""
     for k in range(tp.kind.size):
@@ -71,7 +73,7 @@ def terminal_rhs(tp, ts, b) -> None:
             b[row] += linear - ts.cur[k, t]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def terminals_converged(tp, ts, x_ext, reltol) -> bool:
     """SPICE's device current check (terminals.current_converged) of every element at the
     new iterate ``x_ext``."""

@@ -271,6 +271,7 @@ def run(plan, st, t_until):
         si_start[:] = si
         t, next_break, h, order, landing = step_start(fs, si, breaks, fixed, max_step, min_step)
         nh = si[NHIST]
+        retry_from = False  # a failed attempt's last iterate is in fail_x (solver/transient.py)
         while True:
             si[ATTEMPTS] += 1
             if si[ATTEMPTS] > max_steps:
@@ -289,6 +290,8 @@ def run(plan, st, t_until):
             ratio = h / h_prev if nh > 1 else 0.0
             for i in range(n):
                 x_guess[i] = hx[0, i] + ratio * (hx[0, i] - hx[1, i])
+            if nh == 1 and retry_from:  # go on from where the failed attempt got to
+                x_guess[:] = fail_x
             for j in range(nq):
                 q[j] = 0.0
                 qdot[j] = 0.0
@@ -306,6 +309,7 @@ def run(plan, st, t_until):
                 si[REJECTED] += 1
                 fail_x[:] = x_new
                 fail_prev[:] = x_before
+                retry_from = np.all(np.isfinite(x_new))
                 fs[H] = h
                 if fixed > 0:
                     return NEWTON_FAILED_FIXED
