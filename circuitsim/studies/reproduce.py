@@ -8,7 +8,8 @@
     eigenvalues against speed, realized critical speeds -> stability figure
     everything ------------------------------------------> report.md, metrics.json, Fig. 6
 
-The cases are independent, so they run in a process pool (``workers``, default every core).
+The cases are independent, so they run in a process pool (``workers``, default every core;
+the cases and their jobs: :mod:`.reproduce_cases`).
 Each engine run that cannot happen here is a row saying ``not available: <reason>``, never a
 number. Progress goes through the ``progress`` callback; the library prints nothing.
 """
@@ -20,15 +21,25 @@ import os
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from circuitsim.atomic import write_text_atomic
-from circuitsim.compare.case import engine_available, run_engine
+from circuitsim.compare.case import engine_available
 from circuitsim.compare.comparison import Comparison, Thresholds, compare_traces
-from circuitsim.compare.mapping import Trace, map_waveforms
+from circuitsim.compare.mapping import Trace
+from circuitsim.studies.reproduce_cases import (
+    PAPER_SCENARIOS,
+    CircuitInfo,
+    Scenario,
+    Variant,
+    circuit_job,
+    free_job,
+    ode_job,
+    schematic_job,
+)
 
 OPAMPS = ("ideal", "tl074")
 SERIES = ("exact", "E96")
@@ -38,91 +49,6 @@ HUNTING_PUSH, HUNTING_SETTLE, HUNTING_RECORD = 0.005, 2.0, 1.0
 # the tolerance section: a few tens of circuits of the first scenario (docs/tolerances.md)
 TOLERANCE_SAMPLES = 40
 FREE_SPEEDS = (54.0, 57.0)
-
-
-@dataclass(frozen=True)
-class Scenario:
-    """One forced-response case of the paper's Fig. 4 (built-in wheelset model).
-
-    Attributes
-    ----------
-    frequency : float
-        Excitation frequency, Hz.
-    flange : bool
-        Flange force (switch S1) on.
-    speed : float
-        Forward speed V, m/s.
-    amplitude : float
-        Equivalent track displacement a, m.
-    t_stop : float
-        Model seconds simulated.
-    """
-
-    frequency: float
-    flange: bool
-    speed: float = 55.0
-    amplitude: float = 0.040
-    t_stop: float = 5.0
-
-    @property
-    def name(self) -> str:
-        """File-name friendly, e.g. ``f3-flange-on``."""
-        return f"f{self.frequency:g}-flange-{'on' if self.flange else 'off'}"
-
-    @property
-    def title(self) -> str:
-        """For figure titles and the report."""
-        return (
-            f"V = {self.speed:g} m/s, f = {self.frequency:g} Hz, "
-            f"flange {'on' if self.flange else 'off'}"
-        )
-
-    def system(self, model):
-        """The scenario's System of ``model`` (options speed, freq, amplitude)."""
-        parameters = model.option_parameters(
-            {"speed": self.speed, "freq": self.frequency, "amplitude": self.amplitude}
-        )
-        return model.system(
-            parameters=parameters, nonlinear={n: self.flange for n in model.nonlinear_terms}
-        )
-
-
-PAPER_SCENARIOS = tuple(Scenario(f, on) for f in (3.0, 5.0, 10.0) for on in (False, True))
-
-
-@dataclass(frozen=True)
-class Variant:
-    """How a scenario's circuit is built and simulated."""
-
-    opamp: str
-    series: str
-    engine: str
-
-    @property
-    def label(self) -> str:
-        return f"{self.engine}, {self.opamp}, {self.series}"
-
-
-@dataclass
-class CircuitInfo:
-    """A written netlist: its scaling, BOM and mapping check."""
-
-    scenario: Scenario
-    opamp: str
-    series: str
-    netlist: str
-    scale_map: object
-    bom: list
-    warnings: list[str]
-    check_ok: bool
-    check_summary: str
-    max_coefficient_error: float
-    critical_speed_model: float | None
-    critical_speed_realized: float | None
-    growth_rate_model: float | None = None
-    growth_rate_realized: float | None = None
-    # (coefficient, model value, realized value, relative error, parts) from the mapping check
-    coefficients: list[tuple[str, float, float, float, str]] = field(default_factory=list)
 
 
 @dataclass
@@ -160,142 +86,6 @@ class Reproduction:
     knob_netlist: str = ""
     schematic_problem: str | None = None
     tolerance: dict | None = None  # the Monte Carlo's summary (studies.tolerance_report)
-
-
-# --- jobs (module-level so the process pool can pickle them) ----------------------------------
-
-
-def _ode_job(scenario: Scenario, figure: str | None) -> tuple[str, dict[str, Trace], dict]:
-    from circuitsim.compare.case import reference_traces
-    from circuitsim.compare.figures import plot_response
-    from circuitsim.mechanics import load_model
-
-    system = scenario.system(load_model())
-    result, traces = reference_traces(system, scenario.t_stop)
-    if figure is not None:
-        plot_response(figure, result, title=f"ODE: {scenario.title}", samples=4001, dpi=72)
-    summary = {
-        "max_abs_y_mm": 1e3 * result.max_abs("y"),
-        "y_end_mm": 1e3 * float(result.sol(scenario.t_stop)[result.states.index("y")]),
-        "max_abs_y_dot": result.max_abs("y_dot"),
-        "kinks": int(len(result.kinks)),
-    }
-    return scenario.name, traces, summary
-
-
-def _free_job(speed: float, t_stop: float = 10.0) -> tuple[float, Trace, float]:
-    from circuitsim.mechanics import load_model, solve
-
-    model = load_model()
-    system = model.system(
-        parameters={**model.option_parameters({"speed": speed, "y0": 0.005})},
-        nonlinear={n: False for n in model.nonlinear_terms},
-        forcing={n: False for n in model.forcing_terms},
-    )
-    result = solve(system, t_span=(0.0, t_stop))
-    t = np.linspace(0.0, t_stop, 10001)
-    y = result.sol(t)[result.states.index("y")]
-    return speed, (t, y), result.max_abs("y", t_stop - 1.0, t_stop)
-
-
-def _circuit_job(
-    scenario: Scenario,
-    variant: Variant,
-    netlist: str | None,
-    skip_reason: str | None = None,
-    ngspice_timeout: float | None = None,
-) -> tuple[Variant, Scenario, str, dict | None, CircuitInfo | None, float, int]:
-    """Synthesize (and, with ``netlist``, write and check) then simulate unless told to skip
-    the simulation; never raises."""
-    from circuitsim.mechanics import load_model
-    from circuitsim.synthesis.options import SynthesisOptions
-
-    info = None
-    try:
-        system = scenario.system(load_model())
-        options = SynthesisOptions(
-            opamp=variant.opamp, series=variant.series, t_stop=scenario.t_stop
-        )
-        if netlist is not None:
-            from circuitsim.synthesis.generate import generate
-
-            generated = generate(system, netlist, options)
-            synthesis, report, path = generated.synthesis, generated.report, generated.netlist
-            info = CircuitInfo(
-                scenario,
-                variant.opamp,
-                variant.series,
-                str(netlist),
-                synthesis.scale_map,
-                synthesis.bom,
-                generated.warnings,
-                report.ok,
-                report.summary(),
-                report.max_error,
-                report.critical_speed_model,
-                report.critical_speed_realized,
-                _largest_real(report.eigenvalues_model),
-                _largest_real(report.eigenvalues_realized),
-                [(e.what, e.model, e.realized, e.error, "+".join(e.parts))
-                 for e in report.entries],
-            )  # fmt: skip
-        else:
-            from circuitsim.synthesis.translator import synthesize
-
-            synthesis, path = synthesize(system, options), None
-        reason = engine_available(variant.engine)
-        if skip_reason is not None:
-            return variant, scenario, skip_reason, None, info, float("nan"), 0
-        if reason is not None:
-            return variant, scenario, f"not available: {reason}", None, info, float("nan"), 0
-        started = time.perf_counter()
-        waves = run_engine(variant.engine, synthesis.circuit, path, ngspice_timeout)
-        elapsed = time.perf_counter() - started
-        traces = map_waveforms(waves, synthesis.scale_map, list(system.states))
-        return variant, scenario, "ok", traces, info, elapsed, len(waves.time)
-    except Exception as exc:  # noqa: BLE001 - a failed case is a row of the report, not a crash
-        message = " ".join(str(exc).split())[:300]
-        return variant, scenario, f"failed: {type(exc).__name__}: {message}", None, info, 0.0, 0
-
-
-def _schematic_job(scenario: Scenario, out: str, low: float = 40.0, high: float = 70.0):
-    """The paper's circuit as one would build it (TL074 sections, E96 parts, the speed knob
-    over ``low``-``high`` m/s): netlist, BOMs and dial table in ``out``/netlists, the
-    schematic (PNG and SVG) in ``out``/figures. Returns (knobs, netlist, problem); never
-    raises (a failure is the report's sentence, not a crash)."""
-    from functools import cache
-
-    from circuitsim.mechanics import load_model
-    from circuitsim.synthesis.generate import generate
-    from circuitsim.synthesis.knob import KnobRequest
-    from circuitsim.synthesis.options import SynthesisOptions
-    from circuitsim.synthesis.schematic import save_schematic
-
-    try:
-        model = load_model()
-        system = scenario.system(model)
-
-        @cache
-        def linear_part(speed: float):
-            return replace(scenario, speed=speed).system(model).A
-
-        netlist = Path(out) / "netlists" / f"{scenario.name}-tl074-e96-knob.cir"
-        generated = generate(
-            system,
-            netlist,
-            SynthesisOptions(opamp="tl074", series="E96", t_stop=scenario.t_stop),
-            knob=KnobRequest("V", low, high, linear_part, "m/s"),
-            schematic=Path(out) / "figures" / "schematic.png",
-        )
-        save_schematic(
-            generated.synthesis.circuit,
-            Path(out) / "figures" / "schematic.svg",
-            list(system.states),
-            generated.synthesis.bom,
-        )
-        return generated.knobs, str(netlist), None
-    except Exception as exc:  # noqa: BLE001 - reported, not raised
-        return [], "", f"{type(exc).__name__}: {' '.join(str(exc).split())[:300]}"
 
 
 # --- the run -------------------------------------------------------------------------------
@@ -352,7 +142,6 @@ def reproduce(
     Reproduction
     """
     from circuitsim.compare.paper_figures import plot_free_response, plot_growth_rate
-    from circuitsim.compare.plots import plot_overlay
     from circuitsim.mechanics import critical_speed, eigenvalues, load_model
     from circuitsim.studies.report import render_report, reproduction_json
 
@@ -369,46 +158,10 @@ def reproduce(
     model = load_model()
     v_c, f_h = critical_speed(model)
     say(f"model critical speed {v_c:.4f} m/s, hunting frequency {f_h:.3f} Hz")
-    figures: dict[str, str] = {}
-
-    # Jobs, longest first so that two workers finish together.
-    skip = {} if skip is None else skip
-    jobs, skipped = [], []
-    writer = next((e for e in engines if available[e] is None), engines[0] if engines else None)
-    order = sorted(engines, key=lambda e: e != "builtin")
-    for engine in order:
-        for opamp in sorted(opamps, key=lambda o: o == "ideal"):
-            for s in series:
-                for scenario in scenarios:
-                    variant = Variant(opamp, s, engine)
-                    reason = skip.get((engine, opamp))
-                    if reason is not None and engine != writer:
-                        skipped.append(Row(scenario, variant, reason))
-                        continue
-                    path = None
-                    if engine == writer:
-                        path = str(out / "netlists" / f"{scenario.name}-{opamp}-{s.lower()}.cir")
-                    jobs.append(("circuit", (scenario, variant, path, reason, ngspice_timeout)))
-    ode_jobs = [("ode", (sc, str(out / "figures" / f"fig4-{sc.name}.png"))) for sc in scenarios]
-    free_jobs = [("free", (speed,)) for speed in free_speeds]
-    drawn = next((sc for sc in scenarios if sc.flange), scenarios[0] if scenarios else None)
-    if drawn is not None and 40.0 <= drawn.speed <= 70.0:
-        free_jobs.append(("schematic", (drawn, str(out))))
-    functions = {
-        "circuit": _circuit_job, "ode": _ode_job, "free": _free_job, "schematic": _schematic_job
-    }  # fmt: skip
-    schematic = None
-
-    references: dict[str, dict[str, Trace]] = {}
-    ode_summary: dict[str, dict] = {}
-    free: dict[float, Trace] = {}
-    free_summary: dict[float, float] = {}
-    results = []
-    # Longest first (rough CPU seconds measured here), so that the workers finish together.
-    cost = {("builtin", "ideal"): 9.0, ("builtin", "tl074"): 1000.0, ("ngspice", "tl074"): 3.5}
-    jobs.sort(key=lambda job: -cost.get((job[1][1].engine, job[1][1].opamp), 0.8))
-    everything = [j for j in jobs if cost.get((j[1][1].engine, j[1][1].opamp), 0.8) > 1.5]
-    everything += ode_jobs + free_jobs + [j for j in jobs if j not in everything]
+    jobs, skipped = _plan(
+        out, scenarios, opamps, series, engines, free_speeds, available, skip or {},
+        ngspice_timeout,
+    )  # fmt: skip
     warm_up_s = None
     initializer = None
     if "builtin" in engines and available["builtin"] is None:
@@ -420,60 +173,13 @@ def reproduce(
         if warm_up_s is not None:
             say(f"compiled kernels ready in {warm_up_s:.1f} s")
             initializer = warm_up
-    with ProcessPoolExecutor(max_workers=workers, initializer=initializer) as pool:
-        futures = {pool.submit(functions[kind], *args): (kind, args) for kind, args in everything}
-        for done, future in enumerate(as_completed(futures), start=1):
-            kind, args = futures[future]
-            value = future.result()
-            if kind == "ode":
-                name, traces, summary = value
-                references[name], ode_summary[name] = traces, summary
-                figures[f"fig4-{name}"] = f"figures/fig4-{name}.png"
-                say(
-                    f"[{done}/{len(everything)}] ODE {args[0].title}: "
-                    f"max |y| {summary['max_abs_y_mm']:.3f} mm"
-                )
-            elif kind == "schematic":
-                schematic = value
-                figures["schematic"] = "figures/schematic.png"
-                say(f"[{done}/{len(everything)}] schematic and speed knob: {value[2] or 'drawn'}")
-            elif kind == "free":
-                speed, trace, peak = value
-                free[speed], free_summary[speed] = trace, peak
-                say(
-                    f"[{done}/{len(everything)}] free response at {speed:g} m/s: "
-                    f"max |y| over 9-10 s {peak:.4g} m"
-                )
-            else:
-                results.append(value)
-                variant, scenario, status, _, _, elapsed, _ = value
-                timing = f" ({elapsed:.1f} s)" if status == "ok" else ""
-                say(
-                    f"[{done}/{len(everything)}] {scenario.title} | {variant.label}: "
-                    f"{status}{timing}"
-                )
-
-    rows, circuits, traces_by = list(skipped), {}, {}
-    for variant, scenario, status, traces, info, elapsed, points in results:
-        if info is not None:
-            circuits[(scenario.name, variant.opamp, variant.series)] = info
-        comparison = None
-        if status == "ok":
-            units = {"y": "m", "psi": "rad", "y_dot": "m/s", "psi_dot": "rad/s"}
-            comparison = compare_traces(
-                references[scenario.name],
-                traces,
-                Thresholds.for_opamp(variant.opamp),
-                n_points,
-                units,
-                f"{scenario.title} | {variant.label}",
-            )
-            traces_by[(scenario.name, variant)] = traces
-        rows.append(Row(scenario, variant, status, comparison, elapsed, points))
+    outcomes = _run_jobs(jobs, workers, initializer, say)
+    figures = outcomes.figures
+    rows, circuits, traces_by = _compared_rows(outcomes, skipped, n_points)
     rows.sort(key=lambda r: _row_order(r, scenarios, opamps, series, engines))
 
-    if free:
-        plot_free_response(out / "figures" / "fig3-free-response.png", free)
+    if outcomes.free:
+        plot_free_response(out / "figures" / "fig3-free-response.png", outcomes.free)
         figures["fig3"] = "figures/fig3-free-response.png"
     speeds = np.linspace(40.0, 70.0, 301)
     rates = eigenvalues(model, "V", speeds)[:, 0].real
@@ -496,6 +202,153 @@ def reproduce(
                                     out / "figures" / "tolerance.png", workers)  # fmt: skip
         figures["tolerance"] = "figures/tolerance.png"
         say(f"tolerance: {tolerance_samples} circuits, {tolerance['wall_s']:.1f} s")
+    _fig6_figures(out, scenarios, engines, outcomes.references, traces_by, figures)
+    say("figures written")
+
+    # Frequency of the slowest (hunting) mode at each simulated speed, Hz: what a free-motion
+    # difference between circuit and ODE oscillates at.
+    modes = {}
+    for speed in sorted({sc.speed for sc in scenarios}):
+        slowest = eigenvalues(model, "V", [speed])[0, 0]
+        modes[speed] = float(abs(slowest.imag) / (2 * np.pi))
+    result = Reproduction(
+        out,
+        tuple(scenarios),
+        rows,
+        circuits,
+        available,
+        v_c,
+        f_h,
+        outcomes.ode_summary,
+        outcomes.free_summary,
+        figures,
+        time.perf_counter() - started,
+        workers,
+    )
+    result.mode_frequency = modes
+    if outcomes.schematic is not None:
+        result.knobs, result.knob_netlist, result.schematic_problem = outcomes.schematic
+        if result.schematic_problem is not None:
+            figures.pop("schematic", None)
+    result.kernel_warm_up_s = warm_up_s
+    result.hunting = hunting
+    result.tolerance = tolerance
+    write_text_atomic(out / "metrics.json", json.dumps(reproduction_json(result), indent=1) + "\n")
+    write_text_atomic(out / "report.md", render_report(result))
+    result.wall_s = time.perf_counter() - started
+    say(f"report and metrics written ({result.wall_s:.1f} s)")
+    return result
+
+
+_JOBS = {"circuit": circuit_job, "ode": ode_job, "free": free_job, "schematic": schematic_job}
+# rough CPU seconds of a circuit job measured here, by (engine, op-amp); others 0.8 s
+_COST = {("builtin", "ideal"): 9.0, ("builtin", "tl074"): 1000.0, ("ngspice", "tl074"): 3.5}
+
+
+def _plan(out, scenarios, opamps, series, engines, free_speeds, available, skip, timeout):
+    """The pool's jobs as (kind, arguments), the longest first so that the workers finish
+    together, and the rows not run as asked by ``skip`` (each with its reason). The first
+    available engine's circuit jobs write the netlists."""
+    jobs, skipped = [], []
+    writer = next((e for e in engines if available[e] is None), engines[0] if engines else None)
+    for engine in sorted(engines, key=lambda e: e != "builtin"):
+        for opamp in sorted(opamps, key=lambda o: o == "ideal"):
+            for s in series:
+                for scenario in scenarios:
+                    variant = Variant(opamp, s, engine)
+                    reason = skip.get((engine, opamp))
+                    if reason is not None and engine != writer:
+                        skipped.append(Row(scenario, variant, reason))
+                        continue
+                    path = None
+                    if engine == writer:
+                        path = str(out / "netlists" / f"{scenario.name}-{opamp}-{s.lower()}.cir")
+                    jobs.append(("circuit", (scenario, variant, path, reason, timeout)))
+    ode_jobs = [("ode", (sc, str(out / "figures" / f"fig4-{sc.name}.png"))) for sc in scenarios]
+    free_jobs = [("free", (speed,)) for speed in free_speeds]
+    drawn = next((sc for sc in scenarios if sc.flange), scenarios[0] if scenarios else None)
+    if drawn is not None and 40.0 <= drawn.speed <= 70.0:
+        free_jobs.append(("schematic", (drawn, str(out))))
+
+    def cost(job) -> float:
+        return _COST.get((job[1][1].engine, job[1][1].opamp), 0.8)
+
+    jobs.sort(key=lambda job: -cost(job))
+    everything = [j for j in jobs if cost(j) > 1.5]
+    everything += ode_jobs + free_jobs + [j for j in jobs if j not in everything]
+    return everything, skipped
+
+
+@dataclass
+class _Outcomes:
+    """What the pool's jobs returned, by kind, and the figures they drew."""
+
+    references: dict[str, dict[str, Trace]] = field(default_factory=dict)
+    ode_summary: dict[str, dict] = field(default_factory=dict)
+    free: dict[float, Trace] = field(default_factory=dict)
+    free_summary: dict[float, float] = field(default_factory=dict)
+    circuits: list[tuple] = field(default_factory=list)  # circuit_job's returns
+    schematic: tuple | None = None  # schematic_job's (knobs, netlist, problem)
+    figures: dict[str, str] = field(default_factory=dict)
+
+
+def _run_jobs(jobs, workers: int, initializer, say) -> _Outcomes:
+    """Run ``jobs`` in a pool of ``workers`` processes, one progress line per finished job."""
+    got = _Outcomes()
+    with ProcessPoolExecutor(max_workers=workers, initializer=initializer) as pool:
+        futures = {pool.submit(_JOBS[kind], *args): (kind, args) for kind, args in jobs}
+        for done, future in enumerate(as_completed(futures), start=1):
+            kind, args = futures[future]
+            value = future.result()
+            count = f"[{done}/{len(jobs)}]"
+            if kind == "ode":
+                name, traces, summary = value
+                got.references[name], got.ode_summary[name] = traces, summary
+                got.figures[f"fig4-{name}"] = f"figures/fig4-{name}.png"
+                say(f"{count} ODE {args[0].title}: max |y| {summary['max_abs_y_mm']:.3f} mm")
+            elif kind == "schematic":
+                got.schematic = value
+                got.figures["schematic"] = "figures/schematic.png"
+                say(f"{count} schematic and speed knob: {value[2] or 'drawn'}")
+            elif kind == "free":
+                speed, trace, peak = value
+                got.free[speed], got.free_summary[speed] = trace, peak
+                say(f"{count} free response at {speed:g} m/s: max |y| over 9-10 s {peak:.4g} m")
+            else:
+                got.circuits.append(value)
+                variant, scenario, status, _, _, elapsed, _ = value
+                timing = f" ({elapsed:.1f} s)" if status == "ok" else ""
+                say(f"{count} {scenario.title} | {variant.label}: {status}{timing}")
+    return got
+
+
+def _compared_rows(outcomes: _Outcomes, skipped: list[Row], n_points: int):
+    """Every circuit job's row, compared with its scenario's ODE reference where it ran; the
+    written netlists by (scenario, op-amp, series); the mapped traces by (scenario, variant)."""
+    rows, circuits, traces_by = list(skipped), {}, {}
+    units = {"y": "m", "psi": "rad", "y_dot": "m/s", "psi_dot": "rad/s"}
+    for variant, scenario, status, traces, info, elapsed, points in outcomes.circuits:
+        if info is not None:
+            circuits[(scenario.name, variant.opamp, variant.series)] = info
+        comparison = None
+        if status == "ok":
+            comparison = compare_traces(
+                outcomes.references[scenario.name],
+                traces,
+                Thresholds.for_opamp(variant.opamp),
+                n_points,
+                units,
+                f"{scenario.title} | {variant.label}",
+            )
+            traces_by[(scenario.name, variant)] = traces
+        rows.append(Row(scenario, variant, status, comparison, elapsed, points))
+    return rows, circuits, traces_by
+
+
+def _fig6_figures(out: Path, scenarios, engines, references, traces_by, figures) -> None:
+    """Per scenario, the chosen circuits (:func:`_fig6_variants`) over the ODE, with errors."""
+    from circuitsim.compare.plots import plot_overlay
+
     for scenario in scenarios:
         curves = {}
         for variant in _fig6_variants(engines):
@@ -514,41 +367,6 @@ def reproduce(
                 errors=True,
             )
             figures[name] = f"figures/{name}.png"
-    say("figures written")
-
-    # Frequency of the slowest (hunting) mode at each simulated speed, Hz: what a free-motion
-    # difference between circuit and ODE oscillates at.
-    modes = {}
-    for speed in sorted({sc.speed for sc in scenarios}):
-        slowest = eigenvalues(model, "V", [speed])[0, 0]
-        modes[speed] = float(abs(slowest.imag) / (2 * np.pi))
-    result = Reproduction(
-        out,
-        tuple(scenarios),
-        rows,
-        circuits,
-        available,
-        v_c,
-        f_h,
-        ode_summary,
-        free_summary,
-        figures,
-        time.perf_counter() - started,
-        workers,
-    )
-    result.mode_frequency = modes
-    if schematic is not None:
-        result.knobs, result.knob_netlist, result.schematic_problem = schematic
-        if result.schematic_problem is not None:
-            figures.pop("schematic", None)
-    result.kernel_warm_up_s = warm_up_s
-    result.hunting = hunting
-    result.tolerance = tolerance
-    write_text_atomic(out / "metrics.json", json.dumps(reproduction_json(result), indent=1) + "\n")
-    write_text_atomic(out / "report.md", render_report(result))
-    result.wall_s = time.perf_counter() - started
-    say(f"report and metrics written ({result.wall_s:.1f} s)")
-    return result
 
 
 def _hunting_diagram(model, v_c: float, speeds, path: Path) -> dict:
@@ -589,10 +407,3 @@ def _row_order(row: Row, scenarios, opamps, series, engines) -> tuple[int, int, 
         series.index(row.variant.series),
         engines.index(row.variant.engine),
     )
-
-
-def _largest_real(eigenvalues) -> float | None:
-    """Largest real part (1/s): the decay (negative) or growth rate of the slowest mode."""
-    if eigenvalues is None or len(eigenvalues) == 0:
-        return None
-    return float(np.max(np.real(eigenvalues)))
