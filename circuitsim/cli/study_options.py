@@ -38,8 +38,8 @@ def add_scheduler_options(parser: argparse.ArgumentParser) -> None:
         type=int,
         default=2,
         metavar="N",
-        help="further tries of a cluster batch that failed or whose worker was lost "
-        "(default 2)",
+        help="further tries of a cluster batch that raised (default 2); a batch whose worker "
+        "died is rescheduled by Dask (the scheduler's allowed-failures)",
     )
 
 

@@ -4,12 +4,16 @@ Each Dask task is a batch of variants that one worker runs with the compiled ker
 (:func:`~circuitsim.compare.sweep_measure.measure_batch`, as the in-process run does), and
 sends back a few numbers per variant, so that the task overhead (scheduling, sending the
 circuits: a few kilobytes each) stays small against the batch's run. Every batch is run against
-the same base circuit (sent to each worker once): a variant's values do not depend on how the
-study was split, and equal the in-process run's bit for bit.
+the same base circuit (a task of its own, fetched once by each worker): a variant's values do
+not depend on how the study was split, and equal the in-process run's bit for bit.
 
-A batch that raises, or whose worker is lost, is run again (``retries``, Dask's own
-rescheduling of a lost worker's tasks); one that fails on every try stops the study with a
-:class:`ClusterError` naming its variants.
+A batch that raises is run again up to ``retries`` times. A batch whose worker dies (killed,
+out of memory, a crash) is rescheduled by Dask itself, on another worker or on the one its
+nanny starts in place of the dead one, up to the scheduler's ``allowed-failures`` times
+(``distributed.scheduler.allowed-failures``, default 3; ``retries`` does not count these).
+The base circuit and the measurement are tasks, not scattered data, so that the scheduler
+can compute them again when the only worker holding them dies. A batch that fails on every
+try stops the study with a :class:`ClusterError` naming its variants and why.
 
 ``distributed`` is an optional dependency (``pip install circuitsim[cluster]``): imported
 here only when a scheduler is asked for.
@@ -151,6 +155,29 @@ def warm_worker(base: Circuit | None = None, measure: VariantMeasure | None = No
     return _WARM["ports"]
 
 
+def _shared(value):
+    """A task whose result is ``value``: data every batch needs, that the scheduler can make
+    again (from this task) when the workers holding it are lost."""
+    return value
+
+
+def _batch_error(which: str, exc: Exception, retries: int) -> ClusterError:
+    """The error of a batch that failed on every try: its worker died each time (Dask's
+    KilledWorker, counted by the scheduler's allowed-failures), or it raised each time
+    (counted by ``retries``)."""
+    from distributed.scheduler import KilledWorker
+
+    if isinstance(exc, KilledWorker):
+        tries = exc.allowed_failures + 1
+        return ClusterError(
+            f"{which}: the worker running it died on each of {tries} tr"
+            f"{'y' if tries == 1 else 'ies'} (killed, out of memory or crashed; the scheduler's "
+            f"distributed.scheduler.allowed-failures is {exc.allowed_failures}); the worker "
+            f"logs say why. Last worker: {exc.last_worker.address}"
+        )
+    return ClusterError(f"{which} failed on {retries + 1} tries: {type(exc).__name__}: {exc}")
+
+
 Batch = Callable[..., tuple[list[VariantOutcome], dict]]
 
 
@@ -166,7 +193,8 @@ class DaskExecutor:
         variants each: small enough for the progress and for load balance, large enough
         that the per-task overhead stays a few percent).
     retries : int
-        Further tries of a batch that raised or whose worker was lost.
+        Further tries of a batch that raised. A batch whose worker died is rescheduled by the
+        scheduler, up to its ``distributed.scheduler.allowed-failures`` times (default 3).
     threads : int
         Variants each task runs at once (threads on its worker).
     batch : callable
@@ -225,9 +253,14 @@ class DaskExecutor:
         warming = time.perf_counter()
         loading = client.run(warm_worker, base, measure)
         warming = time.perf_counter() - warming
-        # sent once to every worker, not once per task
-        shared_base = client.scatter(base, broadcast=True, hash=False)
-        shared_measure = client.scatter(measure, broadcast=True, hash=False)
+        # tasks, not scattered data: a worker fetches them once (not once per batch), and the
+        # scheduler can compute them again if every worker holding them dies (scattered data
+        # would be lost with them, and every batch after it)
+        stamp = time.time_ns()
+        shared_base = client.submit(_shared, base, pure=False, key=f"circuitsim-base-{stamp}")
+        shared_measure = client.submit(
+            _shared, measure, pure=False, key=f"circuitsim-measure-{stamp}"
+        )
         futures = {
             client.submit(
                 self.batch,
@@ -238,7 +271,7 @@ class DaskExecutor:
                 self.threads,
                 retries=self.retries,
                 pure=False,
-                key=f"circuitsim-batch-{a}-{time.time_ns()}",
+                key=f"circuitsim-batch-{a}-{stamp}",
             ): a
             for a in starts
         }
@@ -252,17 +285,16 @@ class DaskExecutor:
                     batch, info = future.result()
                 except Exception as exc:
                     last = min(a + size, total) - 1
-                    raise ClusterError(
-                        f"variants {a} to {last} (batch {starts.index(a) + 1} of {len(starts)}) "
-                        f"failed on {self.retries + 1} tries: {type(exc).__name__}: {exc}"
-                    ) from exc
+                    which = f"variants {a} to {last} (batch {starts.index(a) + 1} of {len(starts)})"
+                    raise _batch_error(which, exc, self.retries) from exc
                 outcomes[a : a + len(batch)] = batch
                 infos.append(info)
                 done += len(batch)
                 if advance is not None:
                     advance(done, total)
         finally:
-            client.cancel(list(futures))  # nothing left running after an error or Ctrl-C
+            # nothing left running after an error or Ctrl-C
+            client.cancel([*futures, shared_base, shared_measure])
         self.stats = {
             "workers": workers,
             "batches": len(starts),

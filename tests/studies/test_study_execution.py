@@ -1,12 +1,23 @@
 """A grid on a Dask cluster: the in-process run's numbers bit for bit, a failed batch retried,
-one that fails every try reported with its variants, the missing extra named."""
+one that fails every try reported with its variants, the missing extra named; a worker process
+that dies in the middle of a batch (os._exit, as a crash or the out-of-memory killer would end
+it) loses nothing, and a batch that kills every worker it runs on is reported as such.
+
+On one worker process a death used to stop the study: the base circuit and the measurement
+were scattered, the dead worker took the only copy with it and every later batch was cancelled
+("already forgotten"), reported as a batch that "failed on <retries + 1> tries".
+"""
 
 import csv
+import functools
+import logging
+import os
 import subprocess
 import sys
 import threading
 from pathlib import Path
 
+import dask
 import numpy as np
 import pytest
 
@@ -101,6 +112,71 @@ def test_a_batch_that_fails_every_try_stops_the_study_naming_its_variants(client
     with pytest.raises(ClusterError, match=r"variants (2 to 3|4 to 5) \(batch [23] of 3\) "
                        r"failed on 2 tries: RuntimeError: disk full \(test\)"):  # fmt: skip
         run_grid(systems, grid, options=options, window=WINDOW, executor=executor)
+
+
+def dies_once(circuits, base, measure, first, threads, flag: str):
+    """The batch task; batch 0's first try ends its worker process at once, leaving the
+    worker's pid in ``flag`` (the file exists from then on: later tries run, and leave their
+    pid in ``flag``.rerun)."""
+    if first == 0:
+        try:
+            fd = os.open(flag, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        except FileExistsError:
+            Path(flag + ".rerun").write_text(str(os.getpid()))
+        else:
+            os.write(fd, str(os.getpid()).encode())
+            os.close(fd)
+            os._exit(70)  # no cleanup, no reply to the scheduler: a dead process
+    return run_batch(circuits, base, measure, first, threads)
+
+
+def always_dies(circuits, base, measure, first, threads):
+    if first == 0:
+        os._exit(70)
+    return run_batch(circuits, base, measure, first, threads)
+
+
+def process_cluster(workers: int):
+    """Worker processes under nannies (a dead one is started again), as ``local:N`` makes."""
+    return distributed.LocalCluster(
+        n_workers=workers,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+        silence_logs=logging.CRITICAL,  # the scheduler logs the death as an error
+    )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_worker_killed_mid_batch_loses_nothing(study, tmp_path, workers):
+    grid, systems, options, alone = study
+    flag = tmp_path / "killed.pid"
+    with process_cluster(workers) as cluster, distributed.Client(cluster) as client:
+        batch = functools.partial(dies_once, flag=str(flag))
+        executor = DaskExecutor(client, batch_size=2, retries=0, batch=batch)
+        on_cluster = run_grid(systems, grid, options=options, window=WINDOW, executor=executor)
+    # batch 0 killed its worker, and ran again in another process
+    dead, rerun = int(flag.read_text()), int(Path(f"{flag}.rerun").read_text())
+    assert rerun != dead and len(executor.stats["batch_info"]) == 3
+    same(alone, on_cluster)
+
+
+@pytest.mark.slow
+def test_a_batch_that_kills_every_worker_is_reported_as_such(study):
+    grid, systems, options, _ = study
+    # no further try after a death: the study stops at the first. The scheduler cannot tell
+    # which of the batches queued on the dead worker killed it: each of them counts a death.
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+        with process_cluster(1) as cluster, distributed.Client(cluster) as client:
+            executor = DaskExecutor(client, batch_size=2, retries=2, batch=always_dies)
+            with pytest.raises(
+                ClusterError,
+                match=r"^variants (0 to 1|2 to 3|4 to 5) \(batch [123] of 3\): the worker "
+                r"running it died on each of 1 try \(killed, out of memory or crashed; the "
+                r"scheduler's distributed.scheduler.allowed-failures is 0\)",
+            ):
+                run_grid(systems, grid, options=options, window=WINDOW, executor=executor)
 
 
 def test_scheduler_text_and_the_missing_extra(monkeypatch):
