@@ -8,7 +8,10 @@ the run that makes them inside the loop. Both run with fixed pauses: the loop's 
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from collections import Counter
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -55,3 +58,59 @@ def test_a_run_that_returns_for_its_factorizations_takes_the_same_steps(tmp_path
         assert returned[key] == inside[key], key
     assert np.array_equal(times_returned, times)
     assert np.array_equal(values_returned, values)
+
+
+NO_COMPILE_SCRIPT = """
+import sys
+from pathlib import Path
+from numba.core import event
+from circuitsim.solver import SimulationOptions, simulate
+from tests.solver.test_compiled_chain import chain_circuit
+
+
+class Compiles(event.Listener):
+    def __init__(self):
+        self.names = []
+
+    def on_start(self, ev):
+        self.names.append(str(ev.data.get("dispatcher")))
+
+    def on_end(self, ev):
+        pass
+
+
+compiles = Compiles()
+event.register("numba:compile", compiles)
+circuit = chain_circuit(Path(sys.argv[1]), 4, 0.5)
+for kernel in ("ports", "compiled"):
+    waves = simulate(circuit, SimulationOptions.from_circuit(circuit, kernel=kernel))
+    print(kernel, waves.stats.get("factor_returns"), waves.stats.get("pivot_orders"))
+print("compiled:", compiles.names)
+"""
+
+
+def test_a_warm_process_compiles_nothing_for_its_factorizations(tmp_path):
+    """numba compiles an objmode block in every process at its first call (the ports
+    kernel's SuperLU call measured 0.46 s of CPU): the loops return to Python instead. A
+    four-mass chain returns for SuperLU on the ports kernel and for a new pivot order on the
+    MNA kernel; once the kernels are cached, a new process compiles nothing."""
+    from circuitsim.solver import simulate
+
+    circuit = chain_circuit(tmp_path, 4, 0.5)
+    for kernel in ("ports", "compiled"):  # the kernels cached (compiled here if they were not)
+        simulate(circuit, SimulationOptions.from_circuit(circuit, kernel=kernel))
+    root = Path(__file__).resolve().parents[2]
+    done = subprocess.run(
+        [sys.executable, "-c", NO_COMPILE_SCRIPT, str(tmp_path)],
+        capture_output=True,
+        text=True,
+        cwd=root,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    ports, returns, _ = lines[0].split()
+    assert ports == "ports" and int(returns) >= 1  # it did return for SuperLU
+    compiled, _, orders = lines[1].split()
+    assert compiled == "compiled" and int(orders) >= 2  # and for a new pivot order
+    assert lines[2] == "compiled: []"

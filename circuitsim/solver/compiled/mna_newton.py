@@ -13,49 +13,35 @@ check. The solve is exact (no low-rank update), so there is no refinement step.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, objmode
+from numba import njit
 
 from circuitsim.solver.compiled.devices import junction_charge, junction_current, pnjlim
 from circuitsim.solver.compiled.mna_terminals import (
-    entry_values,
     load_terminals,
     stamp_terminals,
     terminal_rhs,
     terminals_converged,
 )
-from circuitsim.solver.compiled.sparse_lu import assemble, lu_solve, refactor, repivot_arrays
+from circuitsim.solver.compiled.newton import RESUME_NONCON
+from circuitsim.solver.compiled.sparse_lu import assemble, lu_solve, refactor
 
 PIVOT_ORDERS = 14  # KernelState.ints: pivot orders made during the run (after the first)
 
 # mna_newton's outcomes besides converged (True) / not converged (False): the pivot order no
-# longer suits the matrix (the loop returns to Python, which analyses it again)
-CONVERGED, FAILED, REPIVOT = 1, 0, 2
-
-
-@njit(cache=True)
-def repivot_now(lu, port_p, port_n, values, a0, tp, ts) -> int:
-    """sparse_lu.repivot_arrays from compiled code (it runs SuperLU, in Python)."""
-    a_ptr, a_row, g_val, m_val, port_pos = lu.a_ptr, lu.a_row, lu.g_val, lu.m_val, lu.port_pos
-    l_ptr, l_row, u_ptr, u_row = lu.l_ptr, lu.l_row, lu.u_ptr, lu.u_row
-    row_to, col_of = lu.row_to, lu.col_of
-    extra_row, extra_col, extra_pos = lu.extra_row, lu.extra_col, lu.extra_pos
-    extra_val = np.empty(extra_pos.size)
-    entry_values(tp, ts, extra_val)
-    with objmode(status="int64"):
-        status = repivot_arrays(
-            a_ptr, a_row, g_val, m_val, port_pos, l_ptr, l_row, u_ptr, u_row, row_to, col_of,
-            port_p, port_n, values, a0, extra_row, extra_col, extra_pos, extra_val,
-        )  # fmt: skip
-    return status
+# longer suits the matrix (the loop returns to Python, which analyses it again); a pivot
+# became too small (the loop returns to Python for a new order at this matrix, then goes on)
+CONVERGED, FAILED, REPIVOT, REORDER = 1, 0, 2, 3
 
 
 @njit(cache=True, inline="always")
-def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b):
+def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume):
     """Newton at one time point. Returns (outcome, iterations, x_previous); the last iterate
     is in ``x_new``.
 
     rhs0 : the x-independent right-hand side (sources, charge history), shape (n,);
-    g_sw, b : scratch, shapes (ms,), (n,).
+    g_sw, b : scratch, shapes (ms,), (n,);
+    resume : 0, or the iteration that returned REORDER (re-entered on the new pivot order,
+        with its linearization, x_new, q and qdot as it left them).
     """
     reltol, abstol = plan.real[0], plan.real[1]
     itl4 = plan.ints[2]
@@ -89,15 +75,15 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b):
     # MnaSystem's)
     linear = md == 0 and ms == 0 and tp.kind.size == 0
     n = x0.size
-    x = x0.copy()
+    x = x_new.copy() if resume > 1 else x0.copy()  # the iterate (the last solution)
     x_ext = np.empty(n + 1)
     for i in range(n):
         x_ext[i] = x[i]
     x_ext[n] = 0.0
-    for iteration in range(1, itl4 + 1):
+    for iteration in range(max(resume, 1), itl4 + 1):
         first = iteration == 1
-        noncon = 0
-        for k in range(ms):  # switch states (SwitchFamily.update_state)
+        noncon = st.ints[RESUME_NONCON] if iteration == resume else 0
+        for k in range(ms if iteration != resume else 0):  # SwitchFamily.update_state
             vc = x_ext[sw[k, 2]] - x_ext[sw[k, 3]]
             keep = accepted[k] if first else state[k]
             new = (keep or vc > approach[k, 0]) and vc >= approach[k, 1]
@@ -105,7 +91,9 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b):
                 state[k] = new
                 noncon += 1
             g_sw[k] = g_switch[k, 0] if state[k] else g_switch[k, 1]
-        for k in range(md):  # the junctions, linearized at x (DiodeFamily.port_load)
+        for k in range(ms if iteration == resume else 0):
+            g_sw[k] = g_switch[k, 0] if state[k] else g_switch[k, 1]
+        for k in range(md if iteration != resume else 0):  # the junctions, linearized at x
             v = x_ext[port_p[k]] - x_ext[port_n[k]]
             vold = vd_accepted[k] if first else vd[k]
             vk = v
@@ -129,20 +117,18 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b):
                 gk += a0 * capk
             vd[k], cd[k], gd[k] = vk, ck, gk
             ieq[k] = ck - gk * vk
-        noncon += load_terminals(tp, ts, x_ext, a0, hist, q, qdot)
+        if iteration != resume:
+            noncon += load_terminals(tp, ts, x_ext, a0, hist, q, qdot)
         assemble(a_val, g_val, m_val, a0, port_pos, gd, g_sw)
         stamp_terminals(tp, ts, extra_pos, a_val)
         if refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work) >= 0:
+            if iteration == resume:  # on the order made at this very matrix
+                return REPIVOT, iteration, x
             # a pivot became too small: a new order at this matrix, and on (ngspice's
             # spOrderAndFactor); in Python (SuperLU), rare
             st.ints[PIVOT_ORDERS] += 1
-            # no room for its fill, or singular: the caller decides
-            if repivot_now(lu, port_p, port_n, np.concatenate((gd, g_sw)), a0, tp, ts) != 0:
-                return REPIVOT, iteration, x
-            assemble(a_val, g_val, m_val, a0, port_pos, gd, g_sw)
-            stamp_terminals(tp, ts, extra_pos, a_val)
-            if refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work) >= 0:
-                return REPIVOT, iteration, x
+            st.ints[RESUME_NONCON] = noncon
+            return REORDER, iteration, x
         for i in range(n):  # rhs0 - W ieq
             b[i] = rhs0[i]
         for k in range(md):

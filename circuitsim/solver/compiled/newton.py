@@ -9,6 +9,8 @@ kernel's Newton is mna_newton.py, the ports kernel's is written out in port_loop
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
@@ -71,12 +73,15 @@ def port_values(gd, g_switch, state, r, a0):
 
 
 # The loops' return to Python in the middle of a step, for a factorization made there (the
-# ports kernel above SPARSE_FROM unknowns: SuperLU; the MNA kernel: a new pivot order). numba
+# ports kernel above SPARSE_FROM unknowns: SuperLU; the MNA kernel: a new pivot order, also
+# SuperLU, when a pivot became too small). numba
 # compiles a block of Python inside a compiled function (objmode) again in every process, at
 # its first call; a return costs microseconds against the factorization's milliseconds. The
 # loop keeps what it needs to go on in the slots below and goes on bit for bit where it
 # stopped: the step's scalars, and which of the step's points to re-enter (RESUME_AT).
-FACTOR = 5  # return code: factor at st.fs[FACTOR_A0] and the present port values, then re-enter
+# return code: factor (ports kernel) or order the pivots anew (MNA kernel) at st.fs[FACTOR_A0]
+# and the devices' present state, then re-enter
+FACTOR = 5
 # where to re-enter (ints[RESUME_AT]): not at all, after the step's refactor test, at the
 # start of the step's second Newton attempt, inside Newton iteration ints[RESUME_ITERATION]
 # after its linearization (attempt ints[RESUME_ATTEMPT], ints[RESUME_NONCON] limited or
@@ -88,7 +93,19 @@ RESUME_AT, RESUME_ORDER, RESUME_LANDING, RESUME_ATTEMPT, RESUME_ITERATION, RESUM
     -6, -5, -4, -3, -2, -1
 )  # fmt: skip
 FACTOR_IN_PYTHON = -7  # ints: 1 when the ports kernel's factorizations are made in Python
-RESUME_FLOATS, RESUME_INTS = 2, 7
+RESUME_RETRY = -8  # ints: the MNA loop's step retries from a failed attempt's iterate
+RESUME_FLOATS, RESUME_INTS = 2, 8
+
+
+class MidStep(NamedTuple):
+    """The MNA loop's arrays that outlive a return in the middle of a step (the runner's;
+    shapes: n unknowns, nq charge slots)."""
+
+    x_new: np.ndarray  # (n,) Newton's last solution
+    q: np.ndarray  # (nq,) the time point's charges and their currents so far
+    qdot: np.ndarray
+    fs_start: np.ndarray  # fs and ints at the step's start (a step undone: REPIVOT)
+    ints_start: np.ndarray
 
 
 @njit(cache=True)

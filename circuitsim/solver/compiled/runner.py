@@ -33,7 +33,12 @@ from circuitsim.solver.compiled.plan import (
     unsupported,
 )
 from circuitsim.solver.compiled.sparse_factors import factor_sparse
-from circuitsim.solver.compiled.sparse_lu import SparseLU, analyse, present_matrix
+from circuitsim.solver.compiled.sparse_lu import (
+    SparseLU,
+    analyse,
+    present_matrix,
+    repivot_arrays,
+)
 from circuitsim.solver.compiled.terminal_plan import entry_pattern, entry_values, terminal_state
 from circuitsim.solver.errors import (
     CircuitInputError,
@@ -294,6 +299,30 @@ def _loop_state(kind, start: PortsStart, plan, rows, capacity):
     return loop, state
 
 
+def _mid_step(kind, st) -> tuple:
+    """The MNA loop's extra argument: its arrays that outlive a return mid-step (MidStep);
+    none for the ports loop."""
+    from circuitsim.solver.compiled import newton as nw
+
+    if kind == "ports":
+        return ()
+    n, nq = st.hx.shape[1], st.hq.shape[1]
+    return (nw.MidStep(np.empty(n), np.zeros(nq), np.zeros(nq), st.fs.copy(), st.ints.copy()),)
+
+
+def _reorder(plan, st, a0: float) -> int:
+    """A new pivot order (SuperLU) at the present matrix, in place in st.lu, as the MNA loop
+    asks (newton.FACTOR); 0, or nonzero when it has no room for the fill or is singular."""
+    lu = st.lu
+    g_switch = np.where(np.asarray(st.state, dtype=bool), plan.g_switch[:, 0], plan.g_switch[:, 1])
+    return repivot_arrays(
+        lu.a_ptr, lu.a_row, lu.g_val, lu.m_val, lu.port_pos, lu.l_ptr, lu.l_row, lu.u_ptr,
+        lu.u_row, lu.row_to, lu.col_of, plan.port_p, plan.port_n,
+        np.concatenate((st.gd, g_switch)), a0, lu.extra_row, lu.extra_col, lu.extra_pos,
+        entry_values(plan.terms, st.terms),
+    )  # fmt: skip
+
+
 def factors_in_python(state) -> bool:
     """Whether the ports kernel's factorizations are made in Python (SuperLU, for a state
     without room for the dense matrices: above sparse_factors.SPARSE_FROM unknowns)."""
@@ -370,6 +399,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     began = time.perf_counter()
     pivot_orders, repivoted_at, same_step = 1, -1, 0
     factored_in_python = 0  # FACTOR returns
+    mid = _mid_step(kind, st)
     try:
         if kind == "ports":
             _factor(plan, st, _a0_start(start))
@@ -377,14 +407,24 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
         # that compiled has no rate (its own would make every later chunk 100 steps)
         chunk_began, attempts, compiled = time.perf_counter(), int(st.ints[nw.ATTEMPTS]), False
         while True:
-            status = loop.run(plan, st, t_until)
+            status = loop.run(plan, st, t_until, *mid)
             if compiling:
                 record_compile_seconds(kind, time.perf_counter() - began)
                 compiling, compiled = False, True
-            if status == nw.FACTOR:
+            if status == nw.FACTOR and kind == "ports":
                 _factor(plan, st, float(st.fs[nw.FACTOR_A0]))
                 factored_in_python += 1
-            elif status == loop.FULL:
+                continue
+            if status == nw.FACTOR:  # MNA: a new pivot order at this matrix, then on
+                a0 = float(st.fs[nw.FACTOR_A0])
+                if _reorder(plan, st, a0) == 0:
+                    continue
+                # no room for its fill, or singular: the step is undone, as the loop's REPIVOT
+                st.fs[:] = mid[0].fs_start
+                st.ints[:] = mid[0].ints_start
+                st.fs[loop.REPIVOT_A0] = a0
+                status = loop.REPIVOT
+            if status == loop.FULL:
                 st = _grown(st)
             elif kind != "ports" and status == loop.REPIVOT:
                 # the step is attempted again: each new order lets it go further (at most

@@ -21,7 +21,7 @@ from circuitsim.solver.compiled.devices import (
     transition_retry,
 )
 from circuitsim.solver.compiled.lowrank import add_u_columns, csr_matvec
-from circuitsim.solver.compiled.mna_newton import CONVERGED, mna_newton
+from circuitsim.solver.compiled.mna_newton import CONVERGED, REORDER, mna_newton
 from circuitsim.solver.compiled.mna_newton import REPIVOT as NEWTON_REPIVOT
 from circuitsim.solver.compiled.newton import (
     ACCEPTED,
@@ -29,19 +29,28 @@ from circuitsim.solver.compiled.newton import (
     ATTEMPTS,
     BI,
     COUNT,
+    FACTOR_A0,
     FACTORIZATIONS,
     FIRST,
+    IN_ITERATION,
     LAST_A0,
     NEWTON,
     NHIST,
+    NOT_RESUMING,
     ORDER,
     PAUSE_ATTEMPTS,
     REJECTED,
+    RESUME_AT,
+    RESUME_ITERATION,
+    RESUME_NONCON,
+    RESUME_RETRY,
     SAME_A0,
     SAVED_H,
     H,
     T,
     extend,
+    resumed_step,
+    wait_for_factor,
 )
 
 REBASE_STEPS = 8  # refactor when this many accepted steps in a row used one new a0
@@ -226,10 +235,12 @@ def finish_step(fs, si, t, new_h, a0, order, landing, toggled, fixed, maxord, nh
 
 
 @njit(cache=True)
-def run(plan, st, t_until):
+def run(plan, st, t_until, mid):
     """Integrate from st.fs[T] until t_until (or tstop); returns a status code. REPIVOT: the
     pivot order no longer suits the matrix at a0 = st.fs[REPIVOT_A0] and the devices' present
-    state; the step is undone (the scalars restored), to be attempted again on a new order."""
+    state; the step is undone (the scalars restored), to be attempted again on a new order.
+    newton.FACTOR: a pivot became too small; a new order at a0 = st.fs[FACTOR_A0] and the
+    present state, then re-entered where it stopped (``mid``: a newton.MidStep)."""
     real, ints = plan.real, plan.ints
     method, maxord, max_steps = ints[0], ints[1], ints[3]
     fixed, max_step, min_step, tstop = real[7], real[8], real[9], real[10]
@@ -238,7 +249,7 @@ def run(plan, st, t_until):
     lin = plan.lin_slots
     n, nq = plan.abs_tol.size, st.hq.shape[1]
     fs, si = st.fs, st.ints
-    fs_start, si_start = fs.copy(), si.copy()
+    fs_start, si_start = mid.fs_start, mid.ints_start
     breaks = plan.breaks
     x_ext = np.empty(n + 1)
     vt = (plan.VT_ptr, plan.VT_idx, plan.VT_val)
@@ -255,25 +266,31 @@ def run(plan, st, t_until):
     live, zeros = charge_slots(nq, plan.jslot, plan.charged, plan.has_charge)
     hist = np.empty(nq)
     x_guess = np.empty(n)
-    x_new = np.empty(n)
+    x_new = mid.x_new
     b = np.empty(n)
     g_sw = np.empty(ms)
-    q = np.zeros(nq)
-    qdot = np.zeros(nq)
+    q, qdot = mid.q, mid.qdot
     times = np.empty(4)
     charges_lin = np.empty(nports + lin.size)
+    resume = si[RESUME_AT]  # back from a new pivot order: where the step was
+    si[RESUME_AT] = NOT_RESUMING
     while tstop - fs[T] > min_step:
-        if fs[T] >= t_until or si[ATTEMPTS] >= si[PAUSE_ATTEMPTS]:
-            return PAUSED
-        if si[COUNT] >= out_t.size:
-            return FULL
-        fs_start[:] = fs
-        si_start[:] = si
-        t, next_break, h, order, landing = step_start(fs, si, breaks, fixed, max_step, min_step)
+        if resume != NOT_RESUMING:
+            t, next_break, h, order, landing = resumed_step(fs, si, breaks)
+        else:
+            if fs[T] >= t_until or si[ATTEMPTS] >= si[PAUSE_ATTEMPTS]:
+                return PAUSED
+            if si[COUNT] >= out_t.size:
+                return FULL
+            fs_start[:] = fs
+            si_start[:] = si
+            t, next_break, h, order, landing = step_start(fs, si, breaks, fixed, max_step, min_step)
         nh = si[NHIST]
-        retry_from = False  # a failed attempt's last iterate is in fail_x (solver/transient.py)
+        # a failed attempt's last iterate is in fail_x (solver/transient.py)
+        retry_from = resume != NOT_RESUMING and si[RESUME_RETRY] != 0
         while True:
-            si[ATTEMPTS] += 1
+            if resume == NOT_RESUMING:
+                si[ATTEMPTS] += 1
             if si[ATTEMPTS] > max_steps:
                 fs[H] = h
                 return TOO_MANY_STEPS
@@ -292,12 +309,20 @@ def run(plan, st, t_until):
                 x_guess[i] = hx[0, i] + ratio * (hx[0, i] - hx[1, i])
             if nh == 1 and retry_from:  # go on from where the failed attempt got to
                 x_guess[:] = fail_x
-            for j in range(nq):
+            for j in range(nq if resume == NOT_RESUMING else 0):
                 q[j] = 0.0
                 qdot[j] = 0.0
             outcome, iterations, x_before = mna_newton(
-                plan, st, x_guess, a0, hist, rhs0, q, qdot, g_sw, x_new, b
-            )
+                plan, st, x_guess, a0, hist, rhs0, q, qdot, g_sw, x_new, b,
+                si[RESUME_ITERATION] if resume != NOT_RESUMING else 0,
+            )  # fmt: skip
+            resume = NOT_RESUMING
+            if outcome == REORDER:
+                si[RESUME_RETRY] = 1 if retry_from else 0
+                fs[FACTOR_A0] = a0
+                return wait_for_factor(
+                    fs, si, IN_ITERATION, h, order, landing, 0, iterations, si[RESUME_NONCON]
+                )
             if outcome == NEWTON_REPIVOT:
                 fs[:] = fs_start
                 si[:] = si_start
