@@ -4,9 +4,9 @@ The generated wheelset circuit (flange on, V = 55 m/s, f = 3 Hz, a = 0.040 m, 0-
 resistor values) built with each op-amp of ``circuitsim/netlist/library/macromodels.lib``
 (``generate --opamp-lib``): the JFET-input Boyle model (p-channel JFET pair, POLY sources)
 and the bipolar one (n-p-n pair), with the built-in TL074 (diodes only) beside them. Per
-op-amp: wall time of ngspice and of our engine (kernel=auto: the numpy reference loop for
-JFETs and BJTs, which the compiled kernels do not have), the worst node voltage's max
-deviation from ngspice relative to its range, and %NRMSD of y against the direct ODE.
+op-amp: wall time of ngspice and of our engine (kernel=auto: the MNA kernel for JFETs and
+BJTs, which only it models), the worst node voltage's max deviation from ngspice relative to
+its range, and %NRMSD of y against the direct ODE.
 """
 
 from __future__ import annotations

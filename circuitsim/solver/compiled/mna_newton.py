@@ -73,7 +73,8 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume):
     md = jp.shape[0]
     # no junctions, switches or transistors: the first solve is exact (one iteration, as
     # MnaSystem's)
-    linear = md == 0 and ms == 0 and tp.kind.size == 0
+    terminals = tp.kind.size > 0  # (each call with the tuples costs reference counts)
+    linear = md == 0 and ms == 0 and not terminals
     n = x0.size
     x = x_new.copy() if resume > 1 else x0.copy()  # the iterate (the last solution)
     x_ext = np.empty(n + 1)
@@ -117,10 +118,11 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume):
                 gk += a0 * capk
             vd[k], cd[k], gd[k] = vk, ck, gk
             ieq[k] = ck - gk * vk
-        if iteration != resume:
+        if terminals and iteration != resume:
             noncon += load_terminals(tp, ts, x_ext, a0, hist, q, qdot)
         assemble(a_val, g_val, m_val, a0, port_pos, gd, g_sw)
-        stamp_terminals(tp, ts, extra_pos, a_val)
+        if terminals:
+            stamp_terminals(tp, ts, extra_pos, a_val)
         if refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work) >= 0:
             if iteration == resume:  # on the order made at this very matrix
                 return REPIVOT, iteration, x
@@ -136,7 +138,8 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume):
                 b[port_p[k]] -= ieq[k]
             if port_n[k] >= 0:
                 b[port_n[k]] += ieq[k]
-        terminal_rhs(tp, ts, b)
+        if terminals:
+            terminal_rhs(tp, ts, b)
         lu_solve(l_ptr, l_row, l_val, u_ptr, u_row, u_val, row_to, col_of, b, work, x_new)
         for i in range(n):
             if not np.isfinite(x_new[i]):
@@ -153,7 +156,7 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume):
             if abs(delta) > reltol * max(abs(cd[k] + delta), abs(cd[k])) + abstol:
                 done = False
                 break
-        if done and not terminals_converged(tp, ts, x_ext, reltol):
+        if done and terminals and not terminals_converged(tp, ts, x_ext, reltol):
             done = False
         if done:
             return CONVERGED, iteration, x

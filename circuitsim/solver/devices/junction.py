@@ -1,7 +1,9 @@
 """Equations shared by the transistor families: pn-junction current and depletion charge,
 ngspice's FET voltage limiting, series resistances with private nodes, model checks.
 
-All functions take and return numpy arrays (one entry per device).
+All functions take and return numpy arrays (one entry per device). Kernel twin:
+:mod:`circuitsim.solver.devices.junction_kernel` (the same equations for one element, for the
+compiled MNA kernel).
 """
 
 from __future__ import annotations
