@@ -89,17 +89,3 @@ def terminals_converged(tp, ts, x_ext, reltol) -> bool:
                 return False
     return True
 
-
-@njit(cache=True)
-def entry_values(tp, ts, out) -> None:
-    """terminal_plan.entry_values into ``out`` (for a new pivot order from compiled code)."""
-    for k in range(tp.kind.size):
-        e = tp.entry[k]
-        for t in range(tp.nterm[k]):
-            for c in range(tp.nctrl[k]):
-                out[e], out[e + 1] = ts.slope[k, t, c], -ts.slope[k, t, c]
-                e += 2
-        if tp.rb[k]:
-            g = ts.rb_g[k]
-            out[e], out[e + 1], out[e + 2], out[e + 3] = g, g, -g, -g
-
