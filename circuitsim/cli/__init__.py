@@ -22,7 +22,8 @@ Exit codes, one convention for every verb (README.md, "Exit codes"):
   step or time limit, ngspice failed, traces could not be compared, or memory ran out;
 - 130: interrupted (Ctrl-C); 141: standard output closed (a pipe's reader went away); 143:
   terminated (SIGTERM, turned into an exception so that temporary folders are removed and
-  child processes stopped before the exit).
+  child processes stopped before the exit). During numba's compile of the kernels, Ctrl-C
+  and SIGTERM end the process at once (``interrupt``: a compile cannot stop midway).
 """
 
 from __future__ import annotations
@@ -46,6 +47,7 @@ from circuitsim.cli import (
     tolerance_verbs,
 )
 from circuitsim.cli.common import UsageError, shown, warnings_as_lines
+from circuitsim.cli.interrupt import prompt_during_compile, stop_if_compiling
 
 COMMANDS = [
     *model_verbs.COMMANDS,
@@ -180,6 +182,7 @@ class _Terminated(SystemExit):
 
 def _on_sigterm(signum: int, frame: object) -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a second SIGTERM ends the process at once
+    stop_if_compiling(signum)  # inside numba's compiler: no exception through it
     raise _Terminated(EXIT_TERMINATED)
 
 
@@ -220,7 +223,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     previous = _catch_sigterm()
     try:
-        with warnings_as_lines():
+        with prompt_during_compile(), warnings_as_lines():
             code = int(args.func(args) or 0)
         sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's final flush
         return code
