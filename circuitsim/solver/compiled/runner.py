@@ -24,6 +24,7 @@ from circuitsim.solver.compiled.cache import (
     record_compile_seconds,
 )
 from circuitsim.solver.compiled.failures import failure, singular_row
+from circuitsim.solver.compiled.order_cache import EarlierOrders
 from circuitsim.solver.compiled.plan import (
     CHARGE_PARAMS,
     KernelPlan,
@@ -398,6 +399,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     st.ints[nw.PAUSE_ATTEMPTS] = FIRST_PAUSE
     began = time.perf_counter()
     pivot_orders, repivoted_at, same_step = 1, -1, 0
+    orders = EarlierOrders()  # the MNA kernel's earlier pivot orders
     factored_in_python = 0  # FACTOR returns
     mid = _mid_step(kind, st)
     try:
@@ -417,6 +419,11 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
                 continue
             if status == nw.FACTOR:  # MNA: a new pivot order at this matrix, then on
                 a0 = float(st.fs[nw.FACTOR_A0])
+                earlier = orders.suited(plan, st, a0)
+                orders.keep(st.lu)
+                if earlier is not None:
+                    st = st._replace(lu=earlier)
+                    continue
                 if _reorder(plan, st, a0) == 0:
                     continue
                 # no room for its fill, or singular: the step is undone, as the loop's REPIVOT
@@ -478,7 +485,9 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
         else:
             from circuitsim.solver.compiled.mna_newton import PIVOT_ORDERS
 
-            stats["pivot_orders"] = pivot_orders + int(st.ints[PIVOT_ORDERS])
+            # orders made by SuperLU; "orders_reused": an earlier one taken again instead
+            stats["pivot_orders"] = pivot_orders + int(st.ints[PIVOT_ORDERS]) - orders.reused
+            stats["orders_reused"] = orders.reused
         counted.append(int(st.ints[nw.FACTORIZATIONS]))
     if status != loop.FINISHED:
         raise failure(system, st, status, tstop)
