@@ -5,7 +5,9 @@
 ``POST /api/knobs``    knob values, e.g. ``{"speed": 57, "flange": false}`` ->
                        ``{"t_applied": t}``
 ``POST /api/set_state``  states in SI units, e.g. ``{"y": 0.005}`` -> ``{"t_applied": t}``
-``POST /api/run``      ``{"running": bool, "rate": r}`` (either) -> the state
+``POST /api/run``      ``{"running": bool, "rate": r, "until": T}`` (any of them) -> the
+                       state; ``until``: hold the clock at the first chunk boundary at or
+                       past model time T (null: run on)
 ``GET /api/trace``     ``?since=T[&last=S]`` -> ``{"t": [...], "states": {...}, "ode": {...}}``
 ``GET /api/history``   the knob and state changes with their model and wall times
 ``GET /api/export/trace.csv``, ``GET /api/export/history.json``: the session's files
@@ -22,7 +24,7 @@ import math
 from tornado.web import RequestHandler
 
 from circuitsim.bench.errors import BenchError
-from circuitsim.bench.runner import BenchRunner
+from circuitsim.bench.runner import BenchRunner, check_rate, check_until
 
 
 def _finite(value):
@@ -47,6 +49,7 @@ def state_of(runner: BenchRunner) -> dict:
                 "knobs": session.knob_values(),
                 "running": runner.running,
                 "rate": runner.rate,
+                "until": runner.until,
                 "error": runner.error,
                 "nrmsd_percent": session.nrmsd(),
                 "resistors": session.resistors,
@@ -127,13 +130,19 @@ class SetStateHandler(_Handler):
 class RunHandler(_Handler):
     def post(self) -> None:
         data = self.body()
-        if not isinstance(data, dict) or not set(data) <= {"running", "rate"} or not data:
-            raise BenchError('expected {"running": true|false} and/or {"rate": number}')
+        if not isinstance(data, dict) or not set(data) <= {"running", "rate", "until"} or not data:
+            raise BenchError(
+                'expected {"running": true|false}, {"rate": number} and/or {"until": number}'
+            )
+        if "running" in data and not isinstance(data["running"], bool):
+            raise BenchError(f"running must be true or false, got {data['running']!r}")
+        check_rate(data.get("rate", 1.0))  # every value checked before any is applied
+        check_until(data.get("until"))
         if "rate" in data:
             self.runner.set_rate(data["rate"])
+        if "until" in data:  # before resuming: the clock must not run past it
+            self.runner.set_until(data["until"])
         if "running" in data:
-            if not isinstance(data["running"], bool):
-                raise BenchError(f"running must be true or false, got {data['running']!r}")
             self.runner.resume() if data["running"] else self.runner.pause()
         self.send(state_of(self.runner))
 

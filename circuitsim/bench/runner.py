@@ -4,6 +4,11 @@ per wall second (or as fast as it can: ``rate = inf``), with pause and resume.
 The session is kept at most one chunk ahead of the clock, so a knob change acts within about
 one chunk of model time (plus the time to compute it). A chunk that fails (no convergence)
 stops the clock; ``error`` says why and the session keeps the state before the chunk.
+
+``until`` holds the clock at the first chunk boundary at or past a model time: a script (or a
+test) that must act at a known model time asks for it, rather than polling a clock that runs
+on (unthrottled, the session can run hundreds of chunks between two polls of a loaded
+machine).
 """
 
 from __future__ import annotations
@@ -32,6 +37,8 @@ class BenchRunner:
         self.session = session
         self.rate = check_rate(rate)
         self.error: str | None = None
+        #: Model time (s) at whose chunk boundary the clock is held (None: runs on).
+        self.until: float | None = None
         self._running = running
         self._stop = threading.Event()
         self._wake = threading.Event()
@@ -65,6 +72,27 @@ class BenchRunner:
         self._running = True
         self._wake.set()
 
+    def set_until(self, until: float | None) -> None:
+        """Hold the clock at the first chunk boundary at or past model time ``until`` (s;
+        None: run on). A time already reached holds it after the chunk in progress.
+
+        Raises
+        ------
+        BenchError
+            Not a finite number or None.
+        """
+        self.until = check_until(until)
+        self._wake.set()
+
+    def _reached_until(self) -> bool:
+        """Whether the session has reached ``until`` (then the clock is held there)."""
+        until = self.until
+        if until is None or self.session.t < until - 1e-9 * self.session.chunk:
+            return False
+        self._running = False
+        self.until = None
+        return True
+
     def set_rate(self, rate: float) -> None:
         """Model seconds per wall second from now (> 0, ``inf``: unthrottled).
 
@@ -92,7 +120,7 @@ class BenchRunner:
 
     def _loop(self) -> None:
         while not self._stop.is_set():
-            if not self.running:
+            if not self.running or self._reached_until():
                 self._wake.wait(0.1)
                 self._wake.clear()
                 continue
@@ -121,3 +149,17 @@ def check_rate(rate) -> float:
             f"rate must be a positive number of model seconds per second, got {rate!r}"
         )
     return float(rate)
+
+
+def check_until(until) -> float | None:
+    """``until`` as a float if it is a finite number of model seconds, or None.
+
+    Raises
+    ------
+    BenchError
+    """
+    if until is None:
+        return None
+    if isinstance(until, bool) or not isinstance(until, int | float) or not math.isfinite(until):
+        raise BenchError(f"until must be a finite number of model seconds or null, got {until!r}")
+    return float(until)

@@ -81,6 +81,12 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--no-browser", action="store_true", help="do not open the page in a web browser"
     )
+    parser.add_argument(
+        "--paused",
+        action="store_true",
+        help="start with the clock held at t = 0 (resume from the page, or POST /api/run "
+        '{"running": true} or {"running": true, "until": T} to run to model time T)',
+    )
     parser.set_defaults(func=_run_bench)
 
 
@@ -113,7 +119,7 @@ def _run_bench(args: argparse.Namespace) -> int:
     session = BenchSession(setup, chunk=args.chunk)
     for warning in session.warnings:
         print(f"warning: {warning}", file=sys.stderr, flush=True)
-    runner = BenchRunner(session, rate=args.rate)
+    runner = BenchRunner(session, rate=args.rate, running=not args.paused)
     server = bench_server(runner, args.host, args.port)
     url = f"http://{'localhost' if args.host == '127.0.0.1' else args.host}:{server.port}/"
     knobs = ", ".join(k.name for k in session.knobs)

@@ -45,6 +45,23 @@ def wait_for_model_time(base: str, t: float) -> dict:
     raise AssertionError(f"the bench did not reach t = {t} s within {PATIENCE} s")
 
 
+def run_until(base: str, t: float) -> dict:
+    """Run the session to the first chunk boundary at or past model time ``t`` (s) and hold it
+    there (``POST /api/run`` with ``until``): the test acts at a known model time, however
+    fast or loaded the machine (a test that polls a clock running on acts wherever it catches
+    it: unthrottled, hundreds of chunks past)."""
+    status, state = request(base + "api/run", {"running": True, "until": t})
+    assert status == 200, state
+    deadline = time.monotonic() + PATIENCE
+    while time.monotonic() < deadline:
+        assert state["error"] is None, state["error"]
+        if not state["running"] and state["until"] is None and state["t"] >= t - 1e-9:
+            return state
+        time.sleep(0.1)
+        _, state = request(base + "api/state")
+    raise AssertionError(f"the bench did not reach t = {t} s within {PATIENCE} s")
+
+
 class BenchProcess:
     """``python -m circuitsim bench ...`` on a free port, until :meth:`stop`."""
 

@@ -1,6 +1,6 @@
 """The bench's JSON API on a running ``circuitsim bench`` (the wheelset at 57 m/s from a
-5 mm push, stepping as fast as it can): state, knobs, pushes, traces, history, export, and
-HTTP 400 for bad values."""
+5 mm push, stepping as fast as it can, run to known model times with ``until``): state,
+knobs, pushes, traces, history, export, and HTTP 400 for bad values."""
 
 import json
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from circuitsim.compare.signals import nrmsd_percent
-from tests.bench.live import request, wait_for_model_time
+from tests.bench.live import request, run_until, wait_for_model_time
 
 STATES = ["y", "psi", "y_dot", "psi_dot"]
 
@@ -16,18 +16,19 @@ STATES = ["y", "psi", "y_dot", "psi_dot"]
 def test_state_says_time_knobs_and_running(bench_57):
     status, state = request(bench_57 + "api/state")
     assert status == 200
-    assert state["running"] is True and state["error"] is None
+    assert state["running"] is False and state["t"] == 0.0 and state["error"] is None  # --paused
     assert state["knobs"]["speed"] == 57.0 and state["knobs"]["flange"] is False
     assert state["knobs"]["amplitude"] == 0.0
     assert {k["name"]: k["parts"] for k in state["knob_info"]}["speed"] == ["R33", "R44"]
 
 
 def test_the_speed_knob_restamps_r33_r44_and_the_run_carries_on(bench_57):
-    wait_for_model_time(bench_57, 1.0)
+    run_until(bench_57, 1.0)
     status, answer = request(bench_57 + "api/knobs", {"speed": 54})
     assert status == 200
     t_applied = answer["t_applied"]
-    state = wait_for_model_time(bench_57, t_applied + 0.5)
+    assert t_applied == 1.0  # held there: the change acts at a known model time
+    state = run_until(bench_57, t_applied + 0.5)
     assert state["knobs"]["speed"] == 54.0
     _, history = request(bench_57 + "api/history")
     change = [e for e in history["events"] if e["kind"] == "knobs"][-1]
@@ -42,7 +43,7 @@ def test_the_speed_knob_restamps_r33_r44_and_the_run_carries_on(bench_57):
 
 
 def test_the_trace_is_the_circuit_beside_the_ode(bench_57):
-    wait_for_model_time(bench_57, 2.0)
+    run_until(bench_57, 2.0)
     _, trace = request(bench_57 + "api/trace?since=0")
     for name in STATES:
         circuit, ode = np.array(trace["states"][name]), np.array(trace["ode"][name])
@@ -74,6 +75,8 @@ def test_a_push_is_applied_at_a_chunk_boundary(bench_57):
         ("api/set_state", {"y": None}, "finite number"),
         ("api/run", {"rate": -1}, "positive"),
         ("api/run", {"running": "yes"}, "true or false"),
+        ("api/run", {"running": True, "until": "soon"}, "until must be"),
+        ("api/run", {"until": 1e400}, "until must be"),
         ("api/trace?since=abc", None, "since must be a number"),
     ],
 )
@@ -84,6 +87,7 @@ def test_bad_values_get_400_with_a_message(bench_57, path, body, message):
     assert message in answer["error"]
     _, after = request(bench_57 + "api/state")
     assert after["knobs"] == before["knobs"]
+    assert (after["running"], after["rate"]) == (before["running"], before["rate"])
 
 
 def test_pause_holds_the_clock_and_resume_runs_it(bench_57):

@@ -59,10 +59,10 @@ def peak(data: dict, start: float, end: float) -> float:
 
 @pytest.fixture(scope="module")
 def browser_on_bench():
-    server = BenchProcess(
-        "--speed", "57", "--amplitude", "0", "--no-flange", "--y0", "0.005", "--rate", "1"
-    )
-    request(server.url + "api/run", {"running": False})  # until the page is up
+    server = BenchProcess(  # held until the page is up
+        "--speed", "57", "--amplitude", "0", "--no-flange", "--y0", "0.005", "--rate", "1",
+        "--paused",
+    )  # fmt: skip
     browser = Chromium(CHROMIUM)
     try:
         browser.call("Page.enable")

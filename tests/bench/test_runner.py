@@ -1,0 +1,56 @@
+"""The bench's clock (BenchRunner) on a library session: held at a model time asked for
+(``until``), however fast it may run, and the refused values."""
+
+import time
+
+import pytest
+
+from circuitsim.bench.errors import BenchError
+from circuitsim.bench.runner import BenchRunner
+from circuitsim.bench.session import BenchSession
+from tests.bench.test_session import wheelset_setup
+
+
+def wait_until_held(runner: BenchRunner, patience: float = 240.0) -> None:
+    deadline = time.monotonic() + patience
+    while runner.running:
+        assert runner.error is None, runner.error
+        assert time.monotonic() < deadline, "the clock was not held"
+        time.sleep(0.05)
+
+
+def test_an_unthrottled_clock_is_held_at_the_chunk_boundary_asked_for():
+    session = BenchSession(wheelset_setup(), chunk=0.1)
+    runner = BenchRunner(session, rate=float("inf"), running=False).start()
+    try:
+        time.sleep(0.3)
+        assert session.t == 0.0 and session.steps == 0  # started held: nothing ran
+        runner.set_until(0.45)  # not a boundary: held at the first one past it
+        runner.resume()
+        wait_until_held(runner)
+        assert session.steps == 5 and session.t == pytest.approx(0.5, abs=1e-12)
+        time.sleep(0.3)  # unthrottled, yet it stays there
+        assert session.steps == 5 and not runner.running and runner.until is None
+        runner.set_until(0.7)
+        runner.resume()
+        wait_until_held(runner)
+        assert session.steps == 7
+        runner.set_until(0.2)  # already past: held where it is
+        runner.resume()
+        wait_until_held(runner)
+        assert session.steps == 7
+    finally:
+        runner.stop()
+
+
+@pytest.fixture(scope="module")
+def held_runner():
+    return BenchRunner(BenchSession(wheelset_setup(), chunk=0.1), running=False)
+
+
+@pytest.mark.parametrize("until", ["1", True, float("nan"), float("inf")])
+def test_until_must_be_a_finite_number(held_runner, until):
+    runner = held_runner
+    with pytest.raises(BenchError, match="until must be a finite number"):
+        runner.set_until(until)
+    assert runner.until is None
