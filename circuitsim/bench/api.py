@@ -42,7 +42,7 @@ def state_of(runner: BenchRunner) -> dict:
     """The answer of ``GET /api/state``."""
     session = runner.session
     with session.lock:
-        current = dict(zip(session.states, map(float, session.circuit.states()), strict=True))
+        current = dict(zip(session.states, map(float, session.circuit_state), strict=True))
         return _finite(
             {
                 "t": session.t,

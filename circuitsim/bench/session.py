@@ -7,6 +7,11 @@ final state (:class:`~circuitsim.bench.running.RunningCircuit`) and integrates t
 piecewise-constant knob values; both are sampled on one uniform grid (``sample`` model
 seconds), where the running NRMSD between them is kept. A knob change or a push made while a
 chunk runs waits for it to end and applies from that boundary: ``t_applied``.
+
+Two locks: changes (a chunk, a knob, a push) take turns on one; what readers see (time,
+traces, sums, history, knob values) is swapped under ``lock``, held only for that, so that
+reading the state never waits for a chunk to be computed (the first chunk of a process may
+compile the kernels: minutes on a loaded machine).
 """
 
 from __future__ import annotations
@@ -78,7 +83,8 @@ class BenchSession:
         self.chunk = chunk
         self.per_chunk = max(1, round(chunk / sample))
         self.sample = chunk / self.per_chunk
-        self.lock = threading.RLock()
+        self.lock = threading.RLock()  # what readers see; held briefly
+        self._changing = threading.Lock()  # a chunk, a knob change or a push at a time
         self.parameters = dict(setup.parameters)
         self.switches = dict(setup.switches)
         first = synthesize_at(setup, self.parameters, self.switches, setup.options, True).synthesis
@@ -97,6 +103,8 @@ class BenchSession:
         self.t = 0.0
         self.resistors = self._resistor_values()
         start = self.circuit.states()
+        #: The circuit's state (SI units, ``states`` order) at model time ``t``.
+        self.circuit_state = start
         self._chunks: deque[_Chunk] = deque()
         self._samples = 0
         self._append(_Chunk(np.zeros(1), start[:, None], self.x_ode[:, None].copy()))
@@ -197,13 +205,18 @@ class BenchSession:
             A bad name or value, or values the circuit cannot realize by turning resistors
             and switches (nothing changes then).
         """
-        parameters, switches = self._parse_knobs(values)
-        with self.lock:
+        with self._changing:
+            parameters, switches = self._parse_knobs(values)
             synthesis, pots = synthesize_at(self.setup, parameters, switches, self.options)
             system = self.setup.system(parameters, switches)
             if synthesis.scale_map != self.scale_map:
                 raise BenchError("these values change the circuit's scales")
             changed = self.circuit.restamp(synthesis)
+            return self._knobs_changed(values, parameters, switches, system, pots, changed)
+
+    def _knobs_changed(self, values, parameters, switches, system, pots, changed) -> float:
+        """What readers see of a knob change (the circuit is restamped); returns t."""
+        with self.lock:
             self.parameters, self.switches, self.system = parameters, switches, system
             self.pots = pots
             self.resistors = self._resistor_values()
@@ -242,14 +255,16 @@ class BenchSession:
                 or not (math.isfinite(value))
             ):
                 raise BenchError(f"state {name!r} needs a finite number, got {value!r}")
-        with self.lock:
+        with self._changing:
             self.circuit.push({k: float(v) for k, v in values.items()})
-            for name, value in values.items():
-                self.x_ode[self.states.index(name)] = float(value)
-            self.history.append(
-                {"t": self.t, "wall": self._wall(), "kind": "state", "values": dict(values)}
-            )
-            return self.t
+            with self.lock:
+                for name, value in values.items():
+                    self.x_ode[self.states.index(name)] = float(value)
+                self.circuit_state = self.circuit.states()
+                self.history.append(
+                    {"t": self.t, "wall": self._wall(), "kind": "state", "values": dict(values)}
+                )
+                return self.t
 
     # --- running -------------------------------------------------------------------------
 
@@ -261,7 +276,7 @@ class BenchSession:
         ConvergenceError, RunLimitError, IntegrationError
             From the engine or the ODE solver; the session stays at the chunk's start.
         """
-        with self.lock:
+        with self._changing:  # readers go on reading the state before the chunk meanwhile
             t0 = self.t
             t1 = (self.steps + 1) * self.chunk  # no float drift over hours of chunks
             grid = t0 + self.sample * np.arange(1, self.per_chunk + 1)
@@ -277,12 +292,14 @@ class BenchSession:
                 ]
             )
             ode = solve(self.system, (t0, t1), rtol=ODE_RTOL, atol=ODE_ATOL, x0=self.x_ode)
-            self.x_ode = ode.x[:, -1].copy()
             chunk = _Chunk(grid, circuit, np.atleast_2d(ode.sol(grid)))
-            self._append(chunk)
-            self._accumulate(chunk)
-            self.steps += 1
-            self.t = t1
+            with self.lock:
+                self.x_ode = ode.x[:, -1].copy()
+                self.circuit_state = self.circuit.states()
+                self._append(chunk)
+                self._accumulate(chunk)
+                self.steps += 1
+                self.t = t1
 
     def _generator_share(self) -> float:
         """The amplitude knob's value as a share of the amplitude the circuit was built with."""

@@ -1,10 +1,12 @@
 """The bench's clock (BenchRunner) on a library session: held at a model time asked for
 (``until``), however fast it may run, and the refused values."""
 
+import threading
 import time
 
 import pytest
 
+from circuitsim.bench.api import state_of
 from circuitsim.bench.errors import BenchError
 from circuitsim.bench.runner import BenchRunner
 from circuitsim.bench.session import BenchSession
@@ -54,3 +56,33 @@ def test_until_must_be_a_finite_number(held_runner, until):
     with pytest.raises(BenchError, match="until must be a finite number"):
         runner.set_until(until)
     assert runner.until is None
+
+
+def test_the_state_is_read_while_a_chunk_is_computed(held_runner):
+    """/api/state answers from the state before the chunk instead of waiting for it (a first
+    chunk that compiles the kernels took longer than the API test's 60 s request timeout)."""
+    session = held_runner.session
+    computing, release = threading.Event(), threading.Event()
+    run = session.circuit.run
+
+    def slow_run(*args):
+        computing.set()
+        release.wait(60)
+        return run(*args)
+
+    session.circuit.run = slow_run
+    chunk = threading.Thread(target=session.step)
+    chunk.start()
+    try:
+        assert computing.wait(60)
+        answers = []
+        reader = threading.Thread(target=lambda: answers.append(state_of(held_runner)))
+        reader.start()
+        reader.join(10)
+        assert answers and answers[0]["t"] == 0.0 and answers[0]["state"]["y"] == 0.0
+    finally:
+        release.set()
+        chunk.join(60)
+        session.circuit.run = run
+    assert session.t == pytest.approx(0.1, abs=1e-12)
+    assert state_of(held_runner)["t"] == session.t
