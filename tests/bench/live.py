@@ -10,6 +10,8 @@ import urllib.error
 import urllib.request
 from pathlib import Path
 
+from circuitsim.solver.compiled import warm_up
+
 ROOT = Path(__file__).resolve().parents[2]
 
 #: Wall seconds a test waits for the server or for model time to pass (the machine may be
@@ -66,6 +68,10 @@ class BenchProcess:
     """``python -m circuitsim bench ...`` on a free port, until :meth:`stop`."""
 
     def __init__(self, *options: str):
+        # the kernel the bench runs is made ready here first (compiled into the shared cache
+        # if it is cold: minutes on a loaded machine, past PATIENCE), so that the bench's
+        # first chunk loads it instead of compiling while the test waits for model time
+        warm_up(("ports",))
         env = {**os.environ, "PYTHONPATH": str(ROOT)}
         self.process = subprocess.Popen(
             [sys.executable, "-m", "circuitsim", "bench", "--no-browser", "--port", "0",
