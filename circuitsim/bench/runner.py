@@ -129,10 +129,11 @@ class BenchRunner:
                 self._wake.wait(min(wait, 0.1))
                 self._wake.clear()
                 continue
+            t0 = self.session.t
             try:
                 self.session.step()
             except Exception as exc:  # noqa: BLE001 - reported through the API, clock stopped
-                self.error = f"{type(exc).__name__}: {exc}"
+                self.error = chunk_error(exc, t0, self.session.chunk)
             if not math.isinf(self.rate) and self._due() < -1.0:
                 self._reanchor()  # more than a second behind: do not race to catch up
 
@@ -149,6 +150,16 @@ def check_rate(rate) -> float:
             f"rate must be a positive number of model seconds per second, got {rate!r}"
         )
     return float(rate)
+
+
+def chunk_error(exc: BaseException, t0: float, chunk: float) -> str:
+    """The message of a chunk that failed from model time ``t0`` (s): the engine's times
+    count from the chunk's start (each chunk is a run from 0), which read alone looked like
+    the session's first chunk."""
+    return (
+        f"{type(exc).__name__} in the chunk from model time {t0:.6g} s to {t0 + chunk:.6g} s "
+        f"(the engine's times count from the chunk's start): {exc}"
+    )
 
 
 def check_until(until) -> float | None:

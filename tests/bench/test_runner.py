@@ -10,6 +10,7 @@ from circuitsim.bench.api import state_of
 from circuitsim.bench.errors import BenchError
 from circuitsim.bench.runner import BenchRunner
 from circuitsim.bench.session import BenchSession
+from circuitsim.solver.errors import ConvergenceError
 from tests.bench.test_session import wheelset_setup
 
 
@@ -86,3 +87,32 @@ def test_the_state_is_read_while_a_chunk_is_computed(held_runner):
         session.circuit.run = run
     assert session.t == pytest.approx(0.1, abs=1e-12)
     assert state_of(held_runner)["t"] == session.t
+
+
+def test_a_failed_chunk_says_its_model_time(held_runner):
+    """The engine's t counts from the chunk's start; the CI failure's t = 0.0670958 s was read
+    as the first chunk's, where it was chunk 537's (model time 53.7 s)."""
+    session = held_runner.session
+    run = session.circuit.run
+
+    def failing_run(*args):
+        raise ConvergenceError("time step too small", time=0.0670958, step=2.18e-15)
+
+    session.circuit.run = failing_run
+    runner = BenchRunner(session, rate=float("inf"))
+    runner.set_until(session.t + 1.0)
+    t0 = session.t
+    runner.start()
+    try:
+        deadline = time.monotonic() + 60
+        while runner.error is None:
+            assert time.monotonic() < deadline
+            time.sleep(0.05)
+    finally:
+        runner.stop()
+        session.circuit.run = run
+    assert runner.error.startswith(
+        f"ConvergenceError in the chunk from model time {t0:.6g} s to {t0 + 0.1:.6g} s"
+    )
+    assert "at t = 0.0670958 s" in runner.error and not runner.running
+    assert session.t == t0  # the session keeps the state before the chunk
