@@ -1,6 +1,7 @@
 """Whole-process start-up: ``circuitsim simulate`` of the wheelset against ``ngspice -b``.
 
     python benchmarks/bench_startup.py [--repeat N] [--no-ngspice]
+    python benchmarks/bench_startup.py --against DIR [--repeat N]
     python benchmarks/run.py --parts startup [--repeat N]
 
 Four tables, every figure the median of ``--repeat`` fresh processes (CPU = user + system time
@@ -21,6 +22,10 @@ its own (PYTHONPYCACHEPREFIX, warmed by an untimed run first), as an installed p
 one row shows the ideal wheelset without it (PYTHONDONTWRITEBYTECODE=1: every module of ours
 compiled from source at each start). The numba kernels must be in the user cache
 (an untimed run first makes sure).
+
+``--against DIR``: instead, whole ``simulate`` processes of this checkout and of the checkout in
+DIR (an earlier commit, e.g. ``git archive REV | tar -x -C DIR``), interleaved one by one so
+that both see the same load; the machine's load average is printed before and after.
 """
 
 from __future__ import annotations
@@ -114,10 +119,12 @@ def run_process(command: list[str], env: dict, cwd: Path | None = None) -> dict:
     }
 
 
-def environment(pycache: Path | None) -> dict:
-    """This checkout first on the path; the bytecode cache in ``pycache`` (None: off)."""
+def environment(pycache: Path | None, checkout: Path = REPO) -> dict:
+    """``checkout`` (default this one) first on the path; the bytecode cache in ``pycache``
+    (None: off)."""
     env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(REPO), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    path = [str(checkout), env.get("PYTHONPATH", "")]
+    env["PYTHONPATH"] = os.pathsep.join(path).rstrip(os.pathsep)
     if pycache is None:
         env["PYTHONDONTWRITEBYTECODE"] = "1"
         env.pop("PYTHONPYCACHEPREFIX", None)
@@ -300,13 +307,67 @@ def report(data: dict) -> str:
     return "\n\n".join(parts)
 
 
+def against(other: Path, folder: Path, log) -> str:
+    """Whole simulate processes of this checkout and of ``other`` on each netlist,
+    interleaved (REPEAT[0] pairs after an untimed one each): a table of median CPU."""
+    folder.mkdir(parents=True, exist_ok=True)
+    checkouts = {"this": REPO, "other": other.resolve()}
+    envs = {k: environment(folder / f"pycache-{k}", path) for k, path in checkouts.items()}
+    load_before = os.getloadavg()
+    rows = []
+    for name, netlist in NETLISTS.items():
+        log(f"  {name}: this and {other}, interleaved")
+        command = [sys.executable, "-m", "circuitsim", "simulate", str(netlist)]
+        command += ["--csv", str(folder / f"{name}.csv")]
+        samples: dict[str, list[dict]] = {k: [] for k in checkouts}
+        for turn in range(max(1, REPEAT[0]) + 1):
+            for key in checkouts:
+                done = run_process(command, envs[key], cwd=folder)
+                if done["code"] != 0:
+                    raise RuntimeError(f"{key} {name} failed: {done['output'].strip()[-400:]}")
+                if turn:  # the first of each warmed the bytecode and kernel caches
+                    samples[key].append(done)
+        this, that = (median_of(samples[k], "cpu_s") for k in checkouts)
+        spread = {k: [r["cpu_s"] for r in v] for k, v in samples.items()}
+        rows.append(
+            [
+                name,
+                this,
+                f"{min(spread['this']):.3g}-{max(spread['this']):.3g}",
+                that,
+                f"{min(spread['other']):.3g}-{max(spread['other']):.3g}",
+                this - that,
+                median_of(samples["this"], "wall_s"),
+                median_of(samples["other"], "wall_s"),
+            ]
+        )
+    load_after = os.getloadavg()
+    headers = ["netlist", "this CPU (s)", "range", "other CPU (s)", "range", "this - other"]
+    headers += ["this wall (s)", "other wall (s)"]
+    return "\n\n".join(
+        [
+            f"simulate --csv, this checkout against {other}, median of {REPEAT[0]} interleaved "
+            f"pairs (CPU = user + system); load average {load_before[0]:.1f} before, "
+            f"{load_after[0]:.1f} after ({os.cpu_count()} cores)",
+            table(headers, rows),
+        ]
+    )
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=REPEAT[0], help="processes per figure")
     parser.add_argument("--quick", action="store_true", help="without the memory table")
     parser.add_argument("--no-ngspice", action="store_true", help="ours only")
+    parser.add_argument(
+        "--against", type=Path, metavar="DIR", help="interleaved with the checkout in DIR"
+    )
     args = parser.parse_args(argv)
     REPEAT[0] = args.repeat
+    if args.against is not None:
+        with tempfile.TemporaryDirectory(prefix="circuitsim-against-") as folder:
+            print(against(args.against, Path(folder), lambda m: print(m, file=sys.stderr)))
+        return 0
     with tempfile.TemporaryDirectory(prefix="circuitsim-startup-") as folder:
         data = run(
             Path(folder), args.quick, lambda m: print(m, file=sys.stderr), not args.no_ngspice
