@@ -85,8 +85,10 @@ FACTOR = 5
 # where to re-enter (ints[RESUME_AT]): not at all, after the step's refactor test, at the
 # start of the step's second Newton attempt, inside Newton iteration ints[RESUME_ITERATION]
 # after its linearization (attempt ints[RESUME_ATTEMPT], ints[RESUME_NONCON] limited or
-# toggled so far)
-NOT_RESUMING, AT_REFACTOR_TEST, AT_SECOND_ATTEMPT, IN_ITERATION = 0, 1, 2, 3
+# toggled so far); FIRST_FACTOR (set by the runner): the ports kernel's first factorization,
+# at fs[FACTOR_A0], made by the loop (a second compiled function loaded from the cache would
+# cost a process 0.07 s, docs/performance.md)
+NOT_RESUMING, AT_REFACTOR_TEST, AT_SECOND_ATTEMPT, IN_ITERATION, FIRST_FACTOR = 0, 1, 2, 3, 4
 # slots the runner appends to fs and ints (negative: after whatever the state's owner has)
 RESUME_H, FACTOR_A0 = -2, -1  # fs: the step's h; the a0 to factor at (1/s)
 RESUME_AT, RESUME_ORDER, RESUME_LANDING, RESUME_ATTEMPT, RESUME_ITERATION, RESUME_NONCON = (
@@ -98,14 +100,15 @@ RESUME_FLOATS, RESUME_INTS = 2, 8
 
 
 class MidStep(NamedTuple):
-    """The MNA loop's arrays that outlive a return in the middle of a step (the runner's;
-    shapes: n unknowns, nq charge slots)."""
+    """The MNA loop's arrays that outlive a return in the middle of a step, and the unknowns
+    it records (the runner's; shapes: n unknowns, nq charge slots, nrows recorded)."""
 
     x_new: np.ndarray  # (n,) Newton's last solution
     q: np.ndarray  # (nq,) the time point's charges and their currents so far
     qdot: np.ndarray
     fs_start: np.ndarray  # fs and ints at the step's start (a step undone: REPIVOT)
     ints_start: np.ndarray
+    rows: np.ndarray  # (nrows,) int: the unknowns recorded at each accepted point (out_x)
 
 
 @njit(cache=True)

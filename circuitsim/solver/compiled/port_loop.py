@@ -33,7 +33,10 @@ from circuitsim.solver.compiled.newton import (
     AT_SECOND_ATTEMPT,
     ATTEMPTS,
     COUNT,
+    FACTOR,
+    FACTOR_A0,
     FIRST,
+    FIRST_FACTOR,
     IN_ITERATION,
     JUNCTION_NEGLIGIBLE,
     LAST_A0,
@@ -147,6 +150,10 @@ def run(plan, st, t_until):
     m_last = 0  # active junctions in the last Newton iteration
     resume = si[RESUME_AT]  # back from a factorization made in Python: where the step was
     si[RESUME_AT] = NOT_RESUMING
+    if resume == FIRST_FACTOR:
+        resume = NOT_RESUMING
+        if not factor_now(plan, st, fs[FACTOR_A0]):
+            return FACTOR  # then re-entered at the first step
     while tstop - fs[T] > min_step:
         if resume != NOT_RESUMING:
             t, next_break, h, order, landing = resumed_step(fs, si, breaks)

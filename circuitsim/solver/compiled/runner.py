@@ -158,7 +158,7 @@ def run_compiled(
     rows: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`~circuitsim.solver.transient.run_transient`, compiled; only the unknowns
-    ``rows`` (default: all) are returned (this kernel records all of them during the run).
+    ``rows`` (default: all) are recorded and returned.
 
     Returns
     -------
@@ -289,6 +289,11 @@ def _loop_state(kind, start: PortsStart, plan, rows, capacity):
         terms = terminal_state(start.families["terminals"], plan.terms)
         lu = _pivot_order(plan, devices["gd"], devices["state"], _a0_start(start), terms)
         state = initial_state(plan, start.families, start.x, start.q0.copy(), capacity, lu)
+        if rows is not None:  # only these are recorded (the loop's MidStep.rows)
+            rows = np.asarray(rows, dtype=np.int64)
+            out_x = np.zeros((capacity, rows.size))
+            out_x[0] = start.x[rows]
+            state = state._replace(out_x=out_x)
     from circuitsim.solver.compiled import newton as nw
 
     state = state._replace(
@@ -297,18 +302,20 @@ def _loop_state(kind, start: PortsStart, plan, rows, capacity):
     )
     if kind == "ports" and factors_in_python(state):
         state.ints[nw.FACTOR_IN_PYTHON] = 1
-    return loop, state
+    return loop, state, _mid_step(kind, state, rows)
 
 
-def _mid_step(kind, st) -> tuple:
-    """The MNA loop's extra argument: its arrays that outlive a return mid-step (MidStep);
-    none for the ports loop."""
+def _mid_step(kind, st, rows) -> tuple:
+    """The MNA loop's extra argument: its arrays that outlive a return mid-step and the
+    unknowns it records (MidStep; ``rows`` None: all); none for the ports loop."""
     from circuitsim.solver.compiled import newton as nw
 
     if kind == "ports":
         return ()
     n, nq = st.hx.shape[1], st.hq.shape[1]
-    return (nw.MidStep(np.empty(n), np.zeros(nq), np.zeros(nq), st.fs.copy(), st.ints.copy()),)
+    rows = np.arange(n, dtype=np.int64) if rows is None else np.asarray(rows, dtype=np.int64)
+    kept = np.empty(n), np.zeros(nq), np.zeros(nq), st.fs.copy(), st.ints.copy()
+    return (nw.MidStep(*kept, rows),)
 
 
 def _reorder(plan, st, a0: float) -> int:
@@ -383,7 +390,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     tstop, max_step = float(plan.real[10]), float(plan.real[8])
     capacity = int(min(max(2 * (tstop / (fixed or max_step)) + 100, 1000), 5_000_000))
     try:
-        loop, st = _loop_state(kind, start, plan, rows, capacity)
+        loop, st, mid = _loop_state(kind, start, plan, rows, capacity)
     except np.linalg.LinAlgError:  # the first pivot order: the start's matrix is singular
         devices = device_states(start.families)
         terms = terminal_state(start.families["terminals"], plan.terms)
@@ -401,10 +408,10 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     pivot_orders, repivoted_at, same_step = 1, -1, 0
     orders = EarlierOrders()  # the MNA kernel's earlier pivot orders
     factored_in_python = 0  # FACTOR returns
-    mid = _mid_step(kind, st)
     try:
-        if kind == "ports":
-            _factor(plan, st, _a0_start(start))
+        if kind == "ports":  # the first factorization: by the loop (newton.FIRST_FACTOR)
+            st.fs[nw.FACTOR_A0] = _a0_start(start)
+            st.ints[nw.RESUME_AT] = nw.FIRST_FACTOR
         # the rate of attempted steps since the last pause sizes the next chunk; a chunk
         # that compiled has no rate (its own would make every later chunk 100 steps)
         chunk_began, attempts, compiled = time.perf_counter(), int(st.ints[nw.ATTEMPTS]), False
@@ -494,8 +501,6 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     count = int(st.ints[nw.COUNT])
     out_t, out_x = st.out_t[:count], st.out_x[:count]
     keep = recorded(out_t, start.tstart, start.min_step, start.uic)
-    if kind != "ports" and rows is not None:
-        out_x = out_x[:, np.asarray(rows, dtype=np.int64)]
     # times increase, so the points kept are a tail: returned as views of the output arrays
     # (the recorded table is the largest thing a run holds; a copy doubled a long run's peak)
     first = count - int(np.count_nonzero(keep))

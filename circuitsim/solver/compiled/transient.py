@@ -266,7 +266,7 @@ def run(plan, st, t_until, mid):
     live, zeros = charge_slots(nq, plan.jslot, plan.charged, plan.has_charge)
     hist = np.empty(nq)
     x_guess = np.empty(n)
-    x_new = mid.x_new
+    x_new, rows = mid.x_new, mid.rows
     b = np.empty(n)
     g_sw = np.empty(ms)
     q, qdot = mid.q, mid.qdot
@@ -417,7 +417,8 @@ def run(plan, st, t_until, mid):
         out_t[row] = t
         for i in range(n):
             hx[0, i] = x_new[i]
-            out_x[row, i] = x_new[i]
+        for k in range(rows.size):
+            out_x[row, k] = x_new[rows[k]]
         for i in range(nq):
             hi[1, i] = hi[0, i]
             hi[0, i] = qdot[i]
