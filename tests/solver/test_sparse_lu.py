@@ -9,9 +9,13 @@ import pytest
 import scipy.sparse as sp
 
 from circuitsim.solver.compiled.sparse_lu import (
+    ALL_COLUMNS,
+    SOME_COLUMNS,
+    UNCHANGED,
     analyse,
     assemble,
     lu_solve,
+    mark_changed,
     present_matrix,
     refactor,
     repivot,
@@ -30,11 +34,14 @@ def mna_like(n: int, seed: int):
     return G, M, np.array([1, 4, -1, 10]), np.array([2, -1, 8, 11])
 
 
+PORT_VALUES = np.array([1e-3, 5.0, 1e-12, 0.1])  # S: two junctions, a switch off, one on
+
+
 def factor_and_solve(lu, a0, g_ports, b):
     md = 2  # the first two ports are "junctions", the others "switches"
     assemble(lu.a_val, lu.g_val, lu.m_val, a0, lu.port_pos, g_ports[:md], g_ports[md:])
     column = refactor(lu.a_ptr, lu.a_row, lu.a_val, lu.l_ptr, lu.l_row, lu.l_val, lu.u_ptr,
-                      lu.u_row, lu.u_val, lu.work)  # fmt: skip
+                      lu.u_row, lu.u_val, lu.work, lu.dirty, True)  # fmt: skip
     x = np.zeros(b.size)
     if column < 0:
         lu_solve(lu.l_ptr, lu.l_row, lu.l_val, lu.u_ptr, lu.u_row, lu.u_val, lu.row_to,
@@ -44,9 +51,7 @@ def factor_and_solve(lu, a0, g_ports, b):
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_refactor_solves_as_a_dense_solve(seed):
-    n = 60
-    G, M, port_p, port_n = mna_like(n, seed)
-    values = np.array([1e-3, 5.0, 1e-12, 0.1])
+    n, (G, M, port_p, port_n), values = 60, mna_like(60, seed), PORT_VALUES
     lu = analyse(G, M, port_p, port_n, values, 1e5)
     rng = np.random.default_rng(seed)
     for scale in (1.0, 3.0, 10.0):  # the same pattern at other port values
@@ -81,3 +86,46 @@ def test_a_singular_matrix_is_reported():
     with pytest.raises(np.linalg.LinAlgError):
         analyse(G, np.zeros((2, 2)), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64),
                 np.zeros(0), 0.0)  # fmt: skip
+
+
+def refactor_changed(lu, a0, g_ports):
+    """Assemble and refactor only what mark_changed marks (the MNA kernel's Newton)."""
+    md = 2
+    assemble(lu.a_val, lu.g_val, lu.m_val, a0, lu.port_pos, g_ports[:md], g_ports[md:])
+    change = mark_changed(lu.entry_col, lu.port_pos, lu.m_cols, lu.extra_cols, lu.factored,
+                          lu.dirty, g_ports[:md], g_ports[md:], a0)  # fmt: skip
+    every = change == ALL_COLUMNS
+    if change != UNCHANGED:
+        assert refactor(lu.a_ptr, lu.a_row, lu.a_val, lu.l_ptr, lu.l_row, lu.l_val, lu.u_ptr,
+                        lu.u_row, lu.u_val, lu.work, lu.dirty, every) < 0  # fmt: skip
+    return change
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_refactoring_the_changed_columns_gives_the_whole_refactor_bit_for_bit(seed):
+    n, (G, M, port_p, port_n), values = 60, mna_like(60, seed), PORT_VALUES
+    partial = analyse(G, M, port_p, port_n, values, 1e5)
+    whole = analyse(G, M, port_p, port_n, values, 1e5)
+    assert refactor_changed(partial, 1e5, values) == ALL_COLUMNS  # no factors yet
+    assert refactor_changed(partial, 1e5, values) == UNCHANGED  # nothing changed: kept
+    rng = np.random.default_rng(seed)
+    for a0, port in ((1e5, 0), (1e5, 1), (2e5, None), (2e5, 3), (3e5, 2)):
+        g = values.copy()
+        if port is not None:
+            g[port] *= 1.0 + rng.random()
+        assert refactor_changed(partial, a0, g) == SOME_COLUMNS
+        assert not partial.dirty.any()  # cleared for the next call
+        column, _ = factor_and_solve(whole, a0, g, np.ones(n))
+        assert column < 0
+        used_l, used_u = whole.l_ptr[-1], whole.u_ptr[-1]
+        assert np.array_equal(partial.l_val[:used_l], whole.l_val[:used_l])
+        assert np.array_equal(partial.u_val[:used_u], whole.u_val[:used_u])
+        values = g
+    # and it does skip: after one port's change, the columns it does not reach keep what
+    # they held (here a marker)
+    partial.u_val[:] = np.nan
+    g = values.copy()
+    g[2] *= 2.0
+    refactor_changed(partial, 3e5, g)
+    kept = np.count_nonzero(np.isnan(partial.u_val[: partial.u_ptr[-1]]))
+    assert 0 < kept < partial.u_ptr[-1]

@@ -2,7 +2,8 @@
 
 The reference engine's general Newton (solver/newton.py), as ngspice runs it: at every
 iteration the devices are linearized at the iterate, the matrix is assembled into its fixed
-sparse pattern, refactored numerically (the pivot order is kept) and solved. Switch states
+sparse pattern, refactored numerically (the pivot order is kept; only the columns that the
+changed conductances reach, sparse_lu.refactor) and solved. Switch states
 are re-decided against the accepted state at the first iteration, junctions limited with
 pnjlim against the accepted junction voltage at the first iteration and the last
 linearization afterwards; convergence when nothing was limited or toggled, every unknown is
@@ -22,8 +23,15 @@ from circuitsim.solver.compiled.mna_terminals import (
     terminal_rhs,
     terminals_converged,
 )
-from circuitsim.solver.compiled.newton import RESUME_NONCON
-from circuitsim.solver.compiled.sparse_lu import assemble, lu_solve, refactor
+from circuitsim.solver.compiled.newton import FACTORIZATIONS, RESUME_NONCON
+from circuitsim.solver.compiled.sparse_lu import (
+    ALL_COLUMNS,
+    UNCHANGED,
+    assemble,
+    lu_solve,
+    mark_changed,
+    refactor,
+)
 
 PIVOT_ORDERS = 14  # KernelState.ints: pivot orders made during the run (after the first)
 
@@ -68,6 +76,13 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume):
         lu.u_val,
     )
     row_to, col_of, work = lu.row_to, lu.col_of, lu.work
+    entry_col, m_cols, extra_cols, factored, dirty = (
+        lu.entry_col,
+        lu.m_cols,
+        lu.extra_cols,
+        lu.factored,
+        lu.dirty,
+    )
     tp, ts, extra_pos = plan.terms, st.terms, lu.extra_pos  # JFETs, BJTs, POLY: mna_terminals
     ms = sw.shape[0]
     md = jp.shape[0]
@@ -123,7 +138,18 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume):
         assemble(a_val, g_val, m_val, a0, port_pos, gd, g_sw)
         if terminals:
             stamp_terminals(tp, ts, extra_pos, a_val)
-        if refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work) >= 0:
+        # the columns whose entries changed since the factors were made, and those their
+        # change reaches, are factored again (none: a repeated step, junctions unchanged)
+        change = mark_changed(
+            entry_col, port_pos, m_cols, extra_cols, factored, dirty, gd, g_sw, a0
+        )
+        if change != UNCHANGED:
+            st.ints[FACTORIZATIONS] += 1
+        if change != UNCHANGED and refactor(
+            a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work, dirty,
+            change == ALL_COLUMNS,
+        ) >= 0:  # fmt: skip
+            factored[-1] = np.nan  # the factors stopped at that column: all of them next
             if iteration == resume:  # on the order made at this very matrix
                 return REPIVOT, iteration, x
             # a pivot became too small: a new order at this matrix, and on (ngspice's

@@ -38,7 +38,7 @@ from circuitsim.solver.compiled.sparse_lu import (
     SparseLU,
     analyse,
     present_matrix,
-    repivot_arrays,
+    repivot,
 )
 from circuitsim.solver.compiled.terminal_plan import entry_pattern, entry_values, terminal_state
 from circuitsim.solver.errors import (
@@ -321,14 +321,13 @@ def _mid_step(kind, st, rows) -> tuple:
 def _reorder(plan, st, a0: float) -> int:
     """A new pivot order (SuperLU) at the present matrix, in place in st.lu, as the MNA loop
     asks (newton.FACTOR); 0, or nonzero when it has no room for the fill or is singular."""
-    lu = st.lu
     g_switch = np.where(np.asarray(st.state, dtype=bool), plan.g_switch[:, 0], plan.g_switch[:, 1])
-    return repivot_arrays(
-        lu.a_ptr, lu.a_row, lu.g_val, lu.m_val, lu.port_pos, lu.l_ptr, lu.l_row, lu.u_ptr,
-        lu.u_row, lu.row_to, lu.col_of, plan.port_p, plan.port_n,
-        np.concatenate((st.gd, g_switch)), a0, lu.extra_row, lu.extra_col, lu.extra_pos,
-        entry_values(plan.terms, st.terms),
-    )  # fmt: skip
+    values = np.concatenate((st.gd, g_switch))
+    extra = entry_values(plan.terms, st.terms)
+    try:
+        return repivot(st.lu, plan.port_p, plan.port_n, values, a0, extra)
+    except np.linalg.LinAlgError:  # singular
+        return 2
 
 
 def factors_in_python(state) -> bool:

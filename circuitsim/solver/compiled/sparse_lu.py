@@ -10,7 +10,11 @@ fill pattern are found once and every later factorization is numeric only.
   permuted pattern with generic values gives the pattern of L and U without pivoting.
 - :func:`refactor` (numba): left-looking LU on that pattern, no pivoting; it reports a pivot
   smaller than ``PIVOT_THRESHOLD`` times the largest entry of its column, on which the caller
-  analyses again at the present values.
+  analyses again at the present values. It redoes only the columns that can differ from the
+  present factors: those whose entries changed (:func:`mark_changed`: a port whose
+  conductance changed, every charge column when a0 did, the multi-terminal devices' columns)
+  and those whose U column reaches a redone one (their L and U are computed from it); the
+  others' L and U are what a whole refactor would compute again, bit for bit.
 - :func:`lu_solve` (numba): the two triangular solves with the permutations.
 
 The matrix is ``A = G + a0 M + sum_k g_k w_k w_k^T + T`` (w_k = e_p - e_n: junction and
@@ -61,6 +65,13 @@ class SparseLU(NamedTuple):
     extra_row: np.ndarray  # (ne,) int64: row and column in A of each extra entry (-1 ground)
     extra_col: np.ndarray
     extra_pos: np.ndarray  # (ne,) int64: its position in a_val (-1: a ground entry)
+    entry_col: np.ndarray  # (nnz,) int64: the column of P of each entry
+    m_cols: np.ndarray  # int64: the columns of P with an entry of M
+    extra_cols: np.ndarray  # int64: the columns of P with an extra entry
+    # the port conductances, then the a0, of the present factors (NaN: none, or a refactor
+    # that stopped at a small pivot)
+    factored: np.ndarray  # (nports + 1,)
+    dirty: np.ndarray  # (n,) bool scratch: the columns to redo, False between calls
 
 
 def port_stamps(n: int, port_p: np.ndarray, port_n: np.ndarray):
@@ -171,12 +182,14 @@ def analyse(G, M, port_p, port_n, values, a0, spare: float = 1.0, extra=None) ->
     extra_pos[inside] = positions(e_row[inside], e_col[inside])
     l_count = np.diff(L.indptr)
     flops = float(np.sum(l_count * np.diff(U.indptr)) + L.nnz)
+    m_val = scatter(M)
+    entry_col = np.repeat(np.arange(n, dtype=np.int64), np.diff(a_ptr))
     return SparseLU(
         a_ptr=a_ptr,
         a_row=a_row,
         a_val=np.zeros(a_row.size),
         g_val=scatter(G),
-        m_val=scatter(M),
+        m_val=m_val,
         port_pos=port_pos,
         l_ptr=L.indptr.astype(np.int64),
         l_row=_room(L.indices, spare),
@@ -191,6 +204,11 @@ def analyse(G, M, port_p, port_n, values, a0, spare: float = 1.0, extra=None) ->
         extra_row=e_row,
         extra_col=e_col,
         extra_pos=extra_pos,
+        entry_col=entry_col,
+        m_cols=np.unique(entry_col[m_val != 0]),
+        extra_cols=np.unique(entry_col[extra_pos[extra_pos >= 0]]),
+        factored=np.full(len(port_p) + 1, np.nan),
+        dirty=np.zeros(n, dtype=np.bool_),
     )
 
 
@@ -198,21 +216,6 @@ def _room(indices: np.ndarray, spare: float) -> np.ndarray:
     out = np.zeros(int(indices.size * spare) + 1, dtype=np.int64)
     out[: indices.size] = indices
     return out
-
-
-def repivot_arrays(a_ptr, a_row, g_val, m_val, port_pos, l_ptr, l_row, u_ptr, u_row, row_to,
-                   col_of, port_p, port_n, values, a0, extra_row, extra_col, extra_pos,
-                   extra_val) -> int:  # fmt: skip
-    """:func:`repivot` on a SparseLU's arrays (what compiled code can hand over); 2 when the
-    matrix is singular."""
-    empty = np.zeros(0)
-    lu = SparseLU(a_ptr, a_row, empty, g_val, m_val, port_pos, l_ptr, l_row, empty, u_ptr,
-                  u_row, empty, row_to, col_of, empty, 0.0, extra_row, extra_col,
-                  extra_pos)  # fmt: skip
-    try:
-        return repivot(lu, port_p, port_n, values, a0, extra_val)
-    except np.linalg.LinAlgError:
-        return 2
 
 
 def repivot(lu: SparseLU, port_p, port_n, values, a0, extra_val=None) -> int:
@@ -239,8 +242,11 @@ def repivot(lu: SparseLU, port_p, port_n, values, a0, extra_val=None) -> int:
     if used_l > lu.l_row.size or used_u > lu.u_row.size:
         return 1
     for name in ("a_ptr", "a_row", "g_val", "m_val", "port_pos", "l_ptr", "u_ptr", "row_to",
-                 "col_of", "extra_pos"):  # fmt: skip
+                 "col_of", "extra_pos", "entry_col", "factored"):  # fmt: skip
         getattr(lu, name)[...] = getattr(new, name)
+    # the same columns hold M and the extra entries in any order (sizes kept), not their places
+    lu.m_cols[...] = new.m_cols
+    lu.extra_cols[...] = new.extra_cols
     lu.l_row[:used_l] = new.l_row[:used_l]
     lu.u_row[:used_u] = new.u_row[:used_u]
     return 0
@@ -261,14 +267,64 @@ def assemble(a_val, g_val, m_val, a0, port_pos, gd, g_sw_present):
                 a_val[pos] += g if slot < 2 else -g
 
 
+# mark_changed's answers
+UNCHANGED, SOME_COLUMNS, ALL_COLUMNS = 0, 1, 2
+
+
+@njit(cache=True, inline="always")
+def mark_changed(entry_col, port_pos, m_cols, extra_cols, factored, dirty, gd, g_sw_present,
+                 a0) -> int:  # fmt: skip
+    """Mark in ``dirty`` the columns of P whose entries can differ from those the present
+    factors were made from, and record the values about to be factored in ``factored``:
+    UNCHANGED (the factors hold), SOME_COLUMNS, or ALL_COLUMNS (no valid factors). Exact
+    comparisons: a conductance or a0 equal bit for bit stamps the same entries."""
+    nports = factored.size - 1
+    md = gd.size
+    every = np.isnan(factored[nports])
+    marked = extra_cols.size > 0  # the multi-terminal devices' entries: at every iteration
+    for c in extra_cols:
+        dirty[c] = True
+    if a0 != factored[nports]:
+        factored[nports] = a0
+        marked = marked or m_cols.size > 0
+        for c in m_cols:
+            dirty[c] = True
+    for k in range(nports):
+        g = gd[k] if k < md else g_sw_present[k - md]
+        if g != factored[k]:  # also when factored[k] is NaN
+            factored[k] = g
+            for slot in range(4):
+                pos = port_pos[k, slot]
+                if pos >= 0:
+                    dirty[entry_col[pos]] = True
+                    marked = True
+    if every:
+        return ALL_COLUMNS
+    return SOME_COLUMNS if marked else UNCHANGED
+
+
 @njit(cache=True)
-def refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work) -> int:
+def refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work, dirty,
+             every) -> int:  # fmt: skip
     """Left-looking LU of P (compressed columns) on the fixed pattern: -1 when done, else the
     column whose pivot is below PIVOT_THRESHOLD of its column (a new pivot order is due).
-    U's diagonal is stored inverted (the solves multiply by it)."""
+    U's diagonal is stored inverted (the solves multiply by it). Unless ``every``, only the
+    columns marked in ``dirty`` and those whose U column reaches a redone one are computed
+    (the others keep their factors, which depend on nothing redone); ``dirty`` is cleared."""
     n = a_ptr.size - 1
     limit = 1.0 / PIVOT_THRESHOLD
+    column = -1
     for j in range(n):
+        if not every and not dirty[j]:
+            last = u_ptr[j + 1] - 1
+            reached = False
+            for e in range(u_ptr[j], last):
+                if dirty[u_row[e]]:
+                    reached = True
+                    break
+            if not reached:
+                continue
+            dirty[j] = True
         for e in range(a_ptr[j], a_ptr[j + 1]):
             work[a_row[e]] = a_val[e]
         last = u_ptr[j + 1] - 1  # the diagonal
@@ -292,8 +348,11 @@ def refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work
             largest = max(largest, abs(value))
             work[i] = 0.0
         if pivot == 0.0 or not largest <= limit:
-            return j
-    return -1
+            column = j
+            break
+    for j in range(n):
+        dirty[j] = False
+    return column
 
 
 @njit(cache=True)

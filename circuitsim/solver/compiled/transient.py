@@ -30,7 +30,6 @@ from circuitsim.solver.compiled.newton import (
     BI,
     COUNT,
     FACTOR_A0,
-    FACTORIZATIONS,
     FIRST,
     IN_ITERATION,
     LAST_A0,
@@ -329,7 +328,6 @@ def run(plan, st, t_until, mid):
                 fs[REPIVOT_A0] = a0
                 return REPIVOT
             si[NEWTON] += iterations
-            si[FACTORIZATIONS] += iterations
             if outcome != CONVERGED:
                 si[REJECTED] += 1
                 fail_x[:] = x_new
