@@ -141,7 +141,11 @@ def ngspice_run(netlist: Path) -> dict:
         waves = parse_rawfile(raw.read_bytes())
     counts = {
         key: int(float(m.group(1)))
-        for key, label in (("steps", "Accepted timepoints"), ("newton", "Transient iterations"))
+        for key, label in (
+            ("steps", "Accepted timepoints"),
+            ("rejected", "Rejected timepoints"),
+            ("newton", "Transient iterations"),
+        )  # fmt: skip
         if (m := re.search(label + r"\s*=\s*([0-9.eE+-]+)", done.stdout))
     }
     return {"solve_s": float(found.group(1)), "process_s": process, "cpu_s": cpu, "waves": waves,
@@ -165,6 +169,7 @@ def ours_in_process(case: dict) -> dict:
         "waves": waves,
         "kernel": stats.get("kernel"),
         "steps": stats.get("accepted"),
+        "rejected": stats.get("rejected"),
         "newton": stats.get("newton_iterations"),
         "factorizations": stats.get("factorizations"),
         "unknowns": stats.get("unknowns"),
@@ -222,6 +227,8 @@ def measure(case: dict, log) -> dict:
         ours_error=ours.get("error") or process["error"],
         kernel=ours.get("kernel"),
         steps=ours.get("steps"),
+        rejected=ours.get("rejected"),
+        ngspice_rejected=ngspice.get("rejected"),
         newton=ours.get("newton"),
         ngspice_steps=ngspice.get("steps"),
         ngspice_newton=ngspice.get("newton"),
@@ -310,7 +317,8 @@ def report(data: dict) -> str:
     """The scaling table and the growth exponents."""
     headers = [
         "case", "op-amps", "unknowns", "diodes", "kernel", "factorizations", "steps ours",
-        "steps ngspice", "Newton it. ours", "Newton it. ngspice",
+        "steps ngspice", "rejected ours", "rejected ngspice", "Newton it. ours",
+        "Newton it. ngspice",
         "ours (s)", "ngspice (s)", "ratio", "ours process (s)", "ngspice process (s)",
         "ratio (process)", "ours CPU (s)", "ngspice CPU (s)", "ratio (CPU)", "%NRMSD ours",
         "%NRMSD ngspice", "failure",
@@ -321,7 +329,8 @@ def report(data: dict) -> str:
         rows.append(
             [
                 r["label"], r["opamp"], r.get("unknowns"), elements.get("D"), r.get("kernel"),
-                r.get("factorizations"), r.get("steps"), r.get("ngspice_steps"), r.get("newton"),
+                r.get("factorizations"), r.get("steps"), r.get("ngspice_steps"), r.get("rejected"),
+                r.get("ngspice_rejected"), r.get("newton"),
                 r.get("ngspice_newton"), r.get("ours_s"), r.get("ngspice_s"), r.get("ratio"),
                 r.get("ours_process_s"), r.get("ngspice_process_s"), r.get("ratio_process"),
                 r.get("ours_cpu_s"), r.get("ngspice_cpu_s"), r.get("ratio_cpu"),
