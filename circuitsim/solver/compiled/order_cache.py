@@ -46,8 +46,10 @@ class EarlierOrders:
             assemble(lu.a_val, lu.g_val, lu.m_val, a0, lu.port_pos, st.gd, g_switch)
             if plan.terms.kind.size:
                 stamp_terminals(plan.terms, st.terms, lu.extra_pos, lu.a_val)
+            # whole (its factors are of another matrix); lu.factored stays NaN, set when the
+            # order was given up, so the kernel's next refactor is whole too
             if refactor(lu.a_ptr, lu.a_row, lu.a_val, lu.l_ptr, lu.l_row, lu.l_val, lu.u_ptr,
-                        lu.u_row, lu.u_val, lu.work) < 0:  # fmt: skip
+                        lu.u_row, lu.u_val, lu.work, lu.dirty, True) < 0:  # fmt: skip
                 self.reused += 1
                 return self.kept.pop(index)
         return None
