@@ -31,8 +31,8 @@ _PIVOT = "                            p_ = k"  # the elimination's first line, a
 ABLATIONS = {
     "junction charges (depletion + diffusion, per iteration)": [
         (
-            "                        if has_charge and charged[k]:\n",
-            "                        if False:\n",
+            "charged_k = has_charge and charged[k]\n",
+            "charged_k = False\n",
         )
     ],
     "truncation error (CKTterr over all charges, per step)": [

@@ -32,9 +32,9 @@ from circuitsim.solver.compiled import newton as nw
 from circuitsim.solver.compiled import plan as kp
 from circuitsim.solver.compiled import run_compiled
 from circuitsim.solver.compiled import transient as tr
-from circuitsim.solver.compiled.devices import junction_charge, junction_current
 from circuitsim.solver.compiled.sparse_lu import analyse, assemble, lu_solve, refactor
 from circuitsim.solver.dc import operating_point_solution
+from circuitsim.solver.devices.diode_kernel import linearize_junction
 from circuitsim.solver.engine import build_system
 from circuitsim.solver.threads import single_threaded_blas
 from circuitsim.synthesis.options import SynthesisOptions
@@ -66,34 +66,16 @@ def _time_sources(plan, t, k):
 
 @njit
 def _time_junctions(plan, st, x, a0, k):
-    """Junction evaluation as newton() does it, one junction at a time."""
+    """Junction evaluation as the loops do it (linearize_junction), one junction at a time."""
     x_ext = np.empty(x.size + 1)
     nw.extend(x, x_ext)
     total = 0.0
     for _ in range(k):
         for j in range(plan.jp.shape[0]):
             v = x_ext[plan.port_p[j]] - x_ext[plan.port_n[j]]
-            jp, cp = plan.jp, plan.cp
-            cd, gd = junction_current(
-                v, jp[j, 0], jp[j, 2], jp[j, 3], jp[j, 4], jp[j, 5], jp[j, 6], jp[j, 7]
+            _, _, cd, gd, _, _ = linearize_junction(
+                plan.jp, plan.cp, j, v, v, plan.has_charge and plan.charged[j], a0, 0.0
             )
-            if plan.has_charge:
-                q, c = junction_charge(
-                    v,
-                    cd,
-                    gd,
-                    cp[j, 0],
-                    cp[j, 1],
-                    cp[j, 2],
-                    cp[j, 3],
-                    cp[j, 4],
-                    cp[j, 5],
-                    cp[j, 6],
-                    cp[j, 7],
-                    cp[j, 8],
-                )
-                cd += a0 * q
-                gd += a0 * c
             total += cd - gd * v
     return total
 

@@ -9,8 +9,9 @@ This package only re-exports. Where things are:
   on the whole matrix, refactored sparse at every iteration on a fixed pivot order);
 - port_loop.py + ports.py + port_state.py + lowrank.py: the ports kernel (Newton on the
   junction voltages, one factorization updated at low rank);
-- newton.py (shared state slots, the ports kernel's factorization), devices.py (the device
-  equations both loops inline), plan.py (the arrays they run on);
+- newton.py (the ports kernel's factorization and refactor rule), slots.py (the named slots of
+  the run's constants and the loops' state), plan.py (the arrays they run on); the device
+  equations both loops inline are the families' kernel twins, solver/devices/*_kernel.py;
 - cache.py: where numba keeps the machine code (a user cache directory), stale-code removal,
   whether a run must compile first (announced by a KernelCompileWarning);
 - failures.py: the loops' return codes as the engine's typed errors;

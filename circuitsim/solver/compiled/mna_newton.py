@@ -16,7 +16,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from circuitsim.solver.compiled.devices import junction_charge, junction_current, pnjlim
 from circuitsim.solver.compiled.mna_terminals import (
     load_terminals,
     stamp_terminals,
@@ -24,6 +23,7 @@ from circuitsim.solver.compiled.mna_terminals import (
     terminals_converged,
 )
 from circuitsim.solver.compiled.newton import FACTORIZATIONS, RESUME_NONCON
+from circuitsim.solver.compiled.slots import ABSTOL, ITL4, PIVOT_ORDERS, RELTOL
 from circuitsim.solver.compiled.sparse_lu import (
     ALL_COLUMNS,
     UNCHANGED,
@@ -32,8 +32,16 @@ from circuitsim.solver.compiled.sparse_lu import (
     mark_changed,
     refactor,
 )
-
-PIVOT_ORDERS = 14  # KernelState.ints: pivot orders made during the run (after the first)
+from circuitsim.solver.devices.diode_kernel import linearize_junction
+from circuitsim.solver.devices.switch_kernel import (
+    CONTROL_NEGATIVE,
+    CONTROL_POSITIVE,
+    G_OFF,
+    G_ON,
+    OFF_BELOW,
+    ON_ABOVE,
+    next_state,
+)
 
 # mna_newton's outcomes besides converged (True) / not converged (False): the pivot order no
 # longer suits the matrix (the loop returns to Python, which analyses it again); a pivot
@@ -51,8 +59,8 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume):
     resume : 0, or the iteration that returned REORDER (re-entered on the new pivot order,
         with its linearization, x_new, q and qdot as it left them).
     """
-    reltol, abstol = plan.real[0], plan.real[1]
-    itl4 = plan.ints[2]
+    reltol, abstol = plan.real[RELTOL], plan.real[ABSTOL]
+    itl4 = plan.ints[ITL4]
     jp, cp, jslot, has_charge, charged = plan.jp, plan.cp, plan.jslot, plan.has_charge, plan.charged
     port_p, port_n, abs_tol = plan.port_p, plan.port_n, plan.abs_tol
     sw, approach, g_switch = plan.sw, plan.approach, plan.g_switch
@@ -100,39 +108,29 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume):
         first = iteration == 1
         noncon = st.ints[RESUME_NONCON] if iteration == resume else 0
         for k in range(ms if iteration != resume else 0):  # SwitchFamily.update_state
-            vc = x_ext[sw[k, 2]] - x_ext[sw[k, 3]]
+            control = x_ext[sw[k, CONTROL_POSITIVE]] - x_ext[sw[k, CONTROL_NEGATIVE]]
             keep = accepted[k] if first else state[k]
-            new = (keep or vc > approach[k, 0]) and vc >= approach[k, 1]
+            new = next_state(control, keep, approach[k, ON_ABOVE], approach[k, OFF_BELOW])
             if new != state[k]:
                 state[k] = new
                 noncon += 1
-            g_sw[k] = g_switch[k, 0] if state[k] else g_switch[k, 1]
+            g_sw[k] = g_switch[k, G_ON] if state[k] else g_switch[k, G_OFF]
         for k in range(ms if iteration == resume else 0):
-            g_sw[k] = g_switch[k, 0] if state[k] else g_switch[k, 1]
+            g_sw[k] = g_switch[k, G_ON] if state[k] else g_switch[k, G_OFF]
         for k in range(md if iteration != resume else 0):  # the junctions, linearized at x
-            v = x_ext[port_p[k]] - x_ext[port_n[k]]
-            vold = vd_accepted[k] if first else vd[k]
-            vk = v
-            if abs(v - vold) > jp[k, 9]:
-                vk, was = pnjlim(v, vold, jp[k, 1], jp[k, 8])
-                if was:
-                    noncon += 1
-            ck, gk = junction_current(
-                vk, jp[k, 0], jp[k, 2], jp[k, 3], jp[k, 4], jp[k, 5], jp[k, 6], jp[k, 7]
-            )
-            if has_charge and charged[k]:  # else q = C = 0
-                qk, capk = junction_charge(
-                    vk, ck, gk, cp[k, 0], cp[k, 1], cp[k, 2], cp[k, 3], cp[k, 4], cp[k, 5],
-                    cp[k, 6], cp[k, 7], cp[k, 8],
-                )  # fmt: skip
-                slot = jslot[k]
-                icap = a0 * qk + hist[slot]
-                q[slot] = qk
-                qdot[slot] = icap
-                ck += icap
-                gk += a0 * capk
-            vd[k], cd[k], gd[k] = vk, ck, gk
-            ieq[k] = ck - gk * vk
+            charged_k = has_charge and charged[k]
+            slot = jslot[k]
+            v, limited, current, conductance, charge, charge_current = linearize_junction(
+                jp, cp, k, x_ext[port_p[k]] - x_ext[port_n[k]],
+                vd_accepted[k] if first else vd[k], charged_k, a0,
+                hist[slot] if charged_k else 0.0,
+            )  # fmt: skip
+            noncon += limited
+            if charged_k:
+                q[slot] = charge
+                qdot[slot] = charge_current
+            vd[k], cd[k], gd[k] = v, current, conductance
+            ieq[k] = current - conductance * v
         if terminals and iteration != resume:
             noncon += load_terminals(tp, ts, x_ext, a0, hist, q, qdot)
         assemble(a_val, g_val, m_val, a0, port_pos, gd, g_sw)

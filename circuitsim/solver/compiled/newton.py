@@ -1,6 +1,7 @@
 """The compiled loops' shared state indices and the ports kernel's factorization.
 
-The state slots (``fs`` floats, ``ints`` counters) both loops use; ``factor_now``, the ports
+The state slots (``fs`` floats, ``ints`` counters) both loops use (named in slots.py, imported
+here for both loops); ``factor_now``, the ports
 kernel's refactor at the present port values (dense, lowrank.rebuild; above SPARSE_FROM
 unknowns the loop returns FACTOR and the runner factors with SuperLU, then the loop goes on
 where it stopped); the rule that asks for a refactor when many junctions stay active. The MNA
@@ -14,24 +15,35 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from circuitsim.solver.compiled.devices import junction_charge, junction_current
 from circuitsim.solver.compiled.lowrank import rebuild
+from circuitsim.solver.compiled.slots import (  # noqa: F401 (importable from here too)
+    ACCEPTED,
+    AFTER_REFACTOR,
+    AT_BREAK,
+    ATTEMPTS,
+    BI,
+    COUNT,
+    FACTORIZATIONS,
+    FIRST,
+    JUNCTION_VERSION,
+    LAST_A0,
+    MEASURED_VERSION,
+    NEWTON,
+    NHIST,
+    ORDER,
+    PAUSE_ATTEMPTS,
+    REJECTED,
+    SAME_A0,
+    SAVED_H,
+    VERSION,
+    H,
+    T,
+)
+from circuitsim.solver.devices.diode_kernel import linearize_junction
 
 # a junction current change that moves no unknown by more than this fraction of its absolute
 # tolerance (vntol, abstol) is not applied until it grows (port_loop.py, ports.all_unknowns)
 JUNCTION_NEGLIGIBLE = 1e-9
-
-# indices into KernelState.fs (floats) and .ints
-T, H, SAVED_H, LAST_A0 = 0, 1, 2, 3
-ORDER, AT_BREAK, FIRST, BI, ATTEMPTS, ACCEPTED, REJECTED, NEWTON, FACTORIZATIONS = range(9)
-NHIST, COUNT, SAME_A0, VERSION, JUNCTION_VERSION = 9, 10, 11, 12, 13
-# slot 14: mna_newton.PIVOT_ORDERS (the MNA loop's)
-# the loop returns PAUSED once this many steps were attempted, so that the caller can check
-# its wall-time limit and Ctrl-C (both loops; slots 15-17 are port_state.py's)
-PAUSE_ATTEMPTS = 18
-# (both loops) active junctions the last refactor made during the run left, and that
-# refactor's VERSION (see rebase_wanted)
-AFTER_REFACTOR, MEASURED_VERSION = 19, 20
 
 # When to refactor at the present conductances because many junctions stay active (both
 # compiled loops). A factorization made at a solution leaves active only the junctions whose
@@ -160,13 +172,8 @@ def junction_charges(vd, a0, hist, jp, cp, jslot, has_charge, charged, q, qdot):
     after its linearization needs."""
     for k in range(vd.size):
         if has_charge and charged[k]:
-            ck, gk = junction_current(
-                vd[k], jp[k, 0], jp[k, 2], jp[k, 3], jp[k, 4], jp[k, 5], jp[k, 6], jp[k, 7]
-            )
-            qk, _ = junction_charge(
-                vd[k], ck, gk, cp[k, 0], cp[k, 1], cp[k, 2], cp[k, 3], cp[k, 4], cp[k, 5],
-                cp[k, 6], cp[k, 7], cp[k, 8],
-            )  # fmt: skip
             slot = jslot[k]
-            q[slot] = qk
-            qdot[slot] = a0 * qk + hist[slot]
+            # at v_old = v nothing is limited: the iteration's own charge, recomputed
+            _, _, _, _, q[slot], qdot[slot] = linearize_junction(
+                jp, cp, k, vd[k], vd[k], True, a0, hist[slot]
+            )

@@ -1,8 +1,10 @@
 """The arrays the compiled kernel runs on, gathered from an assembled MnaSystem.
 
-Nothing here imports numba: the plan is plain numpy, built from the system's matrices and
-from each device family's :meth:`~circuitsim.solver.devices.base.DeviceFamily.kernel_data`
-(the families describe themselves; the plan never asks which class a family is).
+The plan is plain numpy, built from the system's matrices and from each device family's
+:meth:`~circuitsim.solver.devices.base.DeviceFamily.kernel_data` (the families describe
+themselves; the plan never asks which class a family is). The columns of the device parameter
+matrices are named in the families' kernel twins (devices/diode_kernel.py, switch_kernel.py,
+source_kernel.py), the slots of ``real``, ``ints`` and the loops' state in slots.py.
 """
 
 from __future__ import annotations
@@ -12,44 +14,16 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
+from circuitsim.solver.compiled import slots
 from circuitsim.solver.compiled.terminal_plan import (
     TerminalPlan,
     TerminalState,
     terminal_plan,
     terminal_state,
 )
+from circuitsim.solver.devices import diode_kernel, source_kernel, switch_kernel
 from circuitsim.solver.integration import METHODS
 from circuitsim.solver.system import MnaSystem
-
-# columns of KernelPlan.jp (junction parameters), in DiodeFamily.kernel_data's order
-JUNCTION_PARAMS = (
-    "isat",
-    "vte",
-    "inv_vte",
-    "is_over_vte",
-    "reverse_knee",
-    "cubic_scale",
-    "three_vte",
-    "gmin",
-    "vcrit",
-    "free_step",
-)
-CHARGE_PARAMS = (
-    "knee",
-    "inv_vj",
-    "neg_m",
-    "q_scale",
-    "ext_offset",
-    "ext_quadratic",
-    "ext_slope",
-    "cjo",
-    "tt",
-)
-
-
-# size of the loops' integer state (KernelState.ints, PortState.ints): compiled/newton.py's
-# slots and port_state.py's
-INT_SLOTS = 21
 
 
 class KernelPlan(NamedTuple):
@@ -68,17 +42,17 @@ class KernelPlan(NamedTuple):
     UT_val: np.ndarray
     port_p: np.ndarray  # (md + ms,) node of each port's + side (-1 ground)
     port_n: np.ndarray  # (md + ms,)
-    jp: np.ndarray  # (md, 10) JUNCTION_PARAMS
-    cp: np.ndarray  # (md, 9) CHARGE_PARAMS
+    jp: np.ndarray  # (md, JUNCTION_COLUMNS) junction parameters (diode_kernel.ISAT, ...)
+    cp: np.ndarray  # (md, CHARGE_COLUMNS) charge parameters (diode_kernel.KNEE, ...)
     jslot: np.ndarray  # (md,) charge slot of each junction
     has_charge: bool
     charged: np.ndarray  # (md,) bool: the junction has CJO or TT (else q = C = 0 exactly)
-    sw: np.ndarray  # (ms, 4) p, n, control +, control - nodes
-    approach: np.ndarray  # (ms, 4) on_above, off_below (V), approach fraction, floor (V)
-    g_switch: np.ndarray  # (ms, 2) on, off conductance (S)
+    sw: np.ndarray  # (ms, 4) nodes: switch_kernel.POSITIVE, ..., CONTROL_NEGATIVE
+    approach: np.ndarray  # (ms, 4) switch_kernel.ON_ABOVE, OFF_BELOW, FRACTION, FLOOR
+    g_switch: np.ndarray  # (ms, 2) switch_kernel.G_ON, G_OFF (S)
     rhs_const: np.ndarray  # (n,) right-hand side of the constant (DC-only) sources
-    src_kind: np.ndarray  # (ns,) 1 SIN, 2 PULSE, 3 PWL (time-dependent sources only)
-    src_par: np.ndarray  # (ns, 8)
+    src_kind: np.ndarray  # (ns,) source_kernel.SIN, PULSE, PWL (time-dependent sources only)
+    src_par: np.ndarray  # (ns, PARAM_COLUMNS) source_kernel.OFFSET, ... / INITIAL, ...
     src_dc: np.ndarray  # (ns,)
     pwl_start: np.ndarray  # (ns + 1,) offsets into pwl_t / pwl_v
     pwl_t: np.ndarray
@@ -89,8 +63,8 @@ class KernelPlan(NamedTuple):
     lin_slots: np.ndarray  # (nl,) charge slots of the linear charges
     abs_tol: np.ndarray  # (n,) vntol or abstol per unknown
     breaks: np.ndarray  # sorted breakpoints, seconds, ending with tstop
-    real: np.ndarray  # reltol abstol vntol chgtol trtol err1 err2 fixed tmax min_step tstop
-    ints: np.ndarray  # method (0 trap, 1 gear), maxord, itl4, max_steps
+    real: np.ndarray  # (REAL_SLOTS,) slots.RELTOL, ..., TSTOP
+    ints: np.ndarray  # (PLAN_INT_SLOTS,) slots.METHOD, MAXORD, ITL4, MAX_STEPS, UIC
     terms: TerminalPlan  # JFETs, BJTs, nonlinear POLY sources (MNA kernel only)
 
 
@@ -146,11 +120,10 @@ def empty_factors(n: int, r: int, md: int, nl: int, ns: int, dense: bool = True)
 
 
 class KernelState(NamedTuple):
-    """Everything the MNA loop (compiled/transient.py) changes, kept between calls (see
-    compiled/newton.py indices)."""
+    """Everything the MNA loop (compiled/transient.py) changes, kept between calls."""
 
-    fs: np.ndarray  # (5,) t, h, saved h, last a0, the a0 of a pivot order that failed
-    ints: np.ndarray
+    fs: np.ndarray  # (FLOAT_SLOTS,) slots.T, H, SAVED_H, LAST_A0, REPIVOT_A0
+    ints: np.ndarray  # (INT_SLOTS,) slots.ORDER, ...
     ht: np.ndarray  # (4,) accepted times, newest first
     hx: np.ndarray  # (4, n) solutions there
     hq: np.ndarray  # (4, nq) charges
@@ -233,7 +206,7 @@ def build_plan(
 ) -> tuple[KernelPlan, dict]:
     """The plan, and the families' present states (for the kernel's initial state).
 
-    ``uic``: the run starts from initial conditions, not a solution (``ints[4]``: the first
+    ``uic``: the run starts from initial conditions, not a solution (``ints[UIC]``: the first
     step then locates no switch transition: solver/transient.py, run_transient).
     """
     options = system.options
@@ -247,10 +220,10 @@ def build_plan(
         arrays = [np.asarray(p[key], dtype=dtype) for p in items]
         return np.concatenate(arrays) if arrays else np.zeros(shape, dtype=dtype)
 
-    jp = cat(junctions, "params", (0, len(JUNCTION_PARAMS)))
+    jp = cat(junctions, "params", (0, diode_kernel.JUNCTION_COLUMNS))
     md = jp.shape[0]
     has_charge = any(p["charge"] is not None for p in junctions)
-    cp = np.zeros((md, len(CHARGE_PARAMS)))
+    cp = np.zeros((md, diode_kernel.CHARGE_COLUMNS))
     jslot = np.zeros(md, dtype=np.int64)
     start = 0
     for p in junctions:
@@ -259,7 +232,7 @@ def build_plan(
             cp[start : start + m] = p["charge"]
             jslot[start : start + m] = p["slots"]
         start += m
-    sw = cat(switches, "nodes", (0, 4), np.int64)
+    sw = cat(switches, "nodes", (0, switch_kernel.NODE_COLUMNS), np.int64)
     ms = sw.shape[0]
     port_p = np.concatenate([cat(junctions, "p", (0,), np.int64), sw[:, 0]])
     port_n = np.concatenate([cat(junctions, "n", (0,), np.int64), sw[:, 1]])
@@ -281,11 +254,11 @@ def build_plan(
         kind, par, dc, tables = p["values"].kernel_arrays()
         p_rows = np.asarray(p["rows"], dtype=np.int64)
         p_signs = np.asarray(p["signs"], dtype=float)
-        for j in np.flatnonzero(kind == 0):  # constant: folded in once
+        for j in np.flatnonzero(kind == source_kernel.DC):  # constant: folded in once
             for row, sign in zip(p_rows[j], p_signs[j], strict=True):
                 if row >= 0:
                     rhs_const[row] += sign * dc[j]
-        varying = np.flatnonzero(kind != 0)
+        varying = np.flatnonzero(kind != source_kernel.DC)
         kinds.append(kind[varying])
         pars.append(par[varying])
         dcs.append(dc[varying])
@@ -294,7 +267,23 @@ def build_plan(
         signs.append(p_signs[varying])
     ns = sum(k.size for k in kinds)
     pwl_start = np.concatenate([[0], np.cumsum([t.shape[1] for t in pwl])]).astype(np.int64)
-    method = METHODS[options.method]
+    real = np.zeros(slots.REAL_SLOTS)
+    real[slots.RELTOL] = options.reltol
+    real[slots.ABSTOL] = options.abstol
+    real[slots.VNTOL] = options.vntol
+    real[slots.CHGTOL] = options.chgtol
+    real[slots.TRTOL] = options.trtol
+    real[slots.ERROR_ORDER1], real[slots.ERROR_ORDER2] = METHODS[options.method].error_constants
+    real[slots.FIXED_STEP] = options.fixed_step or 0.0
+    real[slots.MAX_STEP] = max_step
+    real[slots.MIN_STEP] = min_step
+    real[slots.TSTOP] = tstop
+    ints = np.zeros(slots.PLAN_INT_SLOTS, dtype=np.int64)
+    ints[slots.METHOD] = slots.TRAP if options.method == "trap" else slots.GEAR
+    ints[slots.MAXORD] = options.maxord
+    ints[slots.ITL4] = options.itl4
+    ints[slots.MAX_STEPS] = options.max_steps
+    ints[slots.UIC] = int(uic)
     plan = KernelPlan(
         G=_dense(system.G),
         M=_dense(system.M),
@@ -308,13 +297,15 @@ def build_plan(
         cp=cp,
         jslot=jslot,
         has_charge=has_charge,
-        charged=(cp[:, CHARGE_PARAMS.index("cjo")] != 0) | (cp[:, CHARGE_PARAMS.index("tt")] != 0),
+        charged=(cp[:, diode_kernel.CJO] != 0) | (cp[:, diode_kernel.TT] != 0),
         sw=np.ascontiguousarray(sw),
-        approach=np.ascontiguousarray(cat(switches, "approach", (0, 4))),
+        approach=np.ascontiguousarray(
+            cat(switches, "approach", (0, switch_kernel.APPROACH_COLUMNS))
+        ),
         g_switch=np.ascontiguousarray(cat(switches, "g", (0, 2))),
         rhs_const=rhs_const,
         src_kind=np.concatenate(kinds) if kinds else np.zeros(0, dtype=np.int64),
-        src_par=np.concatenate(pars) if pars else np.zeros((0, 8)),
+        src_par=np.concatenate(pars) if pars else np.zeros((0, source_kernel.PARAM_COLUMNS)),
         src_dc=np.concatenate(dcs) if dcs else np.zeros(0),
         pwl_start=pwl_start,
         pwl_t=np.concatenate([t[0] for t in pwl]) if pwl else np.zeros(0),
@@ -325,30 +316,8 @@ def build_plan(
         lin_slots=lin,
         abs_tol=np.asarray(system.abs_tol, dtype=float),
         breaks=np.asarray(breaks, dtype=float),
-        real=np.array(
-            [
-                options.reltol,
-                options.abstol,
-                options.vntol,
-                options.chgtol,
-                options.trtol,
-                *method.error_constants,
-                options.fixed_step or 0.0,
-                max_step,
-                min_step,
-                tstop,
-            ]
-        ),
-        ints=np.array(
-            [
-                0 if options.method == "trap" else 1,
-                options.maxord,
-                options.itl4,
-                options.max_steps,
-                int(uic),
-            ],
-            dtype=np.int64,
-        ),
+        real=real,
+        ints=ints,
         terms=terminal_plan(parts),
     )
     assert ns == plan.src_kind.size
@@ -377,18 +346,25 @@ def device_states(families: dict) -> dict:
     }
 
 
-def start_counters(size: int) -> np.ndarray:
-    """The loop's integer state at t = 0 (compiled/newton.py indices): order 1, at a
-    breakpoint, first step, one history point, one output point, no junction response yet."""
-    ints = np.zeros(size, dtype=np.int64)
-    ints[0] = 1  # order
-    ints[1] = 1  # at a breakpoint (t = 0)
-    ints[2] = 1  # first step
-    ints[9] = 1  # one history point
-    ints[10] = 1  # one output point (t = 0)
-    ints[13] = -1
-    ints[18] = np.iinfo(np.int64).max  # PAUSE_ATTEMPTS: no pause until the caller sets one
-    ints[20] = 1  # newton.MEASURED_VERSION: the start's factorization is version 1
+def start_floats() -> np.ndarray:
+    """The loop's float state at t = 0 (slots.py): t = 0, h set by the runner, no a0 yet."""
+    fs = np.zeros(slots.FLOAT_SLOTS)
+    fs[slots.LAST_A0] = np.nan
+    return fs
+
+
+def start_counters() -> np.ndarray:
+    """The loop's integer state at t = 0 (slots.py): order 1, at a breakpoint, first step,
+    one history point, one output point, no junction response yet, no pause."""
+    ints = np.zeros(slots.INT_SLOTS, dtype=np.int64)
+    ints[slots.ORDER] = 1
+    ints[slots.AT_BREAK] = 1  # t = 0
+    ints[slots.FIRST] = 1
+    ints[slots.NHIST] = 1
+    ints[slots.COUNT] = 1  # the output row of t = 0
+    ints[slots.JUNCTION_VERSION] = -1
+    ints[slots.PAUSE_ATTEMPTS] = np.iinfo(np.int64).max  # until the caller sets one
+    ints[slots.MEASURED_VERSION] = 1  # the start's factorization is version 1
     return ints
 
 
@@ -405,8 +381,8 @@ def initial_state(
     out_x = np.zeros((capacity, n))
     out_x[0] = x0
     return KernelState(
-        fs=np.array([0.0, 0.0, 0.0, np.nan, 0.0]),
-        ints=start_counters(INT_SLOTS),
+        fs=start_floats(),
+        ints=start_counters(),
         ht=np.zeros(4),
         hx=hx,
         hq=hq,

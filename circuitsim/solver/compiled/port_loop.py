@@ -17,15 +17,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from circuitsim.solver.compiled.devices import (
-    junction_charge,
-    junction_current,
-    pnjlim,
-    source_value,
-    switch_transition,
-    switch_truncate,
-    transition_retry,
-)
 from circuitsim.solver.compiled.lowrank import NEGLIGIBLE
 from circuitsim.solver.compiled.newton import (
     AFTER_REFACTOR,
@@ -60,18 +51,30 @@ from circuitsim.solver.compiled.newton import (
     resumed_step,
     wait_for_factor,
 )
-from circuitsim.solver.compiled.port_state import (
-    ACTIVE_STREAK,
-    CFG_A0,
-    CFG_COUNT,
-    CFG_STALE,
-    CFG_VERSION,
-)
 from circuitsim.solver.compiled.ports import (
     all_unknowns,
     configure,
     h_column,
     unknown,
+)
+from circuitsim.solver.compiled.slots import (
+    ABSTOL,
+    ACTIVE_STREAK,
+    CFG_A0,
+    CFG_COUNT,
+    CFG_STALE,
+    CFG_VERSION,
+    FIXED_STEP,
+    ITL4,
+    MAX_STEP,
+    MAX_STEPS,
+    MAXORD,
+    METHOD,
+    MIN_STEP,
+    RELTOL,
+    TSTOP,
+    UIC,
+    VNTOL,
 )
 from circuitsim.solver.compiled.transient import (
     FINISHED,
@@ -91,6 +94,13 @@ from circuitsim.solver.compiled.transient import (
     truncation_step,
     zero_charge_step,
 )
+from circuitsim.solver.devices.diode_kernel import linearize_junction
+from circuitsim.solver.devices.source_kernel import source_value
+from circuitsim.solver.devices.switch_kernel import (
+    switch_transition,
+    switch_truncate,
+    transition_retry,
+)
 
 
 @njit(cache=True, nogil=True)
@@ -98,8 +108,9 @@ def run(plan, st, t_until):
     """Integrate from st.fs[T] until t_until (or tstop); returns compiled/transient.py's
     status codes, or newton.FACTOR (then re-entered where it stopped, newton.RESUME_AT)."""
     real, ints = plan.real, plan.ints
-    method, maxord, max_steps = ints[0], ints[1], ints[3]
-    fixed, max_step, min_step, tstop = real[7], real[8], real[9], real[10]
+    method, maxord, max_steps = ints[METHOD], ints[MAXORD], ints[MAX_STEPS]
+    fixed, max_step = real[FIXED_STEP], real[MAX_STEP]
+    min_step, tstop = real[MIN_STEP], real[TSTOP]
     md, ms = plan.jp.shape[0], plan.sw.shape[0]
     nports = md + ms
     lin = plan.lin_slots
@@ -129,8 +140,8 @@ def run(plan, st, t_until):
     yJ = np.empty(fac.yc.size)
     j_applied = np.zeros(md)
     yj_version = -1
-    reltol, abstol, vntol = real[0], real[1], real[2]
-    itl4 = ints[2]
+    reltol, abstol, vntol = real[RELTOL], real[ABSTOL], real[VNTOL]
+    itl4 = ints[ITL4]
     jp, cp, jslot, has_charge, charged = plan.jp, plan.cp, plan.jslot, plan.has_charge, plan.charged
     g_switch = plan.g_switch
     linear = md == 0 and ms == 0
@@ -228,35 +239,21 @@ def run(plan, st, t_until):
                             state[k] = new
                             noncon += 1
                             si[CFG_STALE] = 1
-                    # DiodeFamily.port_load, as in newton.py: a shared inline helper taking the
-                    # parameter arrays measured 19-22 % slower per step (its reference counts)
-                    for k in range(md if resume == NOT_RESUMING else 0):
-                        v = pJ[k]
-                        vold = vd_accepted[k] if first else vd[k]
-                        vk = v
-                        if abs(v - vold) > jp[k, 9]:
-                            vk, was = pnjlim(v, vold, jp[k, 1], jp[k, 8])
-                            if was:
-                                noncon += 1
-                        ck, gk = junction_current(
-                            vk, jp[k, 0], jp[k, 2], jp[k, 3], jp[k, 4], jp[k, 5], jp[k, 6], jp[k, 7]
-                        )
-                        # a junction without CJO and TT has no charge: its q, C and charge
-                        # current are exactly 0 (the op-amp macromodel's clamp diodes, 52 of
-                        # the TL074 wheelset's 56 junctions; 17 % of its step)
-                        if has_charge and charged[k]:
-                            qk, capk = junction_charge(
-                                vk, ck, gk, cp[k, 0], cp[k, 1], cp[k, 2], cp[k, 3], cp[k, 4],
-                                cp[k, 5], cp[k, 6], cp[k, 7], cp[k, 8],
-                            )  # fmt: skip
-                            slot = jslot[k]
-                            icap = a0 * qk + hist[slot]
-                            q[slot] = qk
-                            qdot[slot] = icap
-                            ck += icap
-                            gk += a0 * capk
-                        vd[k], cd[k], gd[k] = vk, ck, gk
-                        ieq[k] = ck - gk * vk
+                    for k in range(md if resume == NOT_RESUMING else 0):  # DiodeFamily.port_load
+                        charged_k = has_charge and charged[k]
+                        slot = jslot[k]
+                        v, limited, current, conductance, charge, charge_current = (
+                            linearize_junction(
+                                jp, cp, k, pJ[k], vd_accepted[k] if first else vd[k], charged_k,
+                                a0, hist[slot] if charged_k else 0.0,
+                            )
+                        )  # fmt: skip
+                        noncon += limited
+                        if charged_k:
+                            q[slot] = charge
+                            qdot[slot] = charge_current
+                        vd[k], cd[k], gd[k] = v, current, conductance
+                        ieq[k] = current - conductance * v
                     resume = NOT_RESUMING
                     solved = False
                     for again in range(first_again, 2):  # the second on a refactor here
@@ -476,7 +473,7 @@ def run(plan, st, t_until):
                 q[lin[k]] = qk
                 qdot[lin[k]] = a0 * qk + hist[lin[k]]
             transition = False
-            if fixed == 0 and ms and not (ints[4] and si[FIRST]):  # uic: solver/transient.py
+            if fixed == 0 and ms and not (ints[UIC] and si[FIRST]):  # uic: solver/transient.py
                 fraction = switch_transition(x_ext, x_prev_ext, sw, state, accepted, approach)
                 retry = transition_retry(fraction, h, ht[0] - ht[1] if nh > 1 else h, min_step)
                 if retry > 0:  # cut short of the crossing, then just past it (devices/switch.py)

@@ -7,28 +7,22 @@ from typing import NamedTuple
 import numpy as np
 
 from circuitsim.solver.compiled.plan import (
-    INT_SLOTS,
     KernelPlan,
     device_states,
     empty_factors,
     start_counters,
+    start_floats,
 )
+from circuitsim.solver.compiled.slots import CFG_A0, CFG_VERSION
 from circuitsim.solver.compiled.sparse_factors import SPARSE_FROM
-
-# extra slots beyond compiled/newton.py's indices
-CFG_A0 = 4  # fs: the a0 the configuration was made for
-CFG_VERSION = 14  # ints: the factorization version it was made from (-1: none)
-CFG_STALE = 15  # ints: 1 when a switch toggled since
-CFG_COUNT = 16  # ints: configurations made (H's columns are formed lazily for the present one)
-ACTIVE_STREAK = 17  # ints: accepted steps in a row that ended with many active junctions
 
 
 class PortState(NamedTuple):
     """Everything the ports kernel changes (shapes: md junctions, ms switches, rR = ms + nl
     eliminated ports, r = md + rR, nq charge slots, nrows recorded unknowns)."""
 
-    fs: np.ndarray  # (5,) t, h, saved h, last a0, configuration a0
-    ints: np.ndarray  # (INT_SLOTS,) counters and flags (compiled/newton.py indices, CFG_*, ...)
+    fs: np.ndarray  # (FLOAT_SLOTS,) slots.T, H, SAVED_H, LAST_A0, CFG_A0
+    ints: np.ndarray  # (INT_SLOTS,) counters and flags: slots.ORDER, ..., CFG_COUNT, ...
     ht: np.ndarray  # (4,) accepted times, newest first
     hq: np.ndarray  # (4, nq) charges there
     hi: np.ndarray  # (2, nq) their derivatives
@@ -96,11 +90,13 @@ def initial_port_state(
     rows = np.ascontiguousarray(rows, dtype=np.int64)
     out_x = np.zeros((capacity, rows.size))
     out_x[0] = x0[rows]
-    ints = start_counters(INT_SLOTS)
+    ints = start_counters()
     ints[CFG_VERSION] = -1
+    fs = start_floats()
+    fs[CFG_A0] = np.nan
     z = np.zeros
     return PortState(
-        fs=np.array([0.0, 0.0, 0.0, np.nan, np.nan]),
+        fs=fs,
         ints=ints,
         ht=z(4),
         hq=hq,

@@ -26,13 +26,13 @@ from circuitsim.solver.compiled.cache import (
 from circuitsim.solver.compiled.failures import failure, singular_row
 from circuitsim.solver.compiled.order_cache import EarlierOrders
 from circuitsim.solver.compiled.plan import (
-    CHARGE_PARAMS,
     KernelPlan,
     build_plan,
     device_states,
     initial_state,
     unsupported,
 )
+from circuitsim.solver.compiled.slots import CFG_COUNT, MAX_STEP, PIVOT_ORDERS, TSTOP
 from circuitsim.solver.compiled.sparse_factors import factor_sparse
 from circuitsim.solver.compiled.sparse_lu import (
     SparseLU,
@@ -41,6 +41,7 @@ from circuitsim.solver.compiled.sparse_lu import (
     repivot,
 )
 from circuitsim.solver.compiled.terminal_plan import entry_pattern, entry_values, terminal_state
+from circuitsim.solver.devices.diode_kernel import CJO, TT
 from circuitsim.solver.errors import (
     CircuitInputError,
     KernelCompileWarning,
@@ -91,8 +92,7 @@ def switching_junctions(system: MnaSystem) -> int:
         part = family.kernel_data()
         if part is not None and part["kind"] == "junctions" and part["charge"] is not None:
             charge = np.asarray(part["charge"], dtype=float)
-            cjo, tt = CHARGE_PARAMS.index("cjo"), CHARGE_PARAMS.index("tt")
-            count += int(np.count_nonzero((charge[:, cjo] != 0) | (charge[:, tt] != 0)))
+            count += int(np.count_nonzero((charge[:, CJO] != 0) | (charge[:, TT] != 0)))
     return count
 
 
@@ -350,7 +350,7 @@ def _factor(plan, st, a0: float) -> None:
 def _a0_start(start: PortsStart) -> float:
     """The step coefficient the first factorization is made at (the nominal step's)."""
     options = start.system.options
-    step = options.fixed_step or float(start.plan.real[8])
+    step = options.fixed_step or float(start.plan.real[MAX_STEP])
     return (2.0 if options.method == "trap" else 1.5) / step
 
 
@@ -386,7 +386,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     system, tstep = start.system, start.tstep
     options = system.options
     fixed = options.fixed_step
-    tstop, max_step = float(plan.real[10]), float(plan.real[8])
+    tstop, max_step = float(plan.real[TSTOP]), float(plan.real[MAX_STEP])
     capacity = int(min(max(2 * (tstop / (fixed or max_step)) + 100, 1000), 5_000_000))
     try:
         loop, st, mid = _loop_state(kind, start, plan, rows, capacity)
@@ -484,13 +484,9 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
         stats["newton_iterations"] += int(st.ints[nw.NEWTON])
         stats["kernel"] = kind
         if kind == "ports":  # eliminations of the switch and charge ports (new a0 or switch)
-            from circuitsim.solver.compiled.port_state import CFG_COUNT
-
             stats["configurations"] = int(st.ints[CFG_COUNT])
             stats["factor_returns"] = factored_in_python
         else:
-            from circuitsim.solver.compiled.mna_newton import PIVOT_ORDERS
-
             # orders made by SuperLU; "orders_reused": an earlier one taken again instead
             stats["pivot_orders"] = pivot_orders + int(st.ints[PIVOT_ORDERS]) - orders.reused
             stats["orders_reused"] = orders.reused

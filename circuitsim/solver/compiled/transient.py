@@ -14,12 +14,6 @@ import math
 import numpy as np
 from numba import njit
 
-from circuitsim.solver.compiled.devices import (
-    source_value,
-    switch_transition,
-    switch_truncate,
-    transition_retry,
-)
 from circuitsim.solver.compiled.lowrank import add_u_columns, csr_matvec
 from circuitsim.solver.compiled.mna_newton import CONVERGED, REORDER, mna_newton
 from circuitsim.solver.compiled.mna_newton import REPIVOT as NEWTON_REPIVOT
@@ -51,6 +45,30 @@ from circuitsim.solver.compiled.newton import (
     resumed_step,
     wait_for_factor,
 )
+from circuitsim.solver.compiled.slots import (
+    ABSTOL,
+    CHGTOL,
+    ERROR_ORDER1,
+    ERROR_ORDER2,
+    FIXED_STEP,
+    MAX_STEP,
+    MAX_STEPS,
+    MAXORD,
+    METHOD,
+    MIN_STEP,
+    RELTOL,
+    REPIVOT_A0,
+    TRAP,
+    TRTOL,
+    TSTOP,
+    UIC,
+)
+from circuitsim.solver.devices.source_kernel import source_value
+from circuitsim.solver.devices.switch_kernel import (
+    switch_transition,
+    switch_truncate,
+    transition_retry,
+)
 
 REBASE_STEPS = 8  # refactor when this many accepted steps in a row used one new a0
 # A Newton failure at an a0 this far from the factorization's is retried once on a
@@ -63,7 +81,6 @@ RETRY_RATIO = 16.0
 
 # return codes
 PAUSED, FINISHED, FULL, REPIVOT = 0, 1, 2, 3
-REPIVOT_A0 = 4  # fs: the a0 at which the pivot order failed
 NEWTON_FAILED_FIXED, STEP_TOO_SMALL, STEP_TOO_SMALL_LTE, TOO_MANY_STEPS = -1, -2, -3, -4
 
 
@@ -72,7 +89,7 @@ def coefficients(method, order, h, h_prev):
     """(a0, a1, a2, b1) of trap / Gear-2 (integration.Method.coefficients)."""
     if order == 1:
         return 1.0 / h, -1.0 / h, 0.0, 0.0
-    if method == 0:
+    if method == TRAP:
         return 2.0 / h, -2.0 / h, 0.0, -1.0
     a0 = (2 * h + h_prev) / (h * (h + h_prev))
     a1 = -(h + h_prev) / (h * h_prev)
@@ -108,8 +125,8 @@ def truncation_step(real, order, times, q_new, qdot_new, hq, hi, live):
     charges are exactly 0 (:func:`charge_slots`), and what they allow is
     :func:`zero_charge_step` (52 of the TL074 wheelset's 73 slots).
     """
-    reltol, abstol, chgtol, trtol = real[0], real[1], real[3], real[4]
-    factor = real[5] if order == 1 else real[6]
+    reltol, abstol, chgtol, trtol = real[RELTOL], real[ABSTOL], real[CHGTOL], real[TRTOL]
+    factor = real[ERROR_ORDER1] if order == 1 else real[ERROR_ORDER2]
     t0, t1, t2 = times[0], times[1], times[2]
     h = t0 - t1
     step = np.inf
@@ -138,8 +155,8 @@ def zero_charge_step(real, order, h):
     0, by the same operations (diff = 0, volttol = abstol): the minimum with it equals
     reading such slots, as the final scaling is monotonic. A separate call, not a branch in
     truncation_step's loop (that measured 9 % slower per step on the ideal wheelset)."""
-    reltol, abstol, chgtol, trtol = real[0], real[1], real[3], real[4]
-    factor = real[5] if order == 1 else real[6]
+    reltol, abstol, chgtol, trtol = real[RELTOL], real[ABSTOL], real[CHGTOL], real[TRTOL]
+    factor = real[ERROR_ORDER1] if order == 1 else real[ERROR_ORDER2]
     tol = max(abstol, max(0.0, chgtol) * (reltol / h))
     step = min(np.inf, tol / max(0.0 * factor, abstol)) * trtol
     return math.sqrt(step) if order == 2 else step
@@ -241,8 +258,9 @@ def run(plan, st, t_until, mid):
     newton.FACTOR: a pivot became too small; a new order at a0 = st.fs[FACTOR_A0] and the
     present state, then re-entered where it stopped (``mid``: a newton.MidStep)."""
     real, ints = plan.real, plan.ints
-    method, maxord, max_steps = ints[0], ints[1], ints[3]
-    fixed, max_step, min_step, tstop = real[7], real[8], real[9], real[10]
+    method, maxord, max_steps = ints[METHOD], ints[MAXORD], ints[MAX_STEPS]
+    fixed, max_step = real[FIXED_STEP], real[MAX_STEP]
+    min_step, tstop = real[MIN_STEP], real[TSTOP]
     md, ms = plan.jp.shape[0], plan.sw.shape[0]
     nports = md + ms
     lin = plan.lin_slots
@@ -351,7 +369,7 @@ def run(plan, st, t_until, mid):
                     qdot[lin[j]] = a0 * ql + hist[lin[j]]
             extend(x_new, x_ext)
             transition = False
-            if fixed == 0 and ms and not (ints[4] and si[FIRST]):  # uic: solver/transient.py
+            if fixed == 0 and ms and not (ints[UIC] and si[FIRST]):  # uic: solver/transient.py
                 fraction = switch_transition(x_ext, x_prev_ext, sw, state, accepted, approach)
                 retry = transition_retry(fraction, h, ht[0] - ht[1] if nh > 1 else h, min_step)
                 if retry > 0:  # cut short of the crossing, then just past it (devices/switch.py)

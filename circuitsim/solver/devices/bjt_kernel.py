@@ -16,7 +16,7 @@ import math
 
 from numba import njit
 
-from circuitsim.solver.compiled.devices import pnjlim
+from circuitsim.solver.devices.diode_kernel import pnjlim
 from circuitsim.solver.devices.junction_kernel import depletion_charge, junction_current
 
 # columns of the terminal plan's ``par`` for a BJT (BjtFamily.kernel_data's order)

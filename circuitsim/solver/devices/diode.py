@@ -4,6 +4,9 @@ Model parameters: IS, N, RS, CJO (alias CJ0), VJ, M, FC, TT; ``area`` scales IS,
 BV (reverse breakdown) is not modelled. Every junction has gmin in parallel. Newton steps of
 the junction voltage are limited with SPICE's ``pnjlim`` so Newton converges from any start;
 a limited iterate is never declared converged. The nominal temperature is 27 C.
+
+Kernel twin: diode_kernel.py, the same equations for one junction, compiled (numba) and
+inlined by the compiled loops (solver/compiled/); ``kernel_data`` hands them the parameters.
 """
 
 from __future__ import annotations
@@ -220,37 +223,34 @@ class DiodeFamily(DeviceFamily):
         return False
 
     def kernel_data(self) -> dict:
+        """The junctions as the compiled loops read them: parameter matrices whose columns are
+        named in the kernel twin, diode_kernel.py, whose linearize_junction evaluates them."""
         if self.options.bypass:
             return None  # the kernel evaluates every junction at every iteration
-        params = np.stack(
-            [
-                self.isat,
-                self.vte,
-                self.inv_vte,
-                self.is_over_vte,
-                self.reverse_knee,
-                self.cubic_scale,
-                self.three_vte,
-                np.full(self.isat.size, self.gmin),
-                self.vcrit,
-                self.free_step,
-            ],
-            axis=1,
-        )
-        charge = np.stack(
-            [
-                self.knee,
-                self.inv_vj,
-                self.neg_m,
-                self.q_scale,
-                self.ext_offset,
-                self.ext_quadratic,
-                self.ext_slope,
-                self.cjo,
-                self.tt,
-            ],
-            axis=1,
-        )
+        from circuitsim.solver.devices import diode_kernel as twin  # numba: compiled runs only
+
+        m = self.isat.size
+        params = np.empty((m, twin.JUNCTION_COLUMNS))
+        params[:, twin.ISAT] = self.isat
+        params[:, twin.VTE] = self.vte
+        params[:, twin.INV_VTE] = self.inv_vte
+        params[:, twin.IS_OVER_VTE] = self.is_over_vte
+        params[:, twin.REVERSE_KNEE] = self.reverse_knee
+        params[:, twin.CUBIC_SCALE] = self.cubic_scale
+        params[:, twin.THREE_VTE] = self.three_vte
+        params[:, twin.GMIN] = self.gmin
+        params[:, twin.VCRIT] = self.vcrit
+        params[:, twin.FREE_STEP] = self.free_step
+        charge = np.empty((m, twin.CHARGE_COLUMNS))
+        charge[:, twin.KNEE] = self.knee
+        charge[:, twin.INV_VJ] = self.inv_vj
+        charge[:, twin.NEG_M] = self.neg_m
+        charge[:, twin.Q_SCALE] = self.q_scale
+        charge[:, twin.EXT_OFFSET] = self.ext_offset
+        charge[:, twin.EXT_QUADRATIC] = self.ext_quadratic
+        charge[:, twin.EXT_SLOPE] = self.ext_slope
+        charge[:, twin.CJO] = self.cjo
+        charge[:, twin.TT] = self.tt
         return {
             "kind": "junctions",
             "p": self.junction,

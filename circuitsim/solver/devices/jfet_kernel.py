@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from circuitsim.solver.compiled.devices import pnjlim
+from circuitsim.solver.devices.diode_kernel import pnjlim
 from circuitsim.solver.devices.junction_kernel import depletion_charge, fetlim, junction_current
 
 # columns of the terminal plan's ``par`` for a JFET (JfetFamily.kernel_data's order)

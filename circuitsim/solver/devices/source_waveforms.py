@@ -5,6 +5,9 @@ or fall time of 0 means ``tstep``, its width and period default to ``tstop``; a 
 0 means ``1/tstop``. For a stand-alone ``.op`` a source uses its DC value when one was given
 (non-zero) and otherwise its waveform at t = 0; the operating point before ``.tran`` uses the
 waveform at t = 0.
+
+Kernel twin: source_kernel.py, one source's transient value, compiled (numba) for the compiled
+loops (solver/compiled/), which read the sources as ``kernel_arrays`` describes them.
 """
 
 from __future__ import annotations
@@ -97,48 +100,47 @@ class SourceValues:
         return out
 
     def kernel_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[np.ndarray]]:
-        """The sources as the compiled kernel reads them (solver/compiled/devices.py).
+        """The sources as the compiled loops read them: kinds and parameter columns named in
+        the kernel twin, source_kernel.py, whose source_value computes the values.
 
         Returns
         -------
         kind : ndarray of int, shape (m,)
-            0 DC, 1 SIN, 2 PULSE, 3 PWL.
-        par : ndarray, shape (m, 8)
+            source_kernel.DC, SIN, PULSE or PWL.
+        par : ndarray, shape (m, source_kernel.PARAM_COLUMNS)
             SIN: offset, amplitude, angular frequency (rad/s), delay (s), damping (1/s),
             phase (rad). PULSE: initial, pulsed, delay, rise, fall, width, period (s).
         dc : ndarray, shape (m,)
         pwl : list of ndarray, shape (2, k) each
             (times, values) of each source, empty for non-PWL sources.
         """
+        from circuitsim.solver.devices import source_kernel as twin  # numba: compiled runs only
+
         m = self.size
-        kind = np.zeros(m, dtype=np.int64)
-        par = np.zeros((m, 8))
+        kind = np.full(m, twin.DC, dtype=np.int64)
+        par = np.zeros((m, twin.PARAM_COLUMNS))
         s = self.sin
         for j, i in enumerate(self.sin_index):
-            kind[i] = 1
-            par[i, :6] = (
-                s["offset"][j],
-                s["amplitude"][j],
-                self._omega[j],
-                s["delay"][j],
-                s["damping"][j],
-                self._phase[j],
-            )
+            kind[i] = twin.SIN
+            par[i, twin.OFFSET] = s["offset"][j]
+            par[i, twin.AMPLITUDE] = s["amplitude"][j]
+            par[i, twin.OMEGA] = self._omega[j]
+            par[i, twin.SIN_DELAY] = s["delay"][j]
+            par[i, twin.DAMPING] = s["damping"][j]
+            par[i, twin.PHASE] = self._phase[j]
         pu = self.pulse
         for j, i in enumerate(self.pulse_index):
-            kind[i] = 2
-            par[i, :7] = (
-                pu["initial"][j],
-                pu["pulsed"][j],
-                pu["delay"][j],
-                self.rise[j],
-                self.fall[j],
-                self.width[j],
-                self.period[j],
-            )
+            kind[i] = twin.PULSE
+            par[i, twin.INITIAL] = pu["initial"][j]
+            par[i, twin.PULSED] = pu["pulsed"][j]
+            par[i, twin.PULSE_DELAY] = pu["delay"][j]
+            par[i, twin.RISE] = self.rise[j]
+            par[i, twin.FALL] = self.fall[j]
+            par[i, twin.WIDTH] = self.width[j]
+            par[i, twin.PERIOD] = self.period[j]
         pwl = [np.zeros((2, 0)) for _ in range(m)]
         for i, t, v in self.pwl:
-            kind[i] = 3
+            kind[i] = twin.PWL
             pwl[i] = np.stack([t, v])
         return kind, par, self.dc.copy(), pwl
 

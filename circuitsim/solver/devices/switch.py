@@ -7,6 +7,9 @@ every Newton iteration against the last *accepted* state, and a change forces an
 iteration. ROFF defaults to 1/gmin, RON to 1 ohm. An ``ON``/``OFF`` keyword sets the state for
 the operating point (default off when the control voltage is inside the hysteresis band).
 Negative VH (ngspice's smooth transition) is not modelled.
+
+Kernel twin: switch_kernel.py, the same rules for the compiled loops (solver/compiled/), which
+read the switches as ``kernel_data`` describes them (columns named there).
 """
 
 from __future__ import annotations
@@ -151,21 +154,28 @@ class SwitchFamily(DeviceFamily):
         return True
 
     def kernel_data(self) -> dict:
+        from circuitsim.solver.devices import switch_kernel as twin  # numba: compiled runs only
+
         p, n = self.terminals
         m = p.size
+        nodes = np.empty((m, twin.NODE_COLUMNS), dtype=np.int64)
+        nodes[:, twin.POSITIVE] = p
+        nodes[:, twin.NEGATIVE] = n
+        nodes[:, twin.CONTROL_POSITIVE] = self.cp
+        nodes[:, twin.CONTROL_NEGATIVE] = self.cn
+        approach = np.empty((m, twin.APPROACH_COLUMNS))
+        approach[:, twin.ON_ABOVE] = self.on_above
+        approach[:, twin.OFF_BELOW] = self.off_below
+        approach[:, twin.FRACTION] = APPROACH_FRACTION
+        approach[:, twin.FLOOR] = APPROACH_FLOOR
+        g = np.empty((m, 2))
+        g[:, twin.G_ON] = self.g_on
+        g[:, twin.G_OFF] = self.g_off
         return {
             "kind": "switches",
-            "nodes": np.stack([p, n, self.cp, self.cn], axis=1),
-            "approach": np.stack(
-                [
-                    self.on_above,
-                    self.off_below,
-                    np.full(m, APPROACH_FRACTION),
-                    np.full(m, APPROACH_FLOOR),
-                ],
-                axis=1,
-            ),
-            "g": np.stack([self.g_on, self.g_off], axis=1),
+            "nodes": nodes,
+            "approach": approach,
+            "g": g,
             "accepted": self.accepted,
             "state": self.state,
         }
