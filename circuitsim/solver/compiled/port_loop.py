@@ -108,112 +108,142 @@ def run(plan, st, t_until):
     """Integrate from st.fs[T] until t_until (or tstop); returns compiled/transient.py's
     status codes, or newton.FACTOR (then re-entered where it stopped, newton.RESUME_AT)."""
     real, ints = plan.real, plan.ints
-    method, maxord, max_steps = ints[METHOD], ints[MAXORD], ints[MAX_STEPS]
+    method, max_order, max_steps = ints[METHOD], ints[MAXORD], ints[MAX_STEPS]
     fixed, max_step = real[FIXED_STEP], real[MAX_STEP]
     min_step, tstop = real[MIN_STEP], real[TSTOP]
-    md, ms = plan.jp.shape[0], plan.sw.shape[0]
-    nports = md + ms
-    lin = plan.lin_slots
-    nl = lin.size
-    nq = st.hq.shape[1]
-    fs, si = st.fs, st.ints
+    n_junctions, n_switches = plan.jp.shape[0], plan.sw.shape[0]
+    n_ports = n_junctions + n_switches
+    linear_slots = plan.lin_slots
+    n_linear = linear_slots.size
+    n_charges = st.q_history.shape[1]
+    floats, counters = st.fs, st.ints
     breaks = plan.breaks
-    ht, hq, hi, hv, hc = st.ht, st.hq, st.hi, st.hv, st.hc
+    t_history, q_history, qdot_history, v_history, control_history = (
+        st.t_history,
+        st.q_history,
+        st.qdot_history,
+        st.v_history,
+        st.control_history,
+    )
     x_ext, x_prev_ext, state, accepted = st.x_ext, st.x_prev_ext, st.state, st.accepted
-    vd_accepted, pJ, vc, pR = st.vd_accepted, st.pJ, st.vc, st.pR
+    vd_accepted, v_junction, v_control, p_eliminated = (
+        st.vd_accepted,
+        st.v_junction,
+        st.v_control,
+        st.p_eliminated,
+    )
     sw, approach = plan.sw, plan.approach
     rows, out_t, out_x, fail_v = st.rows, st.out_t, st.out_x, st.fail_v
     # every array taken out of the tuples once (the factorization is rebuilt in place)
     fac = st.fac
     ref, K, cc, Cb, Kq = fac.ref, fac.K, fac.cc, fac.Cb, fac.Kq
     yc, Yb, Zq, Z = fac.yc, fac.Yb, fac.Zq, fac.Z
-    vd, cd, gd, ieq, pJ_new, dJ = st.vd, st.cd, st.gd, st.ieq, st.pJ_new, st.dJ
-    dR, F, G, Hj, bound, colv = st.dR, st.F, st.G, st.H, st.bound, st.colv
-    tr, tr2 = st.tr, st.tr2
-    c0, e0, Fc0, A, b, jv, w = st.c0, st.e0, st.Fc0, st.A, st.b, st.j, st.w
-    hcol, Hieq, applied, act, xa = st.hcol, st.Hieq, st.ieq_applied, st.act, st.xa
+    vd, cd, gd, ieq, v_new, dg = st.vd, st.cd, st.gd, st.ieq, st.v_new, st.dg
+    d_eliminated, F, G, h_matrix, bound, formed_at = (
+        st.d_eliminated,
+        st.F,
+        st.G,
+        st.H,
+        st.bound,
+        st.formed_at,
+    )
+    scratch, scratch2 = st.scratch, st.scratch2
+    c0, e0, Fc0, A, b, current_dev, w = st.c0, st.e0, st.Fc0, st.A, st.b, st.current_dev, st.w
+    h_max, h_ieq, ieq_applied, active, x_active = (
+        st.h_max,
+        st.h_ieq,
+        st.ieq_applied,
+        st.active,
+        st.x_active,
+    )
     new_h_matrix = True  # H changed: H ieq to be recomputed in full
     # many recorded unknowns: form them all column by column (ports.all_unknowns)
-    every = rows.size * 4 > fac.yc.size
+    record_all = rows.size * 4 > fac.yc.size
     ZT, zrel = fac.ZT, fac.zrel
     x_all = np.empty(fac.yc.size)
-    yJ = np.empty(fac.yc.size)
-    j_applied = np.zeros(md)
-    yj_version = -1
+    y_junctions = np.empty(fac.yc.size)
+    current_applied = np.zeros(n_junctions)
+    y_version = -1
     reltol, abstol, vntol = real[RELTOL], real[ABSTOL], real[VNTOL]
     itl4 = ints[ITL4]
     jp, cp, jslot, has_charge, charged = plan.jp, plan.cp, plan.jslot, plan.has_charge, plan.charged
     g_switch = plan.g_switch
-    linear = md == 0 and ms == 0
+    linear = n_junctions == 0 and n_switches == 0
     src_kind, src_par, src_dc = plan.src_kind, plan.src_par, plan.src_dc
     pwl_start, pwl_t, pwl_v = plan.pwl_start, plan.pwl_t, plan.pwl_v
-    ns = src_kind.size
-    rR = ms + nl
-    r = md + rR
-    src_values = np.empty(ns)
-    hist = np.empty(nq)
-    hist_lin = np.empty(nl)
-    q = np.zeros(nq)
-    qdot = np.zeros(nq)
+    n_sources = src_kind.size
+    n_eliminated = n_switches + n_linear
+    n_all_ports = n_junctions + n_eliminated
+    src_values = np.empty(n_sources)
+    hist = np.empty(n_charges)
+    hist_lin = np.empty(n_linear)
+    q = np.zeros(n_charges)
+    qdot = np.zeros(n_charges)
     times = np.empty(4)
-    live, zeros = charge_slots(nq, jslot, charged, has_charge)
+    live, zeros = charge_slots(n_charges, jslot, charged, has_charge)
     negligible_v = JUNCTION_NEGLIGIBLE * vntol
-    m_last = 0  # active junctions in the last Newton iteration
-    resume = si[RESUME_AT]  # back from a factorization made in Python: where the step was
-    si[RESUME_AT] = NOT_RESUMING
+    last_active = 0  # active junctions in the last Newton iteration
+    resume = counters[RESUME_AT]  # back from a factorization made in Python: where the step was
+    counters[RESUME_AT] = NOT_RESUMING
     if resume == FIRST_FACTOR:
         resume = NOT_RESUMING
-        if not factor_now(plan, st, fs[FACTOR_A0]):
+        if not factor_now(plan, st, floats[FACTOR_A0]):
             return FACTOR  # then re-entered at the first step
-    while tstop - fs[T] > min_step:
+    while tstop - floats[T] > min_step:
         if resume != NOT_RESUMING:
-            t, next_break, h, order, landing = resumed_step(fs, si, breaks)
+            t, next_break, h, order, landing = resumed_step(floats, counters, breaks)
         else:
-            if fs[T] >= t_until or si[ATTEMPTS] >= si[PAUSE_ATTEMPTS]:
+            if floats[T] >= t_until or counters[ATTEMPTS] >= counters[PAUSE_ATTEMPTS]:
                 return PAUSED
-            if si[COUNT] >= out_t.size:
+            if counters[COUNT] >= out_t.size:
                 return FULL
-            t, next_break, h, order, landing = step_start(fs, si, breaks, fixed, max_step, min_step)
-        nh = si[NHIST]
+            t, next_break, h, order, landing = step_start(
+                floats, counters, breaks, fixed, max_step, min_step
+            )
+        n_history = counters[NHIST]
         while True:
             if resume == NOT_RESUMING:
-                si[ATTEMPTS] += 1
-            if si[ATTEMPTS] > max_steps:
-                fs[H] = h
+                counters[ATTEMPTS] += 1
+            if counters[ATTEMPTS] > max_steps:
+                floats[H] = h
                 return TOO_MANY_STEPS
-            h_prev = ht[0] - ht[1] if nh > 1 else h
+            h_prev = t_history[0] - t_history[1] if n_history > 1 else h
             a0, a1, a2, b1 = coefficients(method, order, h, h_prev)
-            for k in range(nq):
-                hist[k] = a1 * hq[0, k] + b1 * hi[0, k] + a2 * hq[1, k]
-            for k in range(nl):
-                hist_lin[k] = hist[lin[k]]
-            ref_a0 = ref[nports] if nl else a0
-            settled = a0 != ref_a0 and a0 == fs[LAST_A0] and si[SAME_A0] >= REBASE_STEPS
+            for k in range(n_charges):
+                hist[k] = a1 * q_history[0, k] + b1 * qdot_history[0, k] + a2 * q_history[1, k]
+            for k in range(n_linear):
+                hist_lin[k] = hist[linear_slots[k]]
+            ref_a0 = ref[n_ports] if n_linear else a0
+            settled = a0 != ref_a0 and a0 == floats[LAST_A0] and counters[SAME_A0] >= REBASE_STEPS
             # or the junctions have left the conductances factored (a uic start factors all
             # of them at 0 V; then the op-amps' output stages settle far from there): each
             # iteration then eliminates many active columns, which a refactor makes few
-            stale = si[ACTIVE_STREAK] >= REBASE_STEPS
-            if resume == NOT_RESUMING and ((nl and settled) or stale):
-                si[ACTIVE_STREAK] = 0
+            stale = counters[ACTIVE_STREAK] >= REBASE_STEPS
+            if resume == NOT_RESUMING and ((n_linear and settled) or stale):
+                counters[ACTIVE_STREAK] = 0
                 if not factor_now(plan, st, a0):
-                    return wait_for_factor(fs, si, AT_REFACTOR_TEST, h, order, landing, 0, 0, 0)
+                    return wait_for_factor(
+                        floats, counters, AT_REFACTOR_TEST, h, order, landing, 0, 0, 0
+                    )
             if resume == AT_REFACTOR_TEST:
                 resume = NOT_RESUMING
-            for k in range(ns):
+            for k in range(n_sources):
                 src_values[k] = source_value(
                     t + h, k, src_kind, src_par, src_dc, pwl_start, pwl_t, pwl_v
                 )
-            ratio = h / h_prev if nh > 1 else 0.0
+            ratio = h / h_prev if n_history > 1 else 0.0
             ok = False
-            first_attempt = si[RESUME_ATTEMPT] if resume != NOT_RESUMING else 0
+            first_attempt = counters[RESUME_ATTEMPT] if resume != NOT_RESUMING else 0
             if resume == AT_SECOND_ATTEMPT:
                 resume = NOT_RESUMING
             for attempt in range(first_attempt, 2):
-                for k in range(md if resume == NOT_RESUMING else 0):  # the predictor
-                    pJ[k] = hv[0, k] + ratio * (hv[0, k] - hv[1, k])
-                for k in range(ms if resume == NOT_RESUMING else 0):
-                    vc[k] = hc[0, k] + ratio * (hc[0, k] - hc[1, k])
-                for k in range(nq):
+                for k in range(n_junctions if resume == NOT_RESUMING else 0):  # the predictor
+                    v_junction[k] = v_history[0, k] + ratio * (v_history[0, k] - v_history[1, k])
+                for k in range(n_switches if resume == NOT_RESUMING else 0):
+                    v_control[k] = control_history[0, k] + ratio * (
+                        control_history[0, k] - control_history[1, k]
+                    )
+                for k in range(n_charges):
                     q[k] = 0.0
                     qdot[k] = 0.0
                 # Newton at this time point, written out rather than called: a call, or a
@@ -222,30 +252,34 @@ def run(plan, st, t_until):
                 ok = False
                 iterations = 0
                 fresh = True  # the time point's responses are to be (re)computed
-                first_iteration = si[RESUME_ITERATION] if resume == IN_ITERATION else 1
+                first_iteration = counters[RESUME_ITERATION] if resume == IN_ITERATION else 1
                 for iteration in range(first_iteration, itl4 + 1):
                     iterations = iteration
                     first = iteration == 1
                     noncon = 0
                     first_again = 0
                     if resume == IN_ITERATION:  # linearized before the factorization
-                        noncon = si[RESUME_NONCON]
+                        noncon = counters[RESUME_NONCON]
                         junction_charges(vd, a0, hist, jp, cp, jslot, has_charge, charged, q, qdot)
                         first_again = 1
-                    for k in range(ms if resume == NOT_RESUMING else 0):  # update_state
+                    for k in range(n_switches if resume == NOT_RESUMING else 0):  # update_state
                         keep = accepted[k] if first else state[k]
-                        new = (keep or vc[k] > approach[k, 0]) and vc[k] >= approach[k, 1]
+                        new = (keep or v_control[k] > approach[k, 0]) and v_control[k] >= approach[
+                            k, 1
+                        ]
                         if new != state[k]:
                             state[k] = new
                             noncon += 1
-                            si[CFG_STALE] = 1
-                    for k in range(md if resume == NOT_RESUMING else 0):  # DiodeFamily.port_load
+                            counters[CFG_STALE] = 1
+                    for k in range(
+                        n_junctions if resume == NOT_RESUMING else 0
+                    ):  # DiodeFamily.port_load
                         charged_k = has_charge and charged[k]
                         slot = jslot[k]
                         v, limited, current, conductance, charge, charge_current = (
                             linearize_junction(
-                                jp, cp, k, pJ[k], vd_accepted[k] if first else vd[k], charged_k,
-                                a0, hist[slot] if charged_k else 0.0,
+                                jp, cp, k, v_junction[k], vd_accepted[k] if first else vd[k],
+                                charged_k, a0, hist[slot] if charged_k else 0.0,
                             )
                         )  # fmt: skip
                         noncon += limited
@@ -257,52 +291,56 @@ def run(plan, st, t_until):
                     resume = NOT_RESUMING
                     solved = False
                     for again in range(first_again, 2):  # the second on a refactor here
-                        if si[CFG_STALE] == 1 or si[CFG_VERSION] != si[VERSION] or fs[CFG_A0] != a0:
+                        if (
+                            counters[CFG_STALE] == 1
+                            or counters[CFG_VERSION] != counters[VERSION]
+                            or floats[CFG_A0] != a0
+                        ):
                             # eliminate the switch and charge ports at a0 and the switch states
-                            for k in range(ms):
+                            for k in range(n_switches):
                                 on = g_switch[k, 0] if state[k] else g_switch[k, 1]
-                                dR[k] = on - ref[md + k]
-                            for k in range(ms, dR.size):
-                                dR[k] = a0 - ref[md + k]
-                            if not configure(K, md, dR, F, G, bound):
+                                d_eliminated[k] = on - ref[n_junctions + k]
+                            for k in range(n_switches, d_eliminated.size):
+                                d_eliminated[k] = a0 - ref[n_junctions + k]
+                            if not configure(K, n_junctions, d_eliminated, F, G, bound):
                                 if again == 1:
                                     break
                                 if not factor_now(plan, st, a0):
                                     return wait_for_factor(
-                                        fs, si, IN_ITERATION, h, order, landing, attempt,
+                                        floats, counters, IN_ITERATION, h, order, landing, attempt,
                                         iteration, noncon,
                                     )  # fmt: skip
                                 continue
-                            fs[CFG_A0] = a0
-                            si[CFG_VERSION] = si[VERSION]
-                            si[CFG_STALE] = 0
-                            si[CFG_COUNT] += 1  # every column of H to be formed anew
+                            floats[CFG_A0] = a0
+                            counters[CFG_VERSION] = counters[VERSION]
+                            counters[CFG_STALE] = 0
+                            counters[CFG_COUNT] += 1  # every column of H to be formed anew
                             fresh = True
                             new_h_matrix = True
                         if fresh:  # the time point's port responses (ports.py: c0, e0, F c0_R)
-                            for i in range(r):
+                            for i in range(n_all_ports):
                                 acc = cc[i]
-                                for k in range(ns):
+                                for k in range(n_sources):
                                     acc += Cb[i, k] * src_values[k]
-                                for k in range(nl):
+                                for k in range(n_linear):
                                     acc -= Kq[i, k] * hist_lin[k]
                                 c0[i] = acc
-                            for i in range(rR):  # tr = G c0_R, Fc0 = F c0_R
+                            for i in range(n_eliminated):  # tr = G c0_R, Fc0 = F c0_R
                                 acc = 0.0
                                 acc2 = 0.0
-                                for k in range(rR):
-                                    acc += G[i, k] * c0[md + k]
-                                    acc2 += F[i, k] * c0[md + k]
-                                tr[i] = acc
+                                for k in range(n_eliminated):
+                                    acc += G[i, k] * c0[n_junctions + k]
+                                    acc2 += F[i, k] * c0[n_junctions + k]
+                                scratch[i] = acc
                                 Fc0[i] = acc2
-                            for i in range(md):  # e0 = c0_J - K_JR G c0_R
+                            for i in range(n_junctions):  # e0 = c0_J - K_JR G c0_R
                                 acc = c0[i]
-                                for k in range(rR):
-                                    acc -= K[i, md + k] * tr[k]
+                                for k in range(n_eliminated):
+                                    acc -= K[i, n_junctions + k] * scratch[k]
                                 e0[i] = acc
                             fresh = False
-                        for k in range(md):
-                            dJ[k] = gd[k] - ref[k]
+                        for k in range(n_junctions):
+                            dg[k] = gd[k] - ref[k]
                         # (I + H D_J) p_J = e0 - H ieq, for the *active* junctions only: those
                         # whose conductance change moves the solution, |dJ_k| max_i |H_ik| >
                         # NEGLIGIBLE (as lowrank.active_columns). The others' columns of
@@ -311,74 +349,74 @@ def run(plan, st, t_until):
                         # their p follows by one product. H ieq is kept up to date by the
                         # columns whose companion current changed (by more than negligibly,
                         # below). (Written out, not called: see the Newton comment above.)
-                        count = si[CFG_COUNT]
+                        count = counters[CFG_COUNT]
                         if new_h_matrix:  # H ieq = K_JJ ieq - K_JR G (K_RJ ieq), no H formed
-                            for s_ in range(rR):
+                            for s in range(n_eliminated):
                                 acc = 0.0
-                                for k in range(md):
-                                    acc += K[md + s_, k] * ieq[k]
-                                tr2[s_] = acc
-                            for s_ in range(rR):
+                                for k in range(n_junctions):
+                                    acc += K[n_junctions + s, k] * ieq[k]
+                                scratch2[s] = acc
+                            for s in range(n_eliminated):
                                 acc = 0.0
-                                for q_ in range(rR):
-                                    acc += G[s_, q_] * tr2[q_]
-                                tr[s_] = acc
-                            for i in range(md):
+                                for p in range(n_eliminated):
+                                    acc += G[s, p] * scratch2[p]
+                                scratch[s] = acc
+                            for i in range(n_junctions):
                                 acc = 0.0
-                                for k in range(md):
+                                for k in range(n_junctions):
                                     acc += K[i, k] * ieq[k]
-                                for s_ in range(rR):
-                                    acc -= K[i, md + s_] * tr[s_]
-                                Hieq[i] = acc
-                            for k in range(md):
-                                applied[k] = ieq[k]
+                                for s in range(n_eliminated):
+                                    acc -= K[i, n_junctions + s] * scratch[s]
+                                h_ieq[i] = acc
+                            for k in range(n_junctions):
+                                ieq_applied[k] = ieq[k]
                             new_h_matrix = False
                         # A change that moves no junction voltage by more than
                         # JUNCTION_NEGLIGIBLE vntol (bound: max_i |H_ik| or more) waits until it
                         # grows, as in newton.junction_response: the companion currents of clamp
                         # diodes far in reverse change by round-off at every iteration (42 of the
                         # TL074 wheelset's 56; applying them took a third of its step).
-                        for k in range(md):
-                            change = ieq[k] - applied[k]
+                        for k in range(n_junctions):
+                            change = ieq[k] - ieq_applied[k]
                             if change != 0.0 and abs(change) * bound[k] > negligible_v:
-                                if colv[k] != count:
-                                    h_column(K, G, md, k, Hj, hcol, tr)
-                                    colv[k] = count
-                                for i in range(md):
-                                    Hieq[i] += Hj[i, k] * change
-                                applied[k] = ieq[k]
+                                if formed_at[k] != count:
+                                    h_column(K, G, n_junctions, k, h_matrix, h_max, scratch)
+                                    formed_at[k] = count
+                                for i in range(n_junctions):
+                                    h_ieq[i] += h_matrix[i, k] * change
+                                ieq_applied[k] = ieq[k]
                         m = 0
-                        for k in range(md):
-                            if dJ[k] != 0.0 and abs(dJ[k]) * bound[k] > NEGLIGIBLE:
-                                if colv[k] != count:
-                                    h_column(K, G, md, k, Hj, hcol, tr)
-                                    colv[k] = count
-                                if abs(dJ[k]) * hcol[k] > NEGLIGIBLE:
-                                    act[m] = k
+                        for k in range(n_junctions):
+                            if dg[k] != 0.0 and abs(dg[k]) * bound[k] > NEGLIGIBLE:
+                                if formed_at[k] != count:
+                                    h_column(K, G, n_junctions, k, h_matrix, h_max, scratch)
+                                    formed_at[k] = count
+                                if abs(dg[k]) * h_max[k] > NEGLIGIBLE:
+                                    active[m] = k
                                     m += 1
-                        m_last = m
+                        last_active = m
                         for a in range(m):
-                            i = act[a]
+                            i = active[a]
                             for c in range(m):
-                                A[a, c] = Hj[i, act[c]] * dJ[act[c]]
+                                A[a, c] = h_matrix[i, active[c]] * dg[active[c]]
                             A[a, a] += 1.0
-                            b[a] = e0[i] - Hieq[i]
+                            b[a] = e0[i] - h_ieq[i]
                         # A xa = b (m x m, partial pivoting), written out as well
                         solved = True
                         for k in range(m):
-                            p_ = k
+                            pivot_row = k
                             big = abs(A[k, k])
                             for i in range(k + 1, m):
                                 if abs(A[i, k]) > big:
                                     big = abs(A[i, k])
-                                    p_ = i
+                                    pivot_row = i
                             if big == 0.0:
                                 solved = False
                                 break
-                            if p_ != k:
+                            if pivot_row != k:
                                 for c in range(m):
-                                    A[k, c], A[p_, c] = A[p_, c], A[k, c]
-                                b[k], b[p_] = b[p_], b[k]
+                                    A[k, c], A[pivot_row, c] = A[pivot_row, c], A[k, c]
+                                b[k], b[pivot_row] = b[pivot_row], b[k]
                             pivot = A[k, k]
                             for i in range(k + 1, m):
                                 f = A[i, k] / pivot
@@ -389,140 +427,160 @@ def run(plan, st, t_until):
                             for k in range(m - 1, -1, -1):
                                 acc = b[k]
                                 for c in range(k + 1, m):
-                                    acc -= A[k, c] * xa[c]
-                                xa[k] = acc / A[k, k]
-                                if not np.isfinite(xa[k]):
+                                    acc -= A[k, c] * x_active[c]
+                                x_active[k] = acc / A[k, k]
+                                if not np.isfinite(x_active[k]):
                                     solved = False
                         if solved:
-                            for i in range(md):
-                                acc = e0[i] - Hieq[i]
+                            for i in range(n_junctions):
+                                acc = e0[i] - h_ieq[i]
                                 for c in range(m):
-                                    acc -= Hj[i, act[c]] * dJ[act[c]] * xa[c]
-                                pJ_new[i] = acc
+                                    acc -= h_matrix[i, active[c]] * dg[active[c]] * x_active[c]
+                                v_new[i] = acc
                             for c in range(m):
-                                pJ_new[act[c]] = xa[c]
+                                v_new[active[c]] = x_active[c]
                         if solved or again == 1:
                             break
                         if not factor_now(plan, st, a0):
                             return wait_for_factor(
-                                fs, si, IN_ITERATION, h, order, landing, attempt, iteration, noncon
+                                floats,
+                                counters,
+                                IN_ITERATION,
+                                h,
+                                order,
+                                landing,
+                                attempt,
+                                iteration,
+                                noncon,
                             )
                     if not solved:
                         break
                     # j = ieq + D_J p_J, p_R = F c0_R - F K_RJ j, w = D_R p_R (ports.py)
-                    for k in range(md):
-                        jv[k] = ieq[k] + dJ[k] * pJ_new[k]
-                    for s_ in range(rR):  # tr = K_RJ j
+                    for k in range(n_junctions):
+                        current_dev[k] = ieq[k] + dg[k] * v_new[k]
+                    for s in range(n_eliminated):  # tr = K_RJ j
                         acc = 0.0
-                        for k in range(md):
-                            acc += K[md + s_, k] * jv[k]
-                        tr[s_] = acc
-                    for i in range(rR):
+                        for k in range(n_junctions):
+                            acc += K[n_junctions + s, k] * current_dev[k]
+                        scratch[s] = acc
+                    for i in range(n_eliminated):
                         acc = Fc0[i]
-                        for k in range(rR):
-                            acc -= F[i, k] * tr[k]
-                        pR[i] = acc
-                        w[i] = dR[i] * acc
-                    for k in range(ms):  # the control nodes of this iterate
+                        for k in range(n_eliminated):
+                            acc -= F[i, k] * scratch[k]
+                        p_eliminated[i] = acc
+                        w[i] = d_eliminated[i] * acc
+                    for k in range(n_switches):  # the control nodes of this iterate
                         for side in (2, 3):
                             node = sw[k, side]
                             if node >= 0:
                                 x_ext[node] = unknown(
-                                    node, yc, Yb, Zq, Z, src_values, hist_lin, jv, w
+                                    node, yc, Yb, Zq, Z, src_values, hist_lin, current_dev, w
                                 )
-                        vc[k] = x_ext[sw[k, 2]] - x_ext[sw[k, 3]]
+                        v_control[k] = x_ext[sw[k, 2]] - x_ext[sw[k, 3]]
                     done = noncon == 0 and (iteration > 1 or linear)
-                    for k in range(md if done else 0):
-                        change = abs(pJ_new[k] - pJ[k])
-                        if change > reltol * max(abs(pJ_new[k]), abs(pJ[k])) + vntol:
+                    for k in range(n_junctions if done else 0):
+                        change = abs(v_new[k] - v_junction[k])
+                        if change > reltol * max(abs(v_new[k]), abs(v_junction[k])) + vntol:
                             done = False
                             break
-                    for k in range(md if done else 0):  # DiodeFamily.port_converged
-                        delta = gd[k] * (pJ_new[k] - vd[k])
+                    for k in range(n_junctions if done else 0):  # DiodeFamily.port_converged
+                        delta = gd[k] * (v_new[k] - vd[k])
                         if abs(delta) > reltol * max(abs(cd[k] + delta), abs(cd[k])) + abstol:
                             done = False
                             break
-                    for k in range(md):
-                        fail_v[0, k] = pJ_new[k]
-                        fail_v[1, k] = pJ[k]
-                        pJ[k] = pJ_new[k]
+                    for k in range(n_junctions):
+                        fail_v[0, k] = v_new[k]
+                        fail_v[1, k] = v_junction[k]
+                        v_junction[k] = v_new[k]
                     if done:
                         ok = True
                         break
-                si[NEWTON] += iterations
+                counters[NEWTON] += iterations
                 # the update's round-off, not the step, may be what failed (RETRY_RATIO)
-                far = nl and not (a0 / RETRY_RATIO < ref[nports] < RETRY_RATIO * a0)
+                far = n_linear and not (a0 / RETRY_RATIO < ref[n_ports] < RETRY_RATIO * a0)
                 if ok or attempt == 1 or not far:
                     break
                 if not factor_now(plan, st, a0):
-                    return wait_for_factor(fs, si, AT_SECOND_ATTEMPT, h, order, landing, 1, 0, 0)
+                    return wait_for_factor(
+                        floats, counters, AT_SECOND_ATTEMPT, h, order, landing, 1, 0, 0
+                    )
             if not ok:
-                si[REJECTED] += 1
-                fs[H] = h
+                counters[REJECTED] += 1
+                floats[H] = h
                 if fixed > 0:
                     return NEWTON_FAILED_FIXED
                 h /= 8
                 order = 1
                 landing = False
                 if h < min_step:
-                    fs[H] = h
+                    floats[H] = h
                     return STEP_TOO_SMALL
                 continue
-            for k in range(nl):
-                qk = pR[ms + k]
-                q[lin[k]] = qk
-                qdot[lin[k]] = a0 * qk + hist[lin[k]]
+            for k in range(n_linear):
+                charge = p_eliminated[n_switches + k]
+                q[linear_slots[k]] = charge
+                qdot[linear_slots[k]] = a0 * charge + hist[linear_slots[k]]
             transition = False
-            if fixed == 0 and ms and not (ints[UIC] and si[FIRST]):  # uic: solver/transient.py
+            if (
+                fixed == 0 and n_switches and not (ints[UIC] and counters[FIRST])
+            ):  # uic: solver/transient.py
                 fraction = switch_transition(x_ext, x_prev_ext, sw, state, accepted, approach)
-                retry = transition_retry(fraction, h, ht[0] - ht[1] if nh > 1 else h, min_step)
+                retry = transition_retry(
+                    fraction, h, t_history[0] - t_history[1] if n_history > 1 else h, min_step
+                )
                 if retry > 0:  # cut short of the crossing, then just past it (devices/switch.py)
-                    si[REJECTED] += 1
+                    counters[REJECTED] += 1
                     h = retry
                     landing = False
                     continue
                 transition = fraction < 1.0
             new_h = h if fixed > 0 else 2 * h
-            if fixed == 0 and not si[FIRST]:
+            if fixed == 0 and not counters[FIRST]:
                 times[0] = t + h
                 for k in range(3):
-                    times[k + 1] = ht[k]
-                npoints = nh + 1
+                    times[k + 1] = t_history[k]
+                n_points = n_history + 1
                 charges = charges2 = switches = np.inf
-                if npoints >= order + 2 and nq:
-                    charges = truncation_step(real, order, times, q, qdot, hq, hi, live)
+                if n_points >= order + 2 and n_charges:
+                    charges = truncation_step(
+                        real, order, times, q, qdot, q_history, qdot_history, live
+                    )
                     if zeros:
                         charges = min(charges, zero_charge_step(real, order, times[0] - times[1]))
-                if order == 1 and maxord > 1 and npoints >= 4 and nq:
-                    charges2 = truncation_step(real, 2, times, q, qdot, hq, hi, live)
+                if order == 1 and max_order > 1 and n_points >= 4 and n_charges:
+                    charges2 = truncation_step(
+                        real, 2, times, q, qdot, q_history, qdot_history, live
+                    )
                     if zeros:
                         charges2 = min(charges2, zero_charge_step(real, 2, times[0] - times[1]))
-                if ms:
+                if n_switches:
                     switches = switch_truncate(x_ext, x_prev_ext, h, sw, accepted, approach)
                 new_h, order, good = next_step(
-                    real, maxord, npoints, order, h, transition, charges, charges2, switches
+                    real, max_order, n_points, order, h, transition, charges, charges2, switches
                 )
                 if not good:
-                    si[REJECTED] += 1
+                    counters[REJECTED] += 1
                     h = new_h
                     landing = False
                     if h < min_step:
-                        fs[H] = h
+                        floats[H] = h
                         return STEP_TOO_SMALL_LTE
                     continue
             break
 
         # accept
-        if si[VERSION] != si[MEASURED_VERSION]:  # the first accepted step on a new refactor
-            si[AFTER_REFACTOR] = m_last
-            si[MEASURED_VERSION] = si[VERSION]
-        if rebase_wanted(m_last, si[AFTER_REFACTOR]):
-            si[ACTIVE_STREAK] += 1
+        if (
+            counters[VERSION] != counters[MEASURED_VERSION]
+        ):  # the first accepted step on a new refactor
+            counters[AFTER_REFACTOR] = last_active
+            counters[MEASURED_VERSION] = counters[VERSION]
+        if rebase_wanted(last_active, counters[AFTER_REFACTOR]):
+            counters[ACTIVE_STREAK] += 1
         else:
-            si[ACTIVE_STREAK] = 0
+            counters[ACTIVE_STREAK] = 0
         t = next_break if landing else t + h
         toggled = False
-        for k in range(ms):
+        for k in range(n_switches):
             if state[k] != accepted[k]:
                 toggled = True
             accepted[k] = state[k]
@@ -530,33 +588,37 @@ def run(plan, st, t_until):
                 node = sw[k, side]
                 if node >= 0:
                     x_prev_ext[node] = x_ext[node]
-            hc[1, k] = hc[0, k]
-            hc[0, k] = vc[k]
-        for k in range(md):
-            vd_accepted[k] = pJ[k]
-            hv[1, k] = hv[0, k]
-            hv[0, k] = pJ[k]
+            control_history[1, k] = control_history[0, k]
+            control_history[0, k] = v_control[k]
+        for k in range(n_junctions):
+            vd_accepted[k] = v_junction[k]
+            v_history[1, k] = v_history[0, k]
+            v_history[0, k] = v_junction[k]
         for j in range(3, 0, -1):
-            ht[j] = ht[j - 1]
-            for i in range(nq):
-                hq[j, i] = hq[j - 1, i]
-        ht[0] = t
-        row = si[COUNT]
+            t_history[j] = t_history[j - 1]
+            for i in range(n_charges):
+                q_history[j, i] = q_history[j - 1, i]
+        t_history[0] = t
+        row = counters[COUNT]
         out_t[row] = t
-        if every:
+        if record_all:
             all_unknowns(
-                x_all, yc, Yb, ZT, src_values, hist_lin, jv, w, md, yJ, j_applied, zrel,
-                yj_version != si[VERSION],
+                x_all, yc, Yb, ZT, src_values, hist_lin, current_dev, w, n_junctions,
+                y_junctions, current_applied, zrel, y_version != counters[VERSION],
             )  # fmt: skip
-            yj_version = si[VERSION]
+            y_version = counters[VERSION]
             for k in range(rows.size):
                 out_x[row, k] = x_all[rows[k]]
         else:
             for k in range(rows.size):
-                out_x[row, k] = unknown(rows[k], yc, Yb, Zq, Z, src_values, hist_lin, jv, w)
-        for i in range(nq):
-            hi[1, i] = hi[0, i]
-            hi[0, i] = qdot[i]
-            hq[0, i] = q[i]
-        finish_step(fs, si, t, new_h, a0, order, landing, toggled, fixed, maxord, nh)
+                out_x[row, k] = unknown(
+                    rows[k], yc, Yb, Zq, Z, src_values, hist_lin, current_dev, w
+                )
+        for i in range(n_charges):
+            qdot_history[1, i] = qdot_history[0, i]
+            qdot_history[0, i] = qdot[i]
+            q_history[0, i] = q[i]
+        finish_step(
+            floats, counters, t, new_h, a0, order, landing, toggled, fixed, max_order, n_history
+        )
     return FINISHED

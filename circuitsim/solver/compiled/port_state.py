@@ -15,19 +15,21 @@ from circuitsim.solver.compiled.plan import (
 )
 from circuitsim.solver.compiled.slots import CFG_A0, CFG_VERSION
 from circuitsim.solver.compiled.sparse_factors import SPARSE_FROM
+from circuitsim.solver.devices.switch_kernel import CONTROL_NEGATIVE, CONTROL_POSITIVE
 
 
 class PortState(NamedTuple):
     """Everything the ports kernel changes (shapes: md junctions, ms switches, rR = ms + nl
-    eliminated ports, r = md + rR, nq charge slots, nrows recorded unknowns)."""
+    eliminated ports: the switches' and the linear charges', r = md + rR, nq charge slots,
+    nrows recorded unknowns). The matrices' names are ports.py's."""
 
     fs: np.ndarray  # (FLOAT_SLOTS,) slots.T, H, SAVED_H, LAST_A0, CFG_A0
     ints: np.ndarray  # (INT_SLOTS,) counters and flags: slots.ORDER, ..., CFG_COUNT, ...
-    ht: np.ndarray  # (4,) accepted times, newest first
-    hq: np.ndarray  # (4, nq) charges there
-    hi: np.ndarray  # (2, nq) their derivatives
-    hv: np.ndarray  # (2, md) junction voltages at the last two accepted points
-    hc: np.ndarray  # (2, ms) switch control voltages there
+    t_history: np.ndarray  # (4,) accepted times, newest first
+    q_history: np.ndarray  # (4, nq) charges there
+    qdot_history: np.ndarray  # (2, nq) their derivatives
+    v_history: np.ndarray  # (2, md) junction voltages at the last two accepted points
+    control_history: np.ndarray  # (2, ms) switch control voltages there
     x_ext: np.ndarray  # (n + 1,) control nodes of the present iterate (others unused)
     x_prev_ext: np.ndarray  # (n + 1,) control nodes at the last accepted point
     vd: np.ndarray  # (md,) junction linearization: voltage, current, conductance, ieq
@@ -38,31 +40,33 @@ class PortState(NamedTuple):
     state: np.ndarray  # (ms,) switch states, bool
     accepted: np.ndarray
     fac: object  # plan.Factors
-    dR: np.ndarray  # (rR,) configuration: R ports' value changes since the factorization
+    # the configuration (a0 and switch states): the eliminated ports' value changes since the
+    # factorization (D_R), F = (I + K_RR D_R)^-1, G = D_R F, the columns of H formed so far
+    d_eliminated: np.ndarray  # (rR,)
     F: np.ndarray  # (rR, rR)
-    G: np.ndarray  # (rR, rR) D_R F
-    H: np.ndarray  # (md, md) columns formed for the present configuration (colv)
-    hcol: np.ndarray  # (md,) max |H[:, k]| of the formed columns
+    G: np.ndarray  # (rR, rR)
+    H: np.ndarray  # (md, md) columns formed for the present configuration (formed_at)
+    h_max: np.ndarray  # (md,) max |H[:, k]| of the formed columns
     bound: np.ndarray  # (md,) an upper bound of it for every column
-    colv: np.ndarray  # (md,) int: the configuration count column k was formed at
-    tr: np.ndarray  # (rR,) scratch
-    tr2: np.ndarray  # (rR,) scratch
-    Hieq: np.ndarray  # (md,) H ieq_applied
+    formed_at: np.ndarray  # (md,) int: the configuration count column k was formed at
+    scratch: np.ndarray  # (rR,)
+    scratch2: np.ndarray  # (rR,)
+    h_ieq: np.ndarray  # (md,) H ieq_applied
     ieq_applied: np.ndarray  # (md,)
-    act: np.ndarray  # (md,) int: active junctions of the iteration
-    xa: np.ndarray  # (md,) their solution
+    active: np.ndarray  # (md,) int: active junctions of the iteration
+    x_active: np.ndarray  # (md,) their solution
     c0: np.ndarray  # (r,) time point: port response of sources and charge history
-    e0: np.ndarray  # (md,)
-    Fc0: np.ndarray  # (rR,)
-    A: np.ndarray  # (md, md) Newton scratch
+    e0: np.ndarray  # (md,) c0_J - K_JR G c0_R
+    Fc0: np.ndarray  # (rR,) F c0_R
+    A: np.ndarray  # (md, md) the active junctions' system
     b: np.ndarray  # (md,)
-    pJ: np.ndarray  # (md,) iterate's junction voltages
-    pJ_new: np.ndarray
-    dJ: np.ndarray
-    j: np.ndarray  # (md,) junction current deviation
-    pR: np.ndarray  # (rR,)
-    w: np.ndarray  # (rR,) dR * pR
-    vc: np.ndarray  # (ms,) iterate's control voltages
+    v_junction: np.ndarray  # (md,) the iterate's junction voltages
+    v_new: np.ndarray  # (md,) the next iterate's
+    dg: np.ndarray  # (md,) junction conductance changes since the factorization (D_J)
+    current_dev: np.ndarray  # (md,) junction current deviation j = ieq + D_J p_J
+    p_eliminated: np.ndarray  # (rR,) the eliminated ports' values p_R
+    w: np.ndarray  # (rR,) D_R p_R
+    v_control: np.ndarray  # (ms,) the iterate's control voltages
     fail_v: np.ndarray  # (2, md) the last Newton iterate's junction voltages and the one before
     rows: np.ndarray  # (nrows,) unknowns recorded at every accepted point
     out_t: np.ndarray
@@ -84,7 +88,8 @@ def initial_port_state(
     rR = r - md
     x_ext = np.append(x0, 0.0)
     ports = x_ext[plan.port_p[:md]] - x_ext[plan.port_n[:md]]
-    control = x_ext[plan.sw[:, 2]] - x_ext[plan.sw[:, 3]] if ms else np.zeros(0)
+    control_nodes = plan.sw[:, CONTROL_POSITIVE], plan.sw[:, CONTROL_NEGATIVE]
+    control = x_ext[control_nodes[0]] - x_ext[control_nodes[1]] if ms else np.zeros(0)
     hq = np.zeros((4, nq))
     hq[0] = q0
     rows = np.ascontiguousarray(rows, dtype=np.int64)
@@ -98,40 +103,40 @@ def initial_port_state(
     return PortState(
         fs=fs,
         ints=ints,
-        ht=z(4),
-        hq=hq,
-        hi=z((2, nq)),
-        hv=np.ascontiguousarray(np.stack([ports, ports])),
-        hc=np.ascontiguousarray(np.stack([control, control])),
+        t_history=z(4),
+        q_history=hq,
+        qdot_history=z((2, nq)),
+        v_history=np.ascontiguousarray(np.stack([ports, ports])),
+        control_history=np.ascontiguousarray(np.stack([control, control])),
         x_ext=x_ext.copy(),
         x_prev_ext=x_ext.copy(),
         **device_states(families),
         fac=empty_factors(n, r, md, plan.lin_slots.size, plan.src_kind.size, dense=n < SPARSE_FROM),
-        dR=z(rR),
+        d_eliminated=z(rR),
         F=z((rR, rR)),
         G=z((rR, rR)),
         H=z((md, md)),
-        hcol=z(md),
+        h_max=z(md),
         bound=z(md),
-        colv=np.full(md, -1, dtype=np.int64),
-        tr=z(rR),
-        tr2=z(rR),
-        Hieq=z(md),
+        formed_at=np.full(md, -1, dtype=np.int64),
+        scratch=z(rR),
+        scratch2=z(rR),
+        h_ieq=z(md),
         ieq_applied=z(md),
-        act=np.zeros(md, dtype=np.int64),
-        xa=z(md),
+        active=np.zeros(md, dtype=np.int64),
+        x_active=z(md),
         c0=z(r),
         e0=z(md),
         Fc0=z(rR),
         A=z((md, md)),
         b=z(md),
-        pJ=z(md),
-        pJ_new=z(md),
-        dJ=z(md),
-        j=z(md),
-        pR=z(rR),
+        v_junction=z(md),
+        v_new=z(md),
+        dg=z(md),
+        current_dev=z(md),
+        p_eliminated=z(rR),
         w=z(rR),
-        vc=z(ms),
+        v_control=z(ms),
         fail_v=z((2, md)),
         rows=rows,
         out_t=z(capacity),
