@@ -67,7 +67,12 @@ class BenchRunner:
         self._running = False
 
     def resume(self) -> None:
-        """Run again from the model time reached (the clock does not catch up the pause)."""
+        """Run again from the model time reached (the clock does not catch up the pause).
+
+        After a failed chunk (``error``) the chunk is tried again from the state before it,
+        with the knobs and state as they are now (e.g. after an overload, a lower speed or a
+        push back)."""
+        self.error = None
         self._reanchor()
         self._running = True
         self._wake.set()

@@ -22,8 +22,19 @@ from circuitsim.netlist.circuit import Sin, VoltageSource
 from circuitsim.netlist.names import fold
 from circuitsim.solver.continuation import Continuation, initial_state
 from circuitsim.solver.engine import flat_circuit
+from circuitsim.synthesis.options import SWING_LIMIT
 from circuitsim.synthesis.scalemap import ScaleMap
 from circuitsim.synthesis.translator import Synthesis
+
+#: Peak |V| (V) of a state node past which a chunk is refused as an overload, by default: the
+#: swing of a real build's op-amps (a TL074's on +/-15 V supplies), which clip there, so that
+#: past it the circuit no longer computes the model's equations. Ideal op-amps have no rails;
+#: a session may lift the limit (``inf``) to follow a linear model's unbounded growth.
+OVERLOAD_VOLTS = SWING_LIMIT["tl074"]
+
+
+class Overload(BenchError):
+    """A chunk whose state nodes went past the op-amps' output swing; nothing changed."""
 
 
 class RunningCircuit:
@@ -33,9 +44,13 @@ class RunningCircuit:
     ----------
     synthesis : Synthesis
         The circuit at the starting knob values; its ``.ic`` values are the first state.
+    overload : float
+        Peak |V| of a state node past which a chunk is refused (:class:`Overload`; ``inf``:
+        never).
     """
 
-    def __init__(self, synthesis: Synthesis):
+    def __init__(self, synthesis: Synthesis, overload: float = OVERLOAD_VOLTS):
+        self.overload = overload
         self.scale_map: ScaleMap = synthesis.scale_map
         self.flat = copy.deepcopy(flat_circuit(synthesis.circuit))
         self._set_circuit_values(synthesis)
@@ -127,15 +142,38 @@ class RunningCircuit:
         ------
         ConvergenceError, RunLimitError
             From the engine (the state is then the one before the chunk).
+        Overload
+            A state node went past ``overload`` volts during the chunk (the state is then the
+            one before the chunk): a real circuit clips there, so the chunk would no longer
+            be the model's.
         """
         K = self.scale_map.time_scale
         start = t_model / K
         for name, base in self.generators.items():  # sin(2 pi f t + phase), t reached
             phase = (float(base.phase) + 360.0 * float(base.frequency) * start) % 360.0
             self.engine.set_sine(name, float(base.amplitude) * share, phase)
-        waveforms, self.state = self.engine.run(self.tmax, duration / K, self.tmax, self.state)
+        waveforms, state = self.engine.run(self.tmax, duration / K, self.tmax, self.state)
+        self._check_overload(waveforms, t_model)
+        self.state = state
         states = {
             name: self.scale_map.to_state(name, waveforms.signals[f"v({fold(scale.node)})"])
             for name, scale in self.scale_map.states.items()
         }
         return t_model + waveforms.time * K, states
+
+    def _check_overload(self, waveforms, t_model: float) -> None:
+        """Raise :class:`Overload` if a state node's |V| went past ``overload``."""
+        for name, scale in self.scale_map.states.items():
+            signal = waveforms.signals[f"v({fold(scale.node)})"]
+            volts = np.abs(signal)
+            k = int(np.argmax(volts))
+            if not volts[k] <= self.overload:  # NaN counts as past it
+                t = t_model + float(waveforms.time[k]) * self.scale_map.time_scale
+                value = self.scale_map.to_state(name, signal[k : k + 1])[0]
+                raise Overload(
+                    f"overload at model time {t:.6g} s: state {name}'s node {scale.node} "
+                    f"reached {volts[k]:.4g} V ({name} = {value:.4g}), past the op-amps' "
+                    f"{self.overload:g} V swing (a real circuit clips there): the circuit diverges "
+                    "at these knob values. Turn a knob (e.g. a lower speed) or push the state "
+                    "back, then resume (the overload limit is the bench's --overload)"
+                )

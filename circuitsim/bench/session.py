@@ -33,7 +33,7 @@ from circuitsim.bench.knobs import (
     fixed_ranges,
     synthesize_at,
 )
-from circuitsim.bench.running import RunningCircuit
+from circuitsim.bench.running import OVERLOAD_VOLTS, RunningCircuit
 from circuitsim.mechanics.solve import solve
 from circuitsim.netlist.circuit import Resistor
 
@@ -68,6 +68,10 @@ class BenchSession:
     sample : float
         Model seconds between trace samples (> 0; rounded so that a chunk holds a whole
         number of them).
+    overload : float
+        Peak |V| of a state node past which a chunk is refused and the session stays before
+        it (V, > 0; default :data:`~circuitsim.bench.running.OVERLOAD_VOLTS`, a real op-amp's
+        swing; ``inf``: never, as for the paper's unbounded linear growth).
 
     Raises
     ------
@@ -76,9 +80,17 @@ class BenchSession:
         refuses).
     """
 
-    def __init__(self, setup: BenchSetup, chunk: float = 0.1, sample: float = 0.002):
+    def __init__(
+        self,
+        setup: BenchSetup,
+        chunk: float = 0.1,
+        sample: float = 0.002,
+        overload: float = OVERLOAD_VOLTS,
+    ):
         if not (math.isfinite(chunk) and chunk > 0 and math.isfinite(sample) and sample > 0):
             raise BenchError(f"chunk and sample must be positive, got {chunk:g} and {sample:g}")
+        if not overload > 0:
+            raise BenchError(f"the overload limit must be a positive voltage, got {overload:g}")
         self.setup = setup
         self.chunk = chunk
         self.per_chunk = max(1, round(chunk / sample))
@@ -93,7 +105,7 @@ class BenchSession:
         synthesis, self.pots = synthesize_at(setup, self.parameters, self.switches, self.options)
         if synthesis.scale_map != first.scale_map:
             raise BenchError("the translator did not keep the scales of the first circuit")
-        self.circuit = RunningCircuit(synthesis)
+        self.circuit = RunningCircuit(synthesis, overload)
         self.scale_map = synthesis.scale_map
         self.knobs: list[Knob] = find_knobs(setup, self.options, synthesis)
         self.system = setup.system(self.parameters, self.switches)

@@ -116,3 +116,24 @@ def test_a_failed_chunk_says_its_model_time(held_runner):
     )
     assert "at t = 0.0670958 s" in runner.error and not runner.running
     assert session.t == t0  # the session keeps the state before the chunk
+
+
+def test_an_overload_stops_the_clock_and_resume_goes_on_after_a_push():
+    session = BenchSession(wheelset_setup(57.0), chunk=0.1)
+    session.set_state({"y": 12.0 / session.scale_map.states["y"].volts_per_unit})
+    runner = BenchRunner(session, rate=float("inf")).start()
+    try:
+        deadline = time.monotonic() + 240.0
+        while runner.error is None:
+            assert time.monotonic() < deadline, "no overload"
+            time.sleep(0.05)
+        assert "Overload" in runner.error and "swing" in runner.error
+        assert not runner.running
+        t = session.t
+        session.set_state({"y": 0.005, "psi": 0.0, "y_dot": 0.0, "psi_dot": 0.0})
+        runner.set_until(t + 0.3)
+        runner.resume()  # the error is cleared: the refused chunk runs from the push
+        wait_until_held(runner)
+        assert session.t == pytest.approx(t + 0.3, abs=1e-9)
+    finally:
+        runner.stop()

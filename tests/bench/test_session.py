@@ -4,6 +4,7 @@ wheelset's free response against MODEL.md, and refused knob values."""
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +12,7 @@ import pytest
 
 from circuitsim.bench.errors import BenchError
 from circuitsim.bench.knobs import BenchSetup
+from circuitsim.bench.running import Overload
 from circuitsim.bench.session import BenchSession
 from circuitsim.compare.signals import nrmsd_percent
 from circuitsim.mechanics import load_model
@@ -142,7 +144,7 @@ def test_trace_since_returns_only_newer_samples(session_run):
 def test_free_response_at_57_matches_model_md():
     """MODEL.md: from y(0) = 5 mm at V = 57, no flange, no excitation, max |y| over 9-10 s
     is 1.223 m."""
-    session = BenchSession(wheelset_setup(57.0), chunk=0.1)
+    session = BenchSession(wheelset_setup(57.0), chunk=0.1, overload=math.inf)  # 68 V at 10 s
     session.set_state({"y": 0.005})
     while session.t < 10.0 - 1e-9:
         session.step()
@@ -184,6 +186,30 @@ def test_bad_knob_values_are_refused_and_change_nothing(idle_session, values, me
 def test_bad_pushes_are_refused(idle_session, values, message):
     with pytest.raises(BenchError, match=message):
         idle_session.set_state(values)
+
+
+def test_a_diverging_circuit_stops_at_the_overload_and_goes_on_after_a_push():
+    """At 57 m/s without the flange the hunting grows without bound (to 1e12 V, where the
+    engine fails, at 53.7 s from 5 mm): past a real op-amp's swing the chunk is refused,
+    nothing changes, and a push back lets the session go on."""
+    session = BenchSession(wheelset_setup(57.0), chunk=0.1)
+    volts_per_metre = session.scale_map.states["y"].volts_per_unit
+    session.set_state({"y": 12.0 / volts_per_metre})  # 12 V, just inside the 13 V swing
+    with pytest.raises(Overload) as failure:
+        for _ in range(50):
+            session.step()
+    t, samples, state = session.t, session.trace()["t"], session.circuit.states().copy()
+    reached = re.search(r"state \w+'s node \S+ reached (\S+) V", str(failure.value))
+    assert reached and 13.0 < float(reached.group(1)) < 20.0
+    assert f"model time {t:.3g}" in str(failure.value) or t < 5.0
+    with pytest.raises(Overload):  # the same chunk again: the same refusal, nothing changed
+        session.step()
+    assert session.t == t and session.trace()["t"] == samples
+    assert np.array_equal(session.circuit.states(), state)
+    session.set_state({"y": 0.005, "psi": 0.0, "y_dot": 0.0, "psi_dot": 0.0})
+    session.step()
+    assert session.t == pytest.approx(t + session.chunk)
+    assert np.max(np.abs(session.trace(since=t)["states"]["y"])) < 0.01
 
 
 def test_time_series_forcing_is_refused():
