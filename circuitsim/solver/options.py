@@ -60,7 +60,8 @@ class SimulationOptions:
         Bound on a transient run's wall time, seconds (None: none); past it the run stops with
         a :class:`~circuitsim.solver.errors.RunLimitError`. Checked between steps (the
         compiled loops return to Python for that after 20,000 steps, then about every
-        second of work).
+        second of work). A compile of the kernel in the run (its first use on a machine)
+        does not count: the deadline moves by the time of the compiling first call.
     bypass : int
         1: after the first Newton iteration of a time point, a junction whose voltage and
         linearized current are within tolerance of its last evaluation keeps that evaluation

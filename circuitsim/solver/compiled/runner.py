@@ -417,8 +417,11 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
         while True:
             status = loop.run(plan, st, t_until, *mid)
             if compiling:
-                record_compile_seconds(kind, time.perf_counter() - began)
+                seconds = time.perf_counter() - began
+                record_compile_seconds(kind, seconds)
                 compiling, compiled = False, True
+                if deadline is not None:  # the compile (minutes at a load) is not the run's
+                    deadline += seconds  # time; its first chunk's steps are forgiven with it
             if status == nw.FACTOR and kind == "ports":
                 _factor(plan, st, float(st.fs[nw.FACTOR_A0]))
                 factored_in_python += 1
