@@ -365,6 +365,8 @@ def start_counters() -> np.ndarray:
     ints[slots.JUNCTION_VERSION] = -1
     ints[slots.PAUSE_ATTEMPTS] = np.iinfo(np.int64).max  # until the caller sets one
     ints[slots.MEASURED_VERSION] = 1  # the start's factorization is version 1
+    ints[slots.NEW_H_MATRIX] = 1
+    ints[slots.Y_VERSION] = -1
     return ints
 
 

@@ -71,10 +71,12 @@ from circuitsim.solver.compiled.slots import (
     MAXORD,
     METHOD,
     MIN_STEP,
+    NEW_H_MATRIX,
     RELTOL,
     TSTOP,
     UIC,
     VNTOL,
+    Y_VERSION,
 )
 from circuitsim.solver.compiled.transient import (
     FINISHED,
@@ -156,14 +158,12 @@ def run(plan, st, t_until):
         st.active,
         st.x_active,
     )
-    new_h_matrix = True  # H changed: H ieq to be recomputed in full
     # many recorded unknowns: form them all column by column (ports.all_unknowns)
     record_all = rows.size * 4 > fac.yc.size
     ZT, zrel = fac.ZT, fac.zrel
     x_all = np.empty(fac.yc.size)
-    y_junctions = np.empty(fac.yc.size)
-    current_applied = np.zeros(n_junctions)
-    y_version = -1
+    # kept in the state, so that a return to Python (a pause) changes nothing
+    y_junctions, current_applied = st.y_junctions, st.current_applied
     reltol, abstol, vntol = real[RELTOL], real[ABSTOL], real[VNTOL]
     itl4 = ints[ITL4]
     jp, cp, jslot, has_charge, charged = plan.jp, plan.cp, plan.jslot, plan.has_charge, plan.charged
@@ -193,8 +193,14 @@ def run(plan, st, t_until):
         if resume != NOT_RESUMING:
             t, next_break, h, order, landing = resumed_step(floats, counters, breaks)
         else:
-            if floats[T] >= t_until or counters[ATTEMPTS] >= counters[PAUSE_ATTEMPTS]:
+            if floats[T] >= t_until:  # a tenth of the run, in model time: a fixed point
+                # where the caches updated in place (H ieq, the recorded unknowns' junction
+                # part) are formed anew, so that their round-off drift stays bounded
+                counters[NEW_H_MATRIX] = 1
+                counters[Y_VERSION] = -1
                 return PAUSED
+            if counters[ATTEMPTS] >= counters[PAUSE_ATTEMPTS]:
+                return PAUSED  # for the wall clock (machine-dependent): changes nothing
             if counters[COUNT] >= out_t.size:
                 return FULL
             t, next_break, h, order, landing = step_start(
@@ -316,7 +322,7 @@ def run(plan, st, t_until):
                             counters[CFG_STALE] = 0
                             counters[CFG_COUNT] += 1  # every column of H to be formed anew
                             fresh = True
-                            new_h_matrix = True
+                            counters[NEW_H_MATRIX] = 1
                         if fresh:  # the time point's port responses (ports.py: c0, e0, F c0_R)
                             for i in range(n_all_ports):
                                 acc = cc[i]
@@ -350,7 +356,8 @@ def run(plan, st, t_until):
                         # columns whose companion current changed (by more than negligibly,
                         # below). (Written out, not called: see the Newton comment above.)
                         count = counters[CFG_COUNT]
-                        if new_h_matrix:  # H ieq = K_JJ ieq - K_JR G (K_RJ ieq), no H formed
+                        # H changed: H ieq = K_JJ ieq - K_JR G (K_RJ ieq) in full, no H formed
+                        if counters[NEW_H_MATRIX] == 1:
                             for s in range(n_eliminated):
                                 acc = 0.0
                                 for k in range(n_junctions):
@@ -370,7 +377,7 @@ def run(plan, st, t_until):
                                 h_ieq[i] = acc
                             for k in range(n_junctions):
                                 ieq_applied[k] = ieq[k]
-                            new_h_matrix = False
+                            counters[NEW_H_MATRIX] = 0
                         # A change that moves no junction voltage by more than
                         # JUNCTION_NEGLIGIBLE vntol (bound: max_i |H_ik| or more) waits until it
                         # grows, as in newton.junction_response: the companion currents of clamp
@@ -604,9 +611,9 @@ def run(plan, st, t_until):
         if record_all:
             all_unknowns(
                 x_all, yc, Yb, ZT, src_values, hist_lin, current_dev, w, n_junctions,
-                y_junctions, current_applied, zrel, y_version != counters[VERSION],
+                y_junctions, current_applied, zrel, counters[Y_VERSION] != counters[VERSION],
             )  # fmt: skip
-            y_version = counters[VERSION]
+            counters[Y_VERSION] = counters[VERSION]
             for k in range(rows.size):
                 out_x[row, k] = x_all[rows[k]]
         else:

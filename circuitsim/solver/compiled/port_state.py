@@ -53,6 +53,8 @@ class PortState(NamedTuple):
     scratch2: np.ndarray  # (rR,)
     h_ieq: np.ndarray  # (md,) H ieq_applied
     ieq_applied: np.ndarray  # (md,)
+    y_junctions: np.ndarray  # (n,) the recorded unknowns' junction part (ports.all_unknowns)
+    current_applied: np.ndarray  # (md,) the junction currents y_junctions holds
     active: np.ndarray  # (md,) int: active junctions of the iteration
     x_active: np.ndarray  # (md,) their solution
     c0: np.ndarray  # (r,) time point: port response of sources and charge history
@@ -123,6 +125,8 @@ def initial_port_state(
         scratch2=z(rR),
         h_ieq=z(md),
         ieq_applied=z(md),
+        y_junctions=z(n),
+        current_applied=z(md),
         active=np.zeros(md, dtype=np.int64),
         x_active=z(md),
         c0=z(r),

@@ -53,12 +53,10 @@ from circuitsim.solver.system import MnaSystem
 from circuitsim.solver.transient import recorded, run_transient, start_transient, wall_deadline
 
 # The loop returns to Python after FIRST_PAUSE attempted steps, then after about PAUSE_SECONDS
-# of work, to check the wall-time limit. Each return restarts the loop's local caches (its
-# results then differ in round-off, not beyond its tolerances): the first chunk is long
-# enough that a run like the ideal wheelset (15,000 steps) has no extra return. With
-# ``fixed_pauses`` (sweep variants) every chunk is FIRST_PAUSE attempts: the returns, and so
-# the values, do not depend on the machine's speed or load (a study run in-process and on a
-# cluster gives the same numbers bit for bit).
+# of work, to check the wall-time limit. Such a return changes nothing: both loops keep
+# their caches in the state (tests/solver/test_pause_transparency.py; the ports loop forms
+# its in-place caches anew at each tenth of the run in model time, a fixed point). With
+# ``fixed_pauses`` (sweep variants) every chunk is FIRST_PAUSE attempts.
 FIRST_PAUSE = 20_000
 PAUSE_SECONDS = 1.0
 

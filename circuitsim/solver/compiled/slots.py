@@ -45,4 +45,8 @@ CFG_STALE, CFG_COUNT, ACTIVE_STREAK = 15, 16, 17
 # its wall-time limit and Ctrl-C); active junctions the run's last refactor left, and that
 # refactor's VERSION (newton.rebase_wanted)
 PAUSE_ATTEMPTS, AFTER_REFACTOR, MEASURED_VERSION = 18, 19, 20
-INT_SLOTS = 21
+# the ports loop's caches, kept across its returns so that a pause changes nothing: 1 when H
+# ieq is to be recomputed in full (H changed), and the factorization version the recorded
+# unknowns' junction part (PortState.y_junctions) was formed at (-1: none)
+NEW_H_MATRIX, Y_VERSION = 21, 22
+INT_SLOTS = 23
