@@ -16,7 +16,9 @@ from tests.solver.test_compiled_chain import chain_circuit
 pytest.importorskip("numba")
 
 
-@pytest.mark.parametrize("kernel, masses", [("ports", 1), ("ports", 2), ("ports", 4), ("compiled", 4)])
+@pytest.mark.parametrize(
+    "kernel, masses", [("ports", 1), ("ports", 2), ("ports", 4), ("compiled", 4)]
+)
 def test_a_run_paused_every_hundred_attempts_equals_an_unpaused_run(
     tmp_path, monkeypatch, kernel, masses
 ):
