@@ -22,7 +22,6 @@ from circuitsim.cli.translator_options import (
     knob_request,
     translator_options,
 )
-from circuitsim.synthesis.options import SWING_LIMIT
 
 
 def _add_bench(sub: argparse._SubParsersAction) -> None:
@@ -82,10 +81,11 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--overload",
         type=float,
-        default=SWING_LIMIT["tl074"],  # bench.running.OVERLOAD_VOLTS, without importing it
-        metavar="VOLTS",
+        metavar="VOLTS",  # default None: bench.running.OVERLOAD_VOLTS, imported by the run
+        # (importing the translator here would load scipy.optimize in every verb's process)
         help="stop the clock when a state node passes this |V| (a real op-amp clips there; "
-        f"> 0, default {SWING_LIMIT['tl074']:g}; inf: never, e.g. to follow unbounded growth)",
+        "> 0, default: a TL074's swing on +/-15 V supplies, 13 V (the translator's "
+        "SWING_LIMIT); inf: never, e.g. to follow unbounded growth)",
     )
     parser.add_argument(
         "--no-browser", action="store_true", help="do not open the page in a web browser"
@@ -104,7 +104,7 @@ def _check_bench(args: argparse.Namespace) -> None:
     check_translator_options(args)
     require_positive("--tstop", args.tstop)
     require_positive("--chunk", args.chunk)
-    if not args.overload > 0:  # NaN fails too; inf is taken
+    if args.overload is not None and not args.overload > 0:  # NaN fails; inf is taken
         raise UsageError(f"--overload must be a positive voltage or inf, got {args.overload:g}")
     if not args.rate > 0:  # NaN fails too; inf is taken
         raise UsageError(f"--rate must be a positive number or inf, got {args.rate:g}")
@@ -127,7 +127,8 @@ def _run_bench(args: argparse.Namespace) -> int:
         model, system, translator_options(args), args.coeffs, knob_request(args, model)
     )
     progress("bench: translating the circuit and finding its knobs")
-    session = BenchSession(setup, chunk=args.chunk, overload=args.overload)
+    overload = {} if args.overload is None else {"overload": args.overload}
+    session = BenchSession(setup, chunk=args.chunk, **overload)
     for warning in session.warnings:
         print(f"warning: {warning}", file=sys.stderr, flush=True)
     runner = BenchRunner(session, rate=args.rate, running=not args.paused)

@@ -80,7 +80,32 @@ def test_simulate_loads_no_comparison_or_sweep_code(tmp_path):
         "from circuitsim.cli import main\n"
         f"assert main(['simulate', {str(netlist)!r}]) == 0\n"
         "loaded = [m for m in ('circuitsim.compare.sweep', 'circuitsim.compare.comparison',\n"
-        "          'scipy.interpolate', 'scipy.signal') if m in sys.modules]\n"
+        "          'scipy.interpolate', 'scipy.signal', 'scipy.optimize', 'scipy.integrate',\n"
+        "          'matplotlib', 'networkx', 'circuitsim.synthesis', 'circuitsim.mechanics',\n"
+        "          'circuitsim.interop', 'circuitsim.studies') if m in sys.modules]\n"
+        "print('loaded:', loaded, file=sys.stderr)\n"
+        "sys.exit(1 if loaded else 0)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+
+
+def test_command_line_parser_loads_no_numerics():
+    """Building the command line (every verb's options) imports no scipy, numba, matplotlib
+    or networkx, and none of the translator, ODE or engine side: a verb loads what it runs.
+    (The bench verb's --overload default once imported the translator, and with it
+    scipy.optimize and scipy.integrate, into every process: docs/performance.md section 6.)"""
+    import subprocess
+    import sys
+
+    script = (
+        "import sys\n"
+        "from circuitsim.cli import build_parser\n"
+        "build_parser()\n"
+        "heavy = ('scipy', 'numba', 'matplotlib', 'networkx', 'circuitsim.synthesis',\n"
+        "         'circuitsim.mechanics', 'circuitsim.solver', 'circuitsim.interop',\n"
+        "         'circuitsim.studies', 'circuitsim.bench')\n"
+        "loaded = sorted(m for m in sys.modules if m.startswith(heavy))\n"
         "print('loaded:', loaded, file=sys.stderr)\n"
         "sys.exit(1 if loaded else 0)\n"
     )
