@@ -153,8 +153,8 @@ def transient(
     """Transient analysis (``.tran tstep tstop [tstart [tmax]] [uic]``), seconds.
 
     Returns the solution on the solver's own accepted time points (t >= tstart), of the
-    signals ``probes`` (default: all; the compiled kernels then record only the unknowns
-    those need). ``stats``: accepted, rejected, newton_iterations, factorizations,
+    signals ``probes`` (default: all; every loop then records only the unknowns those
+    need). ``stats``: accepted, rejected, newton_iterations, factorizations,
     wall_time_s, kernel.
 
     Raises
@@ -172,7 +172,7 @@ def transient(
     unknowns = sorted({system.signals[n] for n in names if system.signals[n] >= 0})
     columns = {index: column for column, index in enumerate(unknowns)}
     extra = {}
-    if runner is not run_transient and len(unknowns) < system.size:
+    if len(unknowns) < system.size:
         extra["rows"] = np.array(unknowns, dtype=np.int64)
     with single_threaded_blas():
         times, solutions = runner(

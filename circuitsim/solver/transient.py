@@ -96,15 +96,16 @@ def run_transient(
     uic: bool = False,
     progress: Callable[[str], None] | None = None,
     stats: dict | None = None,
+    rows: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Integrate from 0 to ``tstop``.
+    """Integrate from 0 to ``tstop``, recording only the unknowns ``rows`` (default: all).
 
     Returns
     -------
     times : ndarray, shape (m,)
         Accepted time points >= tstart (with uic, after 0: see ``recorded``), seconds.
-    solutions : ndarray, shape (m, n)
-        The unknowns at those points.
+    solutions : ndarray, shape (m, len(rows))
+        The unknowns ``rows`` at those points.
     """
     stats = stats if stats is not None else {}
     max_step, min_step, breaks, x, ctx0 = start_transient(
@@ -120,7 +121,7 @@ def run_transient(
     xs = [x]
     charges = [ctx0.q.copy()]
     currents = [np.zeros(system.n_charges)]
-    out_t, out_x = [0.0], [x]
+    out_t, out_x = [0.0], [x if rows is None else x[rows]]
 
     t, order = 0.0, 1
     h = fixed if fixed else min(tstop / 100, tstep) / 10
@@ -258,7 +259,7 @@ def run_transient(
         keep = 1 if any(toggled) else HISTORY
         del times[keep:], xs[keep:], charges[keep:], currents[keep:]
         out_t.append(t)
-        out_x.append(x_new)
+        out_x.append(x_new if rows is None else x_new[rows])
         stats["accepted"] += 1
         if fixed and order < options.maxord:
             order += 1

@@ -133,3 +133,38 @@ def test_engine_errors_name_the_netlist(tmp_path, capsys):
     netlist.write_text("* d\nV1 a 0 DC 1\nD1 a 0 nom\n.op\n.end\n")
     assert main(["simulate", str(netlist)]) == 2
     assert f"error: {netlist}: D1: no .model 'nom'" in capsys.readouterr().err
+
+
+RECTIFIER_WITHOUT_KERNEL = """* a diode the compiled kernels cannot run: bypass has no compiled form
+V1 in 0 SIN(0 1 1k)
+R1 in a 1k
+D1 a b DX
+C1 b 0 1u
+.model DX D(is=1e-14)
+.options bypass=1
+.tran 10u 1m
+.end
+"""
+
+
+def test_a_fallback_to_the_numpy_loop_is_said_on_stderr_and_in_the_summary(
+    tmp_path, capsys, monkeypatch
+):
+    # each way the default kernel ("auto") can end on the numpy reference loop, slower: a
+    # device without a compiled model, and numba missing
+    import sys
+
+    netlist = tmp_path / "rectifier.cir"
+    netlist.write_text(RECTIFIER_WITHOUT_KERNEL)
+    assert main(["simulate", str(netlist)]) == 0
+    captured = capsys.readouterr()
+    reason = "no compiled model for DiodeFamily"
+    assert f"warning: the compiled kernels cannot run this circuit ({reason})" in captured.err
+    assert f": builtin (python kernel: {reason}), " in captured.out.splitlines()[0]
+
+    monkeypatch.setitem(sys.modules, "numba", None)  # `import numba` raises ImportError
+    assert main(["simulate", str(GOLDEN / "rc.cir")]) == 0
+    captured = capsys.readouterr()
+    reason = "numba is not installed"
+    assert f"warning: the compiled kernels cannot run this circuit ({reason})" in captured.err
+    assert f": builtin (python kernel: {reason}), " in captured.out.splitlines()[0]
