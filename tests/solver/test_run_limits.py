@@ -100,7 +100,7 @@ def test_the_kernel_compile_does_not_count_against_the_wall_time_limit(kernel, m
         return SlowFirstCall(loop), st, mid
 
     monkeypatch.setattr(runner, "_loop_state", loop_state)
-    monkeypatch.setattr(runner, "_announce_compile", lambda kind, dispatcher: True)
+    monkeypatch.setattr(runner, "_announce_compile", lambda kind, dispatcher, helpers=0: True)
     monkeypatch.setattr(runner, "record_compile_seconds", lambda kind, seconds: None)
     result = simulate(circuit, SimulationOptions(kernel=kernel, max_wall_time=0.3))
     assert result.time[-1] == pytest.approx(10e-3)

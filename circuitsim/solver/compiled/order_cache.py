@@ -7,6 +7,11 @@ runner keeps the last few orders (copies of sparse_lu.SparseLU) and, when the ke
 for a new one (newton.FACTOR), first refactors the present matrix on each kept order; one
 whose pivots all pass the threshold is taken, at the cost of a refactor instead of
 SuperLU's two passes (tens of milliseconds in Python).
+
+The trial calls compiled functions from Python. One of them (assemble) is inlined into the
+kernel, so the kernel's compile leaves no machine code for a call from Python: the first
+trial compiled it (1.1 s at load 10) without the kernel's announcement. The runner compiles
+them when the run starts (:func:`compile_trial`), announced with the kernel's compile.
 """
 
 from __future__ import annotations
@@ -40,16 +45,33 @@ class EarlierOrders:
         """A kept order on which the kernel's present matrix (st's junction conductances,
         switch states and terminal slopes at a0) refactors, taken out of the kept ones
         (factored, as the kernel's next refactor will find it); None if none does."""
-        g_switch = np.where(np.asarray(st.state, dtype=bool), plan.g_switch[:, 0],
-                            plan.g_switch[:, 1])  # fmt: skip
         for index, lu in enumerate(self.kept):
-            assemble(lu.a_val, lu.g_val, lu.m_val, a0, lu.port_pos, st.gd, g_switch)
-            if plan.terms.kind.size:
-                stamp_terminals(plan.terms, st.terms, lu.extra_pos, lu.a_val)
-            # whole (its factors are of another matrix); lu.factored stays NaN, set when the
-            # order was given up, so the kernel's next refactor is whole too
-            if refactor(lu.a_ptr, lu.a_row, lu.a_val, lu.l_ptr, lu.l_row, lu.l_val, lu.u_ptr,
-                        lu.u_row, lu.u_val, lu.work, lu.dirty, True) < 0:  # fmt: skip
+            if _refactors(plan, st, lu, a0):
                 self.reused += 1
                 return self.kept.pop(index)
         return None
+
+
+def _refactors(plan, st, lu: SparseLU, a0: float) -> bool:
+    """Whether the present matrix (as in :meth:`EarlierOrders.suited`) refactors on the
+    order ``lu`` with every pivot above the threshold (``lu``'s values are overwritten)."""
+    g_switch = np.where(np.asarray(st.state, dtype=bool), plan.g_switch[:, 0],
+                        plan.g_switch[:, 1])  # fmt: skip
+    assemble(lu.a_val, lu.g_val, lu.m_val, a0, lu.port_pos, st.gd, g_switch)
+    if plan.terms.kind.size:
+        stamp_terminals(plan.terms, st.terms, lu.extra_pos, lu.a_val)
+    # whole (its factors are of another matrix); lu.factored stays NaN, set when the
+    # order was given up, so the kernel's next refactor is whole too
+    return refactor(lu.a_ptr, lu.a_row, lu.a_val, lu.l_ptr, lu.l_row, lu.l_val, lu.u_ptr,
+                    lu.u_row, lu.u_val, lu.work, lu.dirty, True) < 0  # fmt: skip
+
+
+def python_called(plan) -> tuple:
+    """The compiled functions a trial of ``plan``'s kernel calls from Python."""
+    return (assemble, refactor, *((stamp_terminals,) if plan.terms.kind.size else ()))
+
+
+def compile_trial(plan, st) -> None:
+    """Compile :func:`python_called` for the types of this run, by a trial on a copy of the
+    state's order (``st`` is left as it was)."""
+    _refactors(plan, st, copy_order(st.lu), 1.0)

@@ -24,7 +24,7 @@ from circuitsim.solver.compiled.cache import (
     record_compile_seconds,
 )
 from circuitsim.solver.compiled.failures import failure, singular_row
-from circuitsim.solver.compiled.order_cache import EarlierOrders
+from circuitsim.solver.compiled.order_cache import EarlierOrders, compile_trial, python_called
 from circuitsim.solver.compiled.plan import (
     KernelPlan,
     build_plan,
@@ -396,7 +396,12 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
         ) from None
     st.fs[nw.H] = fixed if fixed else min(tstop / 100, tstep) / 10
     st.fs[nw.SAVED_H] = tstop / 50
-    compiling = _announce_compile(kind, loop.run)
+    # the compiled functions the runner calls from Python (the MNA kernel's trials of earlier
+    # pivot orders): compiled now, announced with the kernel, not in the middle of the run
+    cold_helpers = kind != "ports" and any(is_cold(f) for f in python_called(plan))
+    compiling = _announce_compile(kind, loop.run, cold_helpers)
+    if cold_helpers:
+        compile_trial(plan, st)
     deadline = wall_deadline(options)
     report_every = tstop / 10  # progress every tenth of the run
     t_until = report_every
@@ -505,15 +510,15 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     return out_t[keep], out_x[keep]
 
 
-def _announce_compile(kind: str, dispatcher) -> bool:
-    """Warn (once per process and kernel) when ``dispatcher`` must compile before it runs;
-    returns whether it must."""
-    if not is_cold(dispatcher):
-        return False
-    if kind not in _ANNOUNCED:
+def _announce_compile(kind: str, dispatcher, helpers_cold: bool = False) -> bool:
+    """Warn (once per process and kernel) when ``dispatcher`` must compile before it runs, or
+    the kernel's functions called from Python must (``helpers_cold``); returns whether
+    ``dispatcher`` must."""
+    cold = is_cold(dispatcher)
+    if (cold or helpers_cold) and kind not in _ANNOUNCED:
         _ANNOUNCED.add(kind)
         warnings.warn(KernelCompileWarning(compile_notice(kind)), stacklevel=4)
-    return True
+    return cold
 
 
 def _grown(st):
