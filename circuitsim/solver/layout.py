@@ -159,3 +159,12 @@ def two_terminal_pattern(p: np.ndarray, n: np.ndarray) -> MatrixPattern:
 def conductance_values(g: np.ndarray) -> np.ndarray:
     """Values matching :func:`two_terminal_pattern`, shape (4, m)."""
     return np.stack([g, -g, -g, g])
+
+
+def branch_stamp(p: np.ndarray, n: np.ndarray, branch: np.ndarray) -> tuple:
+    """Pattern and values of branch currents ``branch`` from node p to node n through the
+    element: +1 in p's KCL row and -1 in n's, and v(p) - v(n) in the branch row, shape (4, m)
+    each (a voltage source's, an inductor's, a voltage-output POLY source's)."""
+    one = np.ones(len(branch))
+    pattern = MatrixPattern(np.stack([p, n, branch, branch]), np.stack([branch, branch, p, n]))
+    return pattern, np.stack([one, -one, one, -one])

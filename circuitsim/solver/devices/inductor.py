@@ -7,7 +7,7 @@ import numpy as np
 from circuitsim.netlist.circuit import Inductor
 from circuitsim.solver.context import Stamps
 from circuitsim.solver.devices.base import DeviceFamily, number
-from circuitsim.solver.layout import MatrixPattern
+from circuitsim.solver.layout import MatrixPattern, branch_stamp
 
 
 class InductorFamily(DeviceFamily):
@@ -26,13 +26,8 @@ class InductorFamily(DeviceFamily):
         self.ic = np.array(ic)
 
     def stamp_linear(self, stamps: Stamps) -> None:
-        b, p, n = self.branch, self.p, self.n
-        one = np.ones(len(b))
         # KCL: the branch current leaves n+ and enters n-; branch row: v+ - v- - dphi/dt = 0.
-        stamps.add(
-            MatrixPattern(np.stack([p, n, b, b]), np.stack([b, b, p, n])),
-            np.stack([one, -one, one, -one]),
-        )
+        stamps.add(*branch_stamp(self.p, self.n, self.branch))
 
     def stamp_charges(self, charges: Stamps, incidence: Stamps) -> None:
         charges.add(MatrixPattern(self.slots[None, :], self.branch[None, :]), self.inductance)

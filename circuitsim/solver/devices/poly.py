@@ -26,7 +26,7 @@ from circuitsim.solver.context import Stamps, StepContext
 from circuitsim.solver.devices.base import DeviceFamily, number
 from circuitsim.solver.devices.terminals import TerminalStamp, current_converged
 from circuitsim.solver.errors import CircuitInputError
-from circuitsim.solver.layout import GROUND, MatrixPattern
+from circuitsim.solver.layout import GROUND, branch_stamp
 
 MAX_TERMS = 10_000  # coefficients per source: far above any macromodel, bounds the tables
 
@@ -138,11 +138,7 @@ class _PolyFamily(DeviceFamily):
 
     def stamp_linear(self, stamps: Stamps) -> None:
         if self.voltage_output:
-            b, one = self.branch, np.ones(len(self.branch))
-            stamps.add(
-                MatrixPattern(np.stack([self.p, self.n, b, b]), np.stack([b, b, self.p, self.n])),
-                np.stack([one, -one, one, -one]),
-            )
+            stamps.add(*branch_stamp(self.p, self.n, self.branch))
         if not self.nonlinear:
             g = self._terminal_slopes(self.poly.gains)
             stamps.add(self.terminal.pattern, np.stack([g, -g]))

@@ -9,7 +9,7 @@ from circuitsim.solver.context import Stamps
 from circuitsim.solver.devices.base import DeviceFamily
 from circuitsim.solver.devices.source_waveforms import SourceValues
 from circuitsim.solver.errors import CircuitInputError
-from circuitsim.solver.layout import MatrixPattern, VectorPattern
+from circuitsim.solver.layout import VectorPattern, branch_stamp
 
 
 class VoltageSourceFamily(DeviceFamily):
@@ -28,12 +28,7 @@ class VoltageSourceFamily(DeviceFamily):
         self.values = SourceValues(elements)
 
     def stamp_linear(self, stamps: Stamps) -> None:
-        b, p, n = self.branch, self.p, self.n
-        one = np.ones(len(b))
-        stamps.add(
-            MatrixPattern(np.stack([p, n, b, b]), np.stack([b, b, p, n])),
-            np.stack([one, -one, one, -one]),
-        )
+        stamps.add(*branch_stamp(self.p, self.n, self.branch))
 
     def output_signals(self) -> dict[str, int]:
         return {
