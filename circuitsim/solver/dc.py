@@ -1,6 +1,7 @@
 """Operating point: Newton, then gmin stepping, then source stepping (ngspice's order).
 
-Every loop here is bounded: Newton by ``itl1`` iterations, gmin stepping by a number of
+Every loop here is bounded: Newton by ``itl1`` iterations (raised to ``itl_floor``, as ngspice's
+NIiter raises it: ``SimulationOptions.op_iterations``), gmin stepping by a number of
 attempts that shrinks its factor until it gives up, source stepping by a minimum increment.
 """
 
@@ -35,7 +36,8 @@ class _Solver:
         ctx = self.ctx
         ctx.gshunt, ctx.source_scale, ctx.init_junction = gshunt, scale, junction
         rhs = self.system.source_vector(ctx, self.dc_op, self.clamp_ic)
-        ok, iterations, x = newton(self.system, x0, ctx, rhs, self.options.itl1, self.clamp_ic)
+        limit = self.options.op_iterations
+        ok, iterations, x = newton(self.system, x0, ctx, rhs, limit, self.clamp_ic)
         self.stats["newton_iterations"] = self.stats.get("newton_iterations", 0) + iterations
         return ok, iterations, x
 
@@ -53,9 +55,11 @@ class _Solver:
                 if gshunt <= target:
                     ok, _, x = self.newton(x_good)
                     return ok, x
-                if iterations <= self.options.itl1 / 4:
+                # quarters of the limit the Newton had (ngspice: of its nominal itl2 = 50, while
+                # its NIiter allows 100; ours keep their ratio to the limit at any itl1)
+                if iterations <= self.options.op_iterations / 4:
                     factor = min(factor * np.sqrt(factor), 10.0)
-                elif iterations > 3 * self.options.itl1 / 4:
+                elif iterations > 3 * self.options.op_iterations / 4:
                     factor = np.sqrt(factor)
                 gshunt = max(gshunt / factor, target)
             else:
@@ -80,9 +84,9 @@ class _Solver:
                 scale, x_good = trial, x
                 if scale >= 1.0:
                     return True, x_good
-                if iterations <= self.options.itl1 / 4:
+                if iterations <= self.options.op_iterations / 4:
                     increment *= 1.5
-                elif iterations > 3 * self.options.itl1 / 4:
+                elif iterations > 3 * self.options.op_iterations / 4:
                     increment *= 0.5
             else:
                 increment /= 10

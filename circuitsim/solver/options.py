@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import numbers
 from dataclasses import dataclass
 
 from circuitsim.netlist.circuit import Circuit, Expression
@@ -11,7 +12,9 @@ from circuitsim.solver.errors import CircuitInputError
 METHODS = ("trap", "gear")
 KERNELS = ("auto", "compiled", "ports", "python")
 # fields that are ours, not ngspice's: a netlist's .options cannot set them
-NOT_NGSPICE = ("fixed_step", "dense_limit", "max_steps", "max_wall_time", "kernel")
+NOT_NGSPICE = ("fixed_step", "dense_limit", "max_steps", "max_wall_time", "kernel", "itl_floor")
+# ngspice's NIiter raises every Newton iteration limit below this to it (niiter.c)
+NGSPICE_ITERATION_FLOOR = 100
 
 
 @dataclass
@@ -41,9 +44,11 @@ class SimulationOptions:
     maxord : int
         Highest integration order (1 or 2; 1 makes both methods backward Euler).
     itl1 : int
-        Newton iteration limit of the operating point.
+        Newton iteration limit of the operating point, as given; the limit the Newton loops
+        apply is :attr:`op_iterations`.
     itl4 : int
-        Newton iteration limit of one transient time point.
+        Newton iteration limit of one transient time point, as given; the limit the Newton
+        loops apply is :attr:`transient_iterations`.
     gminsteps : int
         Number of gmin stepping decades tried (0 skips gmin stepping).
     srcsteps : int
@@ -68,6 +73,12 @@ class SimulationOptions:
         (SPICE's device bypass; then an iteration in which every junction is bypassed costs no
         solve). 0 (default, as ngspice 39 behaves: its step sequences on the golden netlists
         are those without bypass) evaluates every junction at every iteration.
+    itl_floor : int
+        Newton iteration limits (``itl1``, ``itl4``) below this are raised to it, as ngspice's
+        NIiter does (it raises any limit below 100 to 100, so that ngspice's default
+        itl4 = 10, and even itl4 = 3, give 100 iterations per time point). 0 or 1: no floor
+        (the limits apply as given; for tests that force a Newton failure). Not an ngspice
+        option.
     kernel : str
         Which transient loop runs: ``"compiled"`` (numba, solver/compiled/: Newton on the
         whole MNA matrix, refactored sparse at every iteration; an error if the circuit or
@@ -97,6 +108,7 @@ class SimulationOptions:
     max_steps: int = 2_000_000
     max_wall_time: float | None = 600.0
     bypass: int = 0
+    itl_floor: int = NGSPICE_ITERATION_FLOOR
     kernel: str = "auto"
 
     def __post_init__(self) -> None:
@@ -125,6 +137,24 @@ class SimulationOptions:
             raise CircuitInputError(f"option max_wall_time={self.max_wall_time!r} must be > 0")
         if self.fixed_step is not None and not self.fixed_step > 0:
             raise CircuitInputError(f"fixed_step={self.fixed_step!r} must be > 0")
+        for name in ("itl1", "itl4", "itl_floor"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+                raise CircuitInputError(f"option {name}={value!r}: expected an integer")
+            if value < (0 if name == "itl_floor" else 1):
+                raise CircuitInputError(
+                    f"option {name}={value!r} must be >= {0 if name == 'itl_floor' else 1}"
+                )
+
+    @property
+    def op_iterations(self) -> int:
+        """Newton iteration limit of an operating-point solve: ``max(itl1, itl_floor)``."""
+        return max(int(self.itl1), int(self.itl_floor))
+
+    @property
+    def transient_iterations(self) -> int:
+        """Newton iteration limit of one transient time point: ``max(itl4, itl_floor)``."""
+        return max(int(self.itl4), int(self.itl_floor))
 
     @classmethod
     def from_circuit(cls, circuit: Circuit, **overrides) -> SimulationOptions:

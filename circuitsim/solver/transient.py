@@ -179,7 +179,7 @@ def run_transient(
                 x_guess = retry_from
             else:
                 x_guess = xs[0]
-            ok, iterations, x_new = newton(system, x_guess, ctx, rhs, options.itl4)
+            ok, iterations, x_new = newton(system, x_guess, ctx, rhs, options.transient_iterations)
             stats["newton_iterations"] += iterations
             if not ok:
                 stats["rejected"] += 1

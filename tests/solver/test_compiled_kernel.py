@@ -401,7 +401,7 @@ def test_newton_failure_is_the_same_error_on_every_kernel():
     errors = []
     for kernel in KERNELS:
         with pytest.raises(ConvergenceError) as info:
-            run(diode_sine(), kernel, 1e-5, 1e-3, opts={"itl4": 1})
+            run(diode_sine(), kernel, 1e-5, 1e-3, opts={"itl4": 1, "itl_floor": 0})
         errors.append(info.value)
     python, compiled, ports = errors
     assert "time step too small" in str(compiled)

@@ -83,7 +83,8 @@ def test_diode_from_far_start_converges(volts, ohms):
 
 
 def test_diode_newton_failure_is_a_clear_error():
-    opts = SimulationOptions(itl1=3, gminsteps=0, srcsteps=0)
+    # itl_floor=0: the limit applies as given (ngspice would raise itl1=3 to 100)
+    opts = SimulationOptions(itl1=3, itl_floor=0, gminsteps=0, srcsteps=0)
     with pytest.raises(ConvergenceError) as info:
         operating_point(diode_circuit(1000.0, 1.0), opts)
     assert info.value.node in ("k", "a", "i(v1)")
@@ -95,7 +96,7 @@ def test_transient_newton_failure_names_time_step_node(kernel):
     c = diode_circuit(5.0, 1e3)
     c.elements[0] = VoltageSource("V1", "a", "0", waveform=Sin(0.0, 5.0, 1e3))
     with pytest.raises(ConvergenceError) as info:
-        transient(c, 1e-5, 1e-3, options=SimulationOptions(itl4=1, kernel=kernel))
+        transient(c, 1e-5, 1e-3, options=SimulationOptions(itl4=1, itl_floor=0, kernel=kernel))
     err = info.value
     assert err.time is not None and err.step is not None and err.node is not None
     assert "time step too small" in str(err)

@@ -281,7 +281,7 @@ def build_plan(
     ints = np.zeros(slots.PLAN_INT_SLOTS, dtype=np.int64)
     ints[slots.METHOD] = slots.TRAP if options.method == "trap" else slots.GEAR
     ints[slots.MAXORD] = options.maxord
-    ints[slots.ITL4] = options.itl4
+    ints[slots.ITL4] = options.transient_iterations
     ints[slots.MAX_STEPS] = options.max_steps
     ints[slots.UIC] = int(uic)
     plan = KernelPlan(

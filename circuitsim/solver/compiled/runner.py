@@ -449,7 +449,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
                 # the step is attempted again: each new order lets it go further (at most
                 # one per Newton iteration), unless the matrix is singular
                 same_step += repivoted_at == st.ints[nw.ATTEMPTS]
-                if same_step > options.itl4 + 1:
+                if same_step > options.transient_iterations + 1:
                     raise np.linalg.LinAlgError("no pivot order suits the matrix")
                 repivoted_at = int(st.ints[nw.ATTEMPTS])
                 a0 = float(st.fs[loop.REPIVOT_A0])
