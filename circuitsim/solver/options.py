@@ -141,20 +141,18 @@ class SimulationOptions:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, numbers.Integral):
                 raise CircuitInputError(f"option {name}={value!r}: expected an integer")
-            if value < (0 if name == "itl_floor" else 1):
-                raise CircuitInputError(
-                    f"option {name}={value!r} must be >= {0 if name == 'itl_floor' else 1}"
-                )
+            if value < 0:
+                raise CircuitInputError(f"option {name}={value!r} must be >= 0")
 
     @property
     def op_iterations(self) -> int:
-        """Newton iteration limit of an operating-point solve: ``max(itl1, itl_floor)``."""
-        return max(int(self.itl1), int(self.itl_floor))
+        """Newton iteration limit of an operating-point solve: ``max(itl1, itl_floor, 1)``."""
+        return max(int(self.itl1), int(self.itl_floor), 1)
 
     @property
     def transient_iterations(self) -> int:
-        """Newton iteration limit of one transient time point: ``max(itl4, itl_floor)``."""
-        return max(int(self.itl4), int(self.itl_floor))
+        """Newton iteration limit of one transient time point: ``max(itl4, itl_floor, 1)``."""
+        return max(int(self.itl4), int(self.itl_floor), 1)
 
     @classmethod
     def from_circuit(cls, circuit: Circuit, **overrides) -> SimulationOptions:

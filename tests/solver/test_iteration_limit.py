@@ -23,10 +23,13 @@ def test_effective_limits_are_raised_to_the_floor():
     for no_floor in (0, 1):
         opts = SimulationOptions(itl1=3, itl4=2, itl_floor=no_floor)
         assert (opts.op_iterations, opts.transient_iterations) == (3, 2)
+    # ngspice accepts itl4=0 (its NIiter makes it 100); without a floor at least one iteration
+    assert SimulationOptions(itl4=0).transient_iterations == 100
+    assert SimulationOptions(itl4=0, itl_floor=0).transient_iterations == 1
 
 
 @pytest.mark.parametrize(
-    "bad", [{"itl_floor": -1}, {"itl_floor": 2.5}, {"itl_floor": True}, {"itl4": 0}, {"itl1": 0}]
+    "bad", [{"itl_floor": -1}, {"itl_floor": 2.5}, {"itl_floor": True}, {"itl4": -1}, {"itl1": -3}]
 )
 def test_bad_iteration_limits_are_named(bad):
     (name,) = bad
