@@ -55,8 +55,8 @@ class _Solver:
                 if gshunt <= target:
                     ok, _, x = self.newton(x_good)
                     return ok, x
-                # quarters of the limit the Newton had (ngspice: of its nominal itl2 = 50, while
-                # its NIiter allows 100; ours keep their ratio to the limit at any itl1)
+                # quarters of the limit the Newton had (op_iterations, not the nominal itl1:
+                # below the floor a quarter of itl1 would make every step count as slow)
                 if iterations <= self.options.op_iterations / 4:
                     factor = min(factor * np.sqrt(factor), 10.0)
                 elif iterations > 3 * self.options.op_iterations / 4:
