@@ -16,7 +16,6 @@ import math
 import time
 import warnings
 from collections.abc import Iterator, Sequence
-from fractions import Fraction
 
 import numpy as np
 from numba import njit
@@ -28,19 +27,29 @@ TOKEN = 24  # longest token: "-1.2345678901234567e-270"
 SPLITTER = 134217729.0  # 2**27 + 1 (Dekker)
 
 
+def _power_ratio(k: int) -> tuple[int, int]:
+    """10**k as (numerator, denominator), integers."""
+    return (10**k, 1) if k >= 0 else (1, 10**-k)
+
+
 def _powers() -> np.ndarray:
-    """10**k for k = 16 - HIGH_EXPONENT ... 16 - LOW_EXPONENT as (hi, lo) double-doubles."""
+    """10**k for k = 16 - HIGH_EXPONENT ... 16 - LOW_EXPONENT as (hi, lo) double-doubles.
+
+    Integer arithmetic (a tenth of Fraction's time at each import): Python's true division
+    of two integers is correctly rounded, so hi is 10**k rounded and lo the exact rest
+    (10**k - hi, a ratio of integers) rounded."""
     table = []
     for k in range(16 - HIGH_EXPONENT, 16 - LOW_EXPONENT + 1):
-        exact = Fraction(10) ** k
-        hi = float(exact)
-        table.append((hi, float(exact - Fraction(hi))))
+        numerator, denominator = _power_ratio(k)
+        hi = numerator / denominator
+        p, q = hi.as_integer_ratio()
+        table.append((hi, (numerator * q - p * denominator) / (denominator * q)))
     return np.array(table)
 
 
 POWERS = _powers()
 # 10**k for k = LOW_EXPONENT ... HIGH_EXPONENT, rounded (only compared with: see _write_token)
-TENS = np.array([float(Fraction(10) ** k) for k in range(LOW_EXPONENT, HIGH_EXPONENT + 1)])
+TENS = np.array([n / d for n, d in map(_power_ratio, range(LOW_EXPONENT, HIGH_EXPONENT + 1))])
 LOG10_2 = 0.30102999566398120
 # "00", "01", ... "99" as ASCII codes: two digits per division
 DIGIT_PAIRS = np.frombuffer("".join(f"{k:02d}" for k in range(100)).encode(), dtype=np.uint8)
