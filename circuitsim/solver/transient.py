@@ -277,10 +277,11 @@ def run_transient(
     return out_t[keep], out_x[keep]
 
 
-def wall_deadline(options) -> float | None:
-    """The ``time.perf_counter()`` past which a run started now stops (max_wall_time)."""
+def wall_deadline(options, clock: Callable[[], float] = _time.perf_counter) -> float | None:
+    """The reading of ``clock`` (s) past which a run started now stops (max_wall_time); a
+    loop compares the deadline with readings of the same clock."""
     limit = options.max_wall_time
-    return None if limit is None else _time.perf_counter() + limit
+    return None if limit is None else clock() + limit
 
 
 def recorded(times: np.ndarray, tstart: float, min_step: float, uic: bool) -> np.ndarray:

@@ -25,7 +25,8 @@ def test_csv_header_and_rc_values(tmp_path, capsys):
     assert np.all(np.diff(t) > 0) and len(t) > 100
     captured = capsys.readouterr()
     assert "accepted" in captured.out
-    assert "transient: t =" not in captured.err  # a run shorter than a second: no progress
+    # (no progress line for a run shorter than a second: a wall-clock matter, checked with a
+    # fake clock by the next test, not here, where a loaded machine takes longer)
 
 
 def test_progress_after_stays_silent_then_reports(capsys, monkeypatch):

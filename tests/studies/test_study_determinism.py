@@ -64,10 +64,13 @@ def test_a_single_run_does_not_depend_on_the_clock_either(long_variants, monkeyp
     paused every thousand steps, equals the fast one's bit for bit (before, they differed in
     round-off)."""
     circuit = long_variants.circuits[0]
+    # no wall-time limit: the slow clock's 5 s per reading would pass the default 600 s
+    # after 120 readings, long before the run's end (the limit reads the same clock)
+    options = SimulationOptions.from_circuit(circuit, kernel="ports", max_wall_time=None)
     runs = []
     for seconds in (FAST, SLOW):
         set_clock(monkeypatch, seconds)
-        runs.append(simulate(circuit, SimulationOptions.from_circuit(circuit, kernel="ports")))
+        runs.append(simulate(circuit, options))
     a, b = runs
     assert a.stats["accepted"] + a.stats["rejected"] > runner.FIRST_PAUSE + 1000
     np.testing.assert_array_equal(a.time, b.time)

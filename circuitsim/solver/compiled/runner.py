@@ -402,7 +402,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     compiling = _announce_compile(kind, loop.run, cold_helpers)
     if cold_helpers:
         compile_trial(plan, st)
-    deadline = wall_deadline(options)
+    deadline = wall_deadline(options, time.perf_counter)  # the clock the pauses read
     report_every = tstop / 10  # progress every tenth of the run
     t_until = report_every
     st.ints[nw.PAUSE_ATTEMPTS] = FIRST_PAUSE
