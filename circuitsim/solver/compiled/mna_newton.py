@@ -3,12 +3,15 @@
 The reference engine's general Newton (solver/newton.py), as ngspice runs it: at every
 iteration the devices are linearized at the iterate, the matrix is assembled into its fixed
 sparse pattern, refactored numerically (the pivot order is kept; only the columns that the
-changed conductances reach, sparse_lu.refactor) and solved. Switch states
+changed conductances reach, sparse_lu.refactor_marked) and solved. A junction whose
+conductance moved by less than ``plan.real[CHORD]`` of the one factored keeps the factored
+one, its current exact (a chord step: same solution, the refactor skipped or smaller). Switch states
 are re-decided against the accepted state at the first iteration, junctions limited with
 pnjlim against the accepted junction voltage at the first iteration and the last
 linearization afterwards; convergence when nothing was limited or toggled, every unknown is
 within reltol/vntol/abstol of the previous iterate and every junction passes SPICE's current
-check. The solve is exact (no low-rank update), so there is no refinement step.
+check. The solve is exact for the matrix stamped (no low-rank update), so there is no
+refinement step.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ from circuitsim.solver.compiled.mna_terminals import (
     terminals_converged,
 )
 from circuitsim.solver.compiled.newton import FACTORIZATIONS, RESUME_NONCON
-from circuitsim.solver.compiled.slots import ABSTOL, ITL4, PIVOT_ORDERS, RELTOL
+from circuitsim.solver.compiled.slots import ABSTOL, CHORD, ITL4, PIVOT_ORDERS, RELTOL
 from circuitsim.solver.compiled.sparse_lu import (
     ALL_COLUMNS,
     UNCHANGED,
@@ -31,6 +34,7 @@ from circuitsim.solver.compiled.sparse_lu import (
     lu_solve,
     mark_changed,
     refactor,
+    refactor_marked,
 )
 from circuitsim.solver.devices.diode_kernel import linearize_junction
 from circuitsim.solver.devices.switch_kernel import (
@@ -59,7 +63,7 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume):
     resume : 0, or the iteration that returned REORDER (re-entered on the new pivot order,
         with its linearization, x_new, q and qdot as it left them).
     """
-    reltol, abstol = plan.real[RELTOL], plan.real[ABSTOL]
+    reltol, abstol, chord = plan.real[RELTOL], plan.real[ABSTOL], plan.real[CHORD]
     itl4 = plan.ints[ITL4]
     jp, cp, jslot, has_charge, charged = plan.jp, plan.cp, plan.jslot, plan.has_charge, plan.charged
     port_p, port_n, abs_tol = plan.port_p, plan.port_n, plan.abs_tol
@@ -84,13 +88,15 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume):
         lu.u_val,
     )
     row_to, col_of, work = lu.row_to, lu.col_of, lu.work
-    entry_col, m_cols, extra_cols, factored, dirty = (
+    entry_col, m_cols, extra_cols, factored, dirty, todo = (
         lu.entry_col,
         lu.m_cols,
         lu.extra_cols,
         lu.factored,
         lu.dirty,
+        lu.todo,
     )
+    ut_ptr, ut_col = lu.ut_ptr, lu.ut_col
     tp, ts, extra_pos = plan.terms, st.terms, lu.extra_pos  # JFETs, BJTs, POLY: mna_terminals
     ms = sw.shape[0]
     md = jp.shape[0]
@@ -129,6 +135,8 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume):
             if charged_k:
                 q[slot] = charge
                 qdot[slot] = charge_current
+            if abs(conductance - factored[k]) <= chord * abs(factored[k]):
+                conductance = factored[k]  # the chord: the factors' slope, the exact current
             vd[k], cd[k], gd[k] = v, current, conductance
             ieq[k] = current - conductance * v
         if terminals and iteration != resume:
@@ -139,14 +147,19 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume):
         # the columns whose entries changed since the factors were made, and those their
         # change reaches, are factored again (none: a repeated step, junctions unchanged)
         change = mark_changed(
-            entry_col, port_pos, m_cols, extra_cols, factored, dirty, gd, g_sw, a0
+            entry_col, port_pos, m_cols, extra_cols, factored, dirty, todo, gd, g_sw, a0
         )
         if change != UNCHANGED:
             st.ints[FACTORIZATIONS] += 1
-        if change != UNCHANGED and refactor(
-            a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work, dirty,
-            change == ALL_COLUMNS,
-        ) >= 0:  # fmt: skip
+        if change == ALL_COLUMNS:
+            small = refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work,
+                             dirty, True)  # fmt: skip
+        elif change != UNCHANGED:
+            small = refactor_marked(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row,
+                                    u_val, work, dirty, todo, change, ut_ptr, ut_col)  # fmt: skip
+        else:
+            small = -1
+        if small >= 0:
             factored[-1] = np.nan  # the factors stopped at that column: all of them next
             if iteration == resume:  # on the order made at this very matrix
                 return REPIVOT, iteration, x

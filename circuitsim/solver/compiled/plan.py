@@ -25,6 +25,14 @@ from circuitsim.solver.devices import diode_kernel, source_kernel, switch_kernel
 from circuitsim.solver.integration import METHODS
 from circuitsim.solver.system import MnaSystem
 
+# The MNA kernel's chord (compiled/mna_newton.py): a junction whose conductance is within this
+# fraction of the one its port was factored with keeps the factored one (its current is
+# exact, so the converged point is the same; a Newton step then contracts the error by about
+# this fraction instead of quadratically). Measured on the golden netlists: 1e-4 keeps the
+# compiled kernel's time points those of the reference loop, 1e-3 moves one of halfwave.cir's
+# accept decisions (docs/solver.md, "The MNA kernel").
+CHORD_TOLERANCE = 1e-4
+
 
 class KernelPlan(NamedTuple):
     """Constant data of one transient run (shapes: n unknowns, md junctions, ms switches,
@@ -278,6 +286,7 @@ def build_plan(
     real[slots.MAX_STEP] = max_step
     real[slots.MIN_STEP] = min_step
     real[slots.TSTOP] = tstop
+    real[slots.CHORD] = CHORD_TOLERANCE
     ints = np.zeros(slots.PLAN_INT_SLOTS, dtype=np.int64)
     ints[slots.METHOD] = slots.TRAP if options.method == "trap" else slots.GEAR
     ints[slots.MAXORD] = options.maxord

@@ -11,10 +11,11 @@ from __future__ import annotations
 
 # plan.real: tolerances (reltol, abstol A, vntol V, chgtol C, trtol), the integration
 # method's error constants at order 1 and 2, the fixed step (0: adaptive), TMAX, the smallest
-# step and tstop (s)
+# step and tstop (s); the MNA kernel's chord tolerance (plan.CHORD_TOLERANCE: a junction conductance
+# within this fraction of the factored one keeps the factored one)
 RELTOL, ABSTOL, VNTOL, CHGTOL, TRTOL, ERROR_ORDER1, ERROR_ORDER2 = range(7)
-FIXED_STEP, MAX_STEP, MIN_STEP, TSTOP = range(7, 11)
-REAL_SLOTS = 11
+FIXED_STEP, MAX_STEP, MIN_STEP, TSTOP, CHORD = range(7, 12)
+REAL_SLOTS = 12
 # plan.ints: integration method (TRAP or GEAR), highest order, Newton iterations per time
 # point (itl4), attempted steps allowed, whether the run starts from initial conditions (uic)
 METHOD, MAXORD, ITL4, MAX_STEPS, UIC = range(5)

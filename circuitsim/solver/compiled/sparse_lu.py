@@ -10,11 +10,12 @@ fill pattern are found once and every later factorization is numeric only.
   permuted pattern with generic values gives the pattern of L and U without pivoting.
 - :func:`refactor` (numba): left-looking LU on that pattern, no pivoting; it reports a pivot
   smaller than ``PIVOT_THRESHOLD`` times the largest entry of its column, on which the caller
-  analyses again at the present values. It redoes only the columns that can differ from the
-  present factors: those whose entries changed (:func:`mark_changed`: a port whose
-  conductance changed, every charge column when a0 did, the multi-terminal devices' columns)
-  and those whose U column reaches a redone one (their L and U are computed from it); the
-  others' L and U are what a whole refactor would compute again, bit for bit.
+  analyses again at the present values. :func:`refactor_marked` redoes only the columns that
+  can differ from the present factors: those whose entries changed (:func:`mark_changed`: a
+  port whose conductance changed, every charge column when a0 did, the multi-terminal
+  devices' columns) and those whose U column reaches a redone one (their L and U are
+  computed from it), found through U's rows; the others' L and U are what a whole refactor
+  would compute again, bit for bit.
 - :func:`lu_solve` (numba): the two triangular solves with the permutations.
 
 The matrix is ``A = G + a0 M + sum_k g_k w_k w_k^T + T`` (w_k = e_p - e_n: junction and
@@ -36,6 +37,7 @@ from scipy.sparse.linalg import splu
 # a pivot below this fraction of its column's largest entry asks for a new pivot order (the
 # relative threshold of ngspice's spOrderAndFactor, PivRelThreshold 1e-3)
 PIVOT_THRESHOLD = 1e-3
+COLUMN_ORDER = "COLAMD"  # SuperLU's column order for the pivot order (permc_spec)
 
 
 class SparseLU(NamedTuple):
@@ -72,6 +74,11 @@ class SparseLU(NamedTuple):
     # that stopped at a small pivot)
     factored: np.ndarray  # (nports + 1,)
     dirty: np.ndarray  # (n,) bool scratch: the columns to redo, False between calls
+    todo: np.ndarray  # (n,) int64 scratch: the columns marked in ``dirty``, listed
+    # U's strictly upper pattern by rows: the columns j > k with U[k, j] != 0 (those whose
+    # factors column k's enter), for the columns a change reaches (:func:`refactor_marked`)
+    ut_ptr: np.ndarray  # (n + 1,) int64
+    ut_col: np.ndarray  # int64
 
 
 def port_stamps(n: int, port_p: np.ndarray, port_n: np.ndarray):
@@ -122,7 +129,7 @@ def analyse(G, M, port_p, port_n, values, a0, spare: float = 1.0, extra=None) ->
     A = present_matrix(G, M, port_p, port_n, values, a0, (e_row, e_col, extra[2]))
     try:
         # no equilibration: refactor's pivot test is on the unscaled columns
-        lu = splu(A, permc_spec="COLAMD", diag_pivot_thresh=0.1, options={"Equil": False})
+        lu = splu(A, permc_spec=COLUMN_ORDER, diag_pivot_thresh=0.1, options={"Equil": False})
     except RuntimeError as exc:  # "Factor is exactly singular"
         raise np.linalg.LinAlgError(str(exc)) from None
     row_to = np.asarray(lu.perm_r, dtype=np.int64)
@@ -180,6 +187,8 @@ def analyse(G, M, port_p, port_n, values, a0, spare: float = 1.0, extra=None) ->
         port_pos[stamped, slot] = positions(i[stamped], j[stamped])
     extra_pos = -np.ones(e_row.size, dtype=np.int64)
     extra_pos[inside] = positions(e_row[inside], e_col[inside])
+    upper = sp.csr_matrix(sp.triu(U, k=1))
+    upper.sort_indices()
     l_count = np.diff(L.indptr)
     flops = float(np.sum(l_count * np.diff(U.indptr)) + L.nnz)
     m_val = scatter(M)
@@ -209,6 +218,9 @@ def analyse(G, M, port_p, port_n, values, a0, spare: float = 1.0, extra=None) ->
         extra_cols=np.unique(entry_col[extra_pos[extra_pos >= 0]]),
         factored=np.full(len(port_p) + 1, np.nan),
         dirty=np.zeros(n, dtype=np.bool_),
+        todo=np.zeros(n, dtype=np.int64),
+        ut_ptr=upper.indptr.astype(np.int64),
+        ut_col=_room(upper.indices, spare),
     )
 
 
@@ -238,17 +250,18 @@ def repivot(lu: SparseLU, port_p, port_n, values, a0, extra_val=None) -> int:
     extra_val = np.zeros(lu.extra_row.size) if extra_val is None else extra_val
     # G's and M's stored zeros drop out here: the extra entries put their positions back
     new = analyse(G, M, port_p, port_n, values, a0, extra=(lu.extra_row, lu.extra_col, extra_val))
-    used_l, used_u = new.l_ptr[-1], new.u_ptr[-1]
-    if used_l > lu.l_row.size or used_u > lu.u_row.size:
+    used_l, used_u, used_ut = new.l_ptr[-1], new.u_ptr[-1], new.ut_ptr[-1]
+    if used_l > lu.l_row.size or used_u > lu.u_row.size or used_ut > lu.ut_col.size:
         return 1
     for name in ("a_ptr", "a_row", "g_val", "m_val", "port_pos", "l_ptr", "u_ptr", "row_to",
-                 "col_of", "extra_pos", "entry_col", "factored"):  # fmt: skip
+                 "col_of", "extra_pos", "entry_col", "factored", "ut_ptr"):  # fmt: skip
         getattr(lu, name)[...] = getattr(new, name)
     # the same columns hold M and the extra entries in any order (sizes kept), not their places
     lu.m_cols[...] = new.m_cols
     lu.extra_cols[...] = new.extra_cols
     lu.l_row[:used_l] = new.l_row[:used_l]
     lu.u_row[:used_u] = new.u_row[:used_u]
+    lu.ut_col[:used_ut] = new.ut_col[:used_ut]
     return 0
 
 
@@ -267,28 +280,38 @@ def assemble(a_val, g_val, m_val, a0, port_pos, gd, g_sw_present):
                 a_val[pos] += g if slot < 2 else -g
 
 
-# mark_changed's answers
-UNCHANGED, SOME_COLUMNS, ALL_COLUMNS = 0, 1, 2
+# mark_changed's answer when there are no valid factors (else how many columns it marked)
+UNCHANGED, ALL_COLUMNS = 0, -1
 
 
 @njit(cache=True, inline="always")
-def mark_changed(entry_col, port_pos, m_cols, extra_cols, factored, dirty, gd, g_sw_present,
-                 a0) -> int:  # fmt: skip
-    """Mark in ``dirty`` the columns of P whose entries can differ from those the present
-    factors were made from, and record the values about to be factored in ``factored``:
-    UNCHANGED (the factors hold), SOME_COLUMNS, or ALL_COLUMNS (no valid factors). Exact
-    comparisons: a conductance or a0 equal bit for bit stamps the same entries."""
+def _mark(dirty, todo, count, column) -> int:
+    """Mark ``column`` in ``dirty`` and list it in todo[count] unless marked; the new count."""
+    if not dirty[column]:
+        dirty[column] = True
+        todo[count] = column
+        count += 1
+    return count
+
+
+@njit(cache=True, inline="always")
+def mark_changed(entry_col, port_pos, m_cols, extra_cols, factored, dirty, todo, gd,
+                 g_sw_present, a0) -> int:  # fmt: skip
+    """Mark in ``dirty`` (and list in ``todo``) the columns of P whose entries can differ from
+    those the present factors were made from, and record the values about to be factored in
+    ``factored``. Returns ALL_COLUMNS (no valid factors: refactor them all), else the number of
+    columns listed (UNCHANGED, 0: the factors hold). Exact comparisons: a conductance or a0
+    equal bit for bit stamps the same entries."""
     nports = factored.size - 1
     md = gd.size
     every = np.isnan(factored[nports])
-    marked = extra_cols.size > 0  # the multi-terminal devices' entries: at every iteration
-    for c in extra_cols:
-        dirty[c] = True
+    count = 0
+    for c in extra_cols:  # the multi-terminal devices' entries: at every iteration
+        count = _mark(dirty, todo, count, c)
     if a0 != factored[nports]:
         factored[nports] = a0
-        marked = marked or m_cols.size > 0
         for c in m_cols:
-            dirty[c] = True
+            count = _mark(dirty, todo, count, c)
     for k in range(nports):
         g = gd[k] if k < md else g_sw_present[k - md]
         if g != factored[k]:  # also when factored[k] is NaN
@@ -296,11 +319,38 @@ def mark_changed(entry_col, port_pos, m_cols, extra_cols, factored, dirty, gd, g
             for slot in range(4):
                 pos = port_pos[k, slot]
                 if pos >= 0:
-                    dirty[entry_col[pos]] = True
-                    marked = True
-    if every:
-        return ALL_COLUMNS
-    return SOME_COLUMNS if marked else UNCHANGED
+                    count = _mark(dirty, todo, count, entry_col[pos])
+    return ALL_COLUMNS if every else count
+
+
+@njit(cache=True, inline="always")
+def _factor_column(j, a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val,
+                   work) -> bool:  # fmt: skip
+    """Column j of L and U from P's column j and the L columns k < j with U[k, j] != 0
+    (left-looking); True when its pivot is below PIVOT_THRESHOLD of the column."""
+    for e in range(a_ptr[j], a_ptr[j + 1]):
+        work[a_row[e]] = a_val[e]
+    last = u_ptr[j + 1] - 1  # the diagonal
+    for e in range(u_ptr[j], last):  # rows k < j, ascending: a topological order
+        k = u_row[e]
+        ukj = work[k]
+        u_val[e] = ukj
+        work[k] = 0.0
+        if ukj != 0.0:
+            for f in range(l_ptr[k], l_ptr[k + 1]):
+                work[l_row[f]] -= l_val[f] * ukj
+    pivot = work[j]
+    work[j] = 0.0
+    inv = 1.0 / pivot if pivot != 0.0 else 0.0
+    u_val[last] = inv
+    largest = 0.0  # |L| entries above 1 / PIVOT_THRESHOLD: the pivot is too small
+    for f in range(l_ptr[j], l_ptr[j + 1]):
+        i = l_row[f]
+        value = work[i] * inv
+        l_val[f] = value
+        largest = max(largest, abs(value))
+        work[i] = 0.0
+    return pivot == 0.0 or not largest <= 1.0 / PIVOT_THRESHOLD
 
 
 @njit(cache=True)
@@ -310,9 +360,9 @@ def refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work
     column whose pivot is below PIVOT_THRESHOLD of its column (a new pivot order is due).
     U's diagonal is stored inverted (the solves multiply by it). Unless ``every``, only the
     columns marked in ``dirty`` and those whose U column reaches a redone one are computed
-    (the others keep their factors, which depend on nothing redone); ``dirty`` is cleared."""
+    (the others keep their factors, which depend on nothing redone); ``dirty`` is cleared.
+    (:func:`refactor_marked` finds the same columns without visiting the others.)"""
     n = a_ptr.size - 1
-    limit = 1.0 / PIVOT_THRESHOLD
     column = -1
     for j in range(n):
         if not every and not dirty[j]:
@@ -325,33 +375,41 @@ def refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work
             if not reached:
                 continue
             dirty[j] = True
-        for e in range(a_ptr[j], a_ptr[j + 1]):
-            work[a_row[e]] = a_val[e]
-        last = u_ptr[j + 1] - 1  # the diagonal
-        for e in range(u_ptr[j], last):  # rows k < j, ascending: a topological order
-            k = u_row[e]
-            ukj = work[k]
-            u_val[e] = ukj
-            work[k] = 0.0
-            if ukj != 0.0:
-                for f in range(l_ptr[k], l_ptr[k + 1]):
-                    work[l_row[f]] -= l_val[f] * ukj
-        pivot = work[j]
-        work[j] = 0.0
-        inv = 1.0 / pivot if pivot != 0.0 else 0.0
-        u_val[last] = inv
-        largest = 0.0  # |L| entries above 1 / PIVOT_THRESHOLD: the pivot is too small
-        for f in range(l_ptr[j], l_ptr[j + 1]):
-            i = l_row[f]
-            value = work[i] * inv
-            l_val[f] = value
-            largest = max(largest, abs(value))
-            work[i] = 0.0
-        if pivot == 0.0 or not largest <= limit:
+        if _factor_column(j, a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val,
+                          work):  # fmt: skip
             column = j
             break
     for j in range(n):
         dirty[j] = False
+    return column
+
+
+@njit(cache=True)
+def refactor_marked(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work,
+                    dirty, todo, count, ut_ptr, ut_col) -> int:  # fmt: skip
+    """:func:`refactor` of the ``count`` columns listed in ``todo`` (marked in ``dirty``, by
+    :func:`mark_changed`) and of those they reach: column j is computed from the columns k
+    with U[k, j] != 0, so the reach follows U's rows (``ut_ptr``, ``ut_col``); the same
+    columns as refactor's scan, in the same ascending order, at a cost that grows with their
+    number instead of with n. -1 when done, else the column of a too small pivot; ``dirty``
+    is cleared."""
+    i = 0
+    while i < count:  # todo grows as the reach is found
+        k = todo[i]
+        i += 1
+        for e in range(ut_ptr[k], ut_ptr[k + 1]):
+            count = _mark(dirty, todo, count, ut_col[e])
+    listed = todo[:count]
+    listed.sort()
+    column = -1
+    for index in range(count):
+        j = listed[index]
+        if _factor_column(j, a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val,
+                          work):  # fmt: skip
+            column = j
+            break
+    for index in range(count):
+        dirty[listed[index]] = False
     return column
 
 
