@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import time as _time
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -87,6 +88,55 @@ def start_transient(
     return max_step, min_step, breaks, x, ctx0
 
 
+@dataclass
+class _Steps:
+    """The step control's state between time points.
+
+    ``t`` the last accepted time, ``h`` the step to try next, ``saved_h`` the step before the
+    last landing on a breakpoint (s); ``order`` of the integration; ``at_break`` the last
+    point was a breakpoint (or a switch toggled there); ``first`` no step accepted yet;
+    ``bi`` index of the next breakpoint; ``attempts`` steps attempted; ``retry_from`` the last
+    iterate of a failed first step (see :func:`_newton_at`).
+    """
+
+    t: float
+    h: float
+    saved_h: float
+    order: int = 1
+    at_break: bool = True
+    first: bool = True
+    bi: int = 0
+    attempts: int = 0
+    retry_from: np.ndarray | None = None
+
+
+@dataclass
+class _History:
+    """The accepted points the integration and its error estimate use, newest first (at most
+    HISTORY): times (s), unknowns, charges and their derivatives."""
+
+    times: list[float]
+    xs: list[np.ndarray]
+    charges: list[np.ndarray]
+    currents: list[np.ndarray]
+
+    def h_prev(self, h: float) -> float:
+        """The last accepted step (s), or ``h`` at the first."""
+        return self.times[0] - self.times[1] if len(self.times) > 1 else h
+
+    def push(self, t: float, x: np.ndarray, ctx: StepContext, toggled: bool) -> None:
+        """Add the accepted point at ``t``. After a switch toggled, the history ends at the
+        toggle: points before it would make the next steps' truncation error span the jump in
+        dq/dt that the toggle made (the step that toggles is short, so that jump over it
+        cascaded to "time step too small")."""
+        self.times.insert(0, t)
+        self.xs.insert(0, x)
+        self.charges.insert(0, ctx.q)  # a fresh context per attempt: no copies needed
+        self.currents.insert(0, ctx.qdot)
+        keep = 1 if toggled else HISTORY
+        del self.times[keep:], self.xs[keep:], self.charges[keep:], self.currents[keep:]
+
+
 def run_transient(
     system: MnaSystem,
     tstep: float,
@@ -112,161 +162,35 @@ def run_transient(
         system, tstep, tstop, tstart, tmax, uic, stats
     )
     options = system.options
-    method = METHODS[options.method]
     fixed = options.fixed_step
     x_prev_ext = with_ground(x)
     # families whose accept hook does something (the default does nothing)
     accepting = [f for f in system.families if type(f).accept is not DeviceFamily.accept]
-    times = [0.0]  # newest first, at most HISTORY
-    xs = [x]
-    charges = [ctx0.q.copy()]
-    currents = [np.zeros(system.n_charges)]
+    history = _History([0.0], [x], [ctx0.q.copy()], [np.zeros(system.n_charges)])
     out_t, out_x = [0.0], [x if rows is None else x[rows]]
-
-    t, order = 0.0, 1
-    h = fixed if fixed else min(tstop / 100, tstep) / 10
-    saved_h = tstop / 50
-    at_break, first = True, True
-    retry_from = None  # the last iterate of a failed first step (see x_guess)
-    bi = 0
-    attempts = 0
+    steps = _Steps(t=0.0, h=fixed if fixed else min(tstop / 100, tstep) / 10, saved_h=tstop / 50)
     report_every, next_report = tstop / 10, tstop / 10
     deadline = wall_deadline(options)
 
-    while tstop - t > min_step:
-        while bi < len(breaks) - 1 and breaks[bi] <= t + min_step:
-            bi += 1
-        next_break = breaks[bi]
-        if fixed:
-            h = fixed
-            if at_break:
-                order = 1
-        elif at_break:
-            order = 1
-            h = min(h, 0.1 * min(saved_h, next_break - t))
-            if first:
-                h /= 10
-        at_break = False
-        h = min(h, max_step) if not fixed else h
-        landing = False
-        if t + h >= next_break - min_step:
-            saved_h = h
-            h = next_break - t
-            landing = True
-
-        while True:  # attempts at this time point
-            attempts += 1
-            if attempts > options.max_steps:
-                raise RunLimitError("max_steps", options.max_steps, t, tstop, attempts - 1)
-            if deadline is not None and _time.perf_counter() > deadline:
-                raise RunLimitError("max_wall_time", options.max_wall_time, t, tstop, attempts - 1)
-            h_prev = times[0] - times[1] if len(times) > 1 else h
-            a0, a1, a2, b1 = method.coefficients(order, h, h_prev)
-            hist = a1 * charges[0] + b1 * currents[0]
-            if a2:
-                hist += a2 * charges[1]
-            ctx = StepContext(system.n_charges, time=t + h, dc=False, a0=a0, hist=hist)
-            rhs = system.source_vector(ctx, dc_op=False, clamp_ic=False)
-            if len(xs) > 1:
-                x_guess = xs[0] + (h / h_prev) * (xs[0] - xs[1])
-            elif retry_from is not None:
-                # The first step again, shorter: go on from the failed attempt's last iterate,
-                # as ngspice does (its solution vector is not reset). Its start is only the
-                # operating point or, with uic, the initial conditions with every other node
-                # at 0 V (supplies too): each attempt from there climbed the same pnjlim ladder
-                # to the rails and ran out of itl4 iterations, down to "time step too small"
-                # (a BJT op-amp macromodel's wheelset, tests/synthesis/test_opamp_library.py).
-                x_guess = retry_from
-            else:
-                x_guess = xs[0]
-            ok, iterations, x_new = newton(system, x_guess, ctx, rhs, options.transient_iterations)
-            stats["newton_iterations"] += iterations
-            if not ok:
-                stats["rejected"] += 1
-                retry_from = x_new if np.all(np.isfinite(x_new)) else None
-                if fixed:
-                    raise _failure(system, "Newton failed at the fixed step", t + h, h, ctx, x_new)
-                h /= 8
-                order = 1
-                landing = False
-                if h < min_step:
-                    raise _failure(system, "time step too small", t + h, h, ctx, x_new)
-                continue
-            system.linear_charges(x_new, ctx)
-            x_ext = with_ground(x_new)
-            transition = False
-            if not fixed and system.discrete and not (first and uic):
-                # A switch toggled inside the step: cut the step to end short of the crossing,
-                # then take it in a short step (devices/switch.py, transition_retry). Not on
-                # the first step from uic: its start is no solution (a control node driven by a
-                # source reads 0 V there), so there is no crossing to locate; cutting towards
-                # one took every such run down to steps of 1e-14 s (ngspice cuts none).
-                fraction = min(f.transition_fraction(x_ext, x_prev_ext) for f in system.discrete)
-                retry = transition_retry(fraction, h, h_prev, min_step)
-                if retry:
-                    stats["rejected"] += 1
-                    h = retry
-                    landing = False
-                    continue
-                # A step that ends just past a transition is a breakpoint: its truncation
-                # error estimate spans the jump in dq/dt and would reject every step that
-                # crosses (a cascade to "time step too small" when the switched branch moves
-                # a charge far above the one before, e.g. ROFF = 1e12 then RON onto an RC).
-                transition = fraction < 1.0
-            new_h = h if fixed else 2 * h
-            if not fixed and not first:
-                step_times = [t + h, *times]
-                step_q = [ctx.q, *charges]
-                step_i = [ctx.qdot, currents[0]]
-                if len(step_times) >= order + 2:
-                    new_h = min(
-                        new_h, truncation_step(method, order, step_times, step_q, step_i, options)
-                    )
-                for family in system.discrete:
-                    new_h = min(new_h, family.truncate(x_ext, x_prev_ext, h))
-                if new_h > 0.9 * h or transition:
-                    if order == 1 and options.maxord > 1 and len(step_times) >= 4:
-                        trial = min(
-                            2 * h, truncation_step(method, 2, step_times, step_q, step_i, options)
-                        )
-                        for family in system.discrete:
-                            trial = min(trial, family.truncate(x_ext, x_prev_ext, h))
-                        new_h = trial
-                        if trial > 1.05 * h:
-                            order = 2
-                else:
-                    stats["rejected"] += 1
-                    h = new_h
-                    landing = False
-                    if h < min_step:
-                        raise _failure(
-                            system, "time step too small (truncation error)", t + h, h, ctx, x_new
-                        )
-                    continue
-            break
-
-        t = next_break if landing else t + h
+    while tstop - steps.t > min_step:
+        next_break, landing = _step_start(steps, breaks, fixed, max_step, min_step)
+        landing, ctx, x_new, x_ext, new_h = _time_point(
+            system, steps, history, x_prev_ext, landing, min_step, uic, deadline, tstop, stats
+        )
+        t = next_break if landing else steps.t + steps.h
         x_prev_ext = x_ext
-        retry_from = None  # only for attempts at this time point (not after a later toggle)
-        toggled = [family.accept(x_ext, ctx) for family in accepting]
-        times.insert(0, t)
-        xs.insert(0, x_new)
-        charges.insert(0, ctx.q)  # a fresh context per attempt: no copies needed
-        currents.insert(0, ctx.qdot)
-        # After a switch toggled, the history ends at the toggle: points before it would make
-        # the next steps' truncation error span the jump in dq/dt that the toggle made (the
-        # step that toggles is short, so that jump over it cascaded to "time step too small").
-        keep = 1 if any(toggled) else HISTORY
-        del times[keep:], xs[keep:], charges[keep:], currents[keep:]
+        steps.retry_from = None  # only for attempts at this time point (not after a toggle)
+        toggled = any([family.accept(x_ext, ctx) for family in accepting])
+        history.push(t, x_new, ctx, toggled)
         out_t.append(t)
         out_x.append(x_new if rows is None else x_new[rows])
         stats["accepted"] += 1
-        if fixed and order < options.maxord:
-            order += 1
-        if landing or any(toggled):
-            at_break = True
-        first = False
-        h = new_h
+        if fixed and steps.order < options.maxord:
+            steps.order += 1
+        if landing or toggled:
+            steps.at_break = True
+        steps.first = False
+        steps.t, steps.h = t, new_h
         if progress is not None and t >= next_report:
             progress(f"transient: t = {t:.4g} s of {tstop:.4g} s, {stats['accepted']} steps")
             next_report += report_every
@@ -275,6 +199,185 @@ def run_transient(
     out_x = np.array(out_x)
     keep = recorded(out_t, tstart, min_step, uic)
     return out_t[keep], out_x[keep]
+
+
+def _step_start(
+    steps: _Steps, breaks: np.ndarray, fixed: float, max_step: float, min_step: float
+) -> tuple[float, bool]:
+    """The next step's start: advance past the breakpoints reached; after a breakpoint drop
+    to order 1 and shorten the step; cap it at TMAX and land exactly on the next breakpoint.
+    Sets ``steps.h`` and ``steps.order``; returns (next breakpoint (s), landing on it)."""
+    t = steps.t
+    while steps.bi < len(breaks) - 1 and breaks[steps.bi] <= t + min_step:
+        steps.bi += 1
+    next_break = breaks[steps.bi]
+    if fixed:
+        steps.h = fixed
+        if steps.at_break:
+            steps.order = 1
+    elif steps.at_break:
+        steps.order = 1
+        steps.h = min(steps.h, 0.1 * min(steps.saved_h, next_break - t))
+        if steps.first:
+            steps.h /= 10
+    steps.at_break = False
+    steps.h = min(steps.h, max_step) if not fixed else steps.h
+    landing = False
+    if t + steps.h >= next_break - min_step:
+        steps.saved_h = steps.h
+        steps.h = next_break - t
+        landing = True
+    return next_break, landing
+
+
+def _time_point(
+    system: MnaSystem,
+    steps: _Steps,
+    history: _History,
+    x_prev_ext: np.ndarray,
+    landing: bool,
+    min_step: float,
+    uic: bool,
+    deadline: float | None,
+    tstop: float,
+    stats: dict,
+) -> tuple[bool, StepContext, np.ndarray, np.ndarray, float]:
+    """Attempts at the time point after ``steps.t`` until one is accepted: Newton, the cut
+    of a step across a switch transition, the truncation-error test. Leaves the accepted
+    step in ``steps.h`` and its order in ``steps.order``; returns (landing on the next
+    breakpoint, the point's context, unknowns, unknowns with ground, the next step (s)).
+    Raises ConvergenceError when the step falls below ``min_step`` and RunLimitError past
+    max_steps or max_wall_time."""
+    options = system.options
+    fixed = options.fixed_step
+    t = steps.t
+    while True:
+        steps.attempts += 1
+        if steps.attempts > options.max_steps:
+            raise RunLimitError("max_steps", options.max_steps, t, tstop, steps.attempts - 1)
+        if deadline is not None and _time.perf_counter() > deadline:
+            raise RunLimitError(
+                "max_wall_time", options.max_wall_time, t, tstop, steps.attempts - 1
+            )
+        h = steps.h
+        h_prev = history.h_prev(h)
+        ok, iterations, ctx, x_new = _newton_at(system, steps, history, h, h_prev)
+        stats["newton_iterations"] += iterations
+        if not ok:
+            stats["rejected"] += 1
+            steps.retry_from = x_new if np.all(np.isfinite(x_new)) else None
+            if fixed:
+                raise _failure(system, "Newton failed at the fixed step", t + h, h, ctx, x_new)
+            steps.h = h / 8
+            steps.order = 1
+            landing = False
+            if steps.h < min_step:
+                raise _failure(system, "time step too small", t + steps.h, steps.h, ctx, x_new)
+            continue
+        system.linear_charges(x_new, ctx)
+        x_ext = with_ground(x_new)
+        transition = False
+        if not fixed and system.discrete and not (steps.first and uic):
+            # A switch toggled inside the step: cut the step to end short of the crossing,
+            # then take it in a short step (devices/switch.py, transition_retry). Not on
+            # the first step from uic: its start is no solution (a control node driven by a
+            # source reads 0 V there), so there is no crossing to locate; cutting towards
+            # one took every such run down to steps of 1e-14 s (ngspice cuts none).
+            fraction = min(f.transition_fraction(x_ext, x_prev_ext) for f in system.discrete)
+            retry = transition_retry(fraction, h, h_prev, min_step)
+            if retry:
+                stats["rejected"] += 1
+                steps.h = retry
+                landing = False
+                continue
+            # A step that ends just past a transition is a breakpoint: its truncation
+            # error estimate spans the jump in dq/dt and would reject every step that
+            # crosses (a cascade to "time step too small" when the switched branch moves
+            # a charge far above the one before, e.g. ROFF = 1e12 then RON onto an RC).
+            transition = fraction < 1.0
+        new_h = h if fixed else 2 * h
+        if not fixed and not steps.first:
+            new_h, order, good = _truncation_control(
+                system, steps.order, t + h, h, ctx, history, x_ext, x_prev_ext, transition
+            )
+            steps.order = order
+            if not good:
+                stats["rejected"] += 1
+                steps.h = new_h
+                landing = False
+                if new_h < min_step:
+                    raise _failure(
+                        system, "time step too small (truncation error)", t + new_h, new_h, ctx,
+                        x_new,
+                    )  # fmt: skip
+                continue
+        return landing, ctx, x_new, x_ext, new_h
+
+
+def _newton_at(
+    system: MnaSystem, steps: _Steps, history: _History, h: float, h_prev: float
+) -> tuple[bool, int, StepContext, np.ndarray]:
+    """Newton at t + h from the predictor: (converged, iterations, the point's context,
+    the last iterate)."""
+    method = METHODS[system.options.method]
+    a0, a1, a2, b1 = method.coefficients(steps.order, h, h_prev)
+    hist = a1 * history.charges[0] + b1 * history.currents[0]
+    if a2:
+        hist += a2 * history.charges[1]
+    ctx = StepContext(system.n_charges, time=steps.t + h, dc=False, a0=a0, hist=hist)
+    rhs = system.source_vector(ctx, dc_op=False, clamp_ic=False)
+    xs = history.xs
+    if len(xs) > 1:
+        x_guess = xs[0] + (h / h_prev) * (xs[0] - xs[1])
+    elif steps.retry_from is not None:
+        # The first step again, shorter: go on from the failed attempt's last iterate,
+        # as ngspice does (its solution vector is not reset). Its start is only the
+        # operating point or, with uic, the initial conditions with every other node
+        # at 0 V (supplies too): each attempt from there climbed the same pnjlim ladder
+        # to the rails and ran out of itl4 iterations, down to "time step too small"
+        # (a BJT op-amp macromodel's wheelset, tests/synthesis/test_opamp_library.py).
+        x_guess = steps.retry_from
+    else:
+        x_guess = xs[0]
+    ok, iterations, x_new = newton(system, x_guess, ctx, rhs, system.options.transient_iterations)
+    return ok, iterations, ctx, x_new
+
+
+def _truncation_control(
+    system: MnaSystem,
+    order: int,
+    t_new: float,
+    h: float,
+    ctx: StepContext,
+    history: _History,
+    x_ext: np.ndarray,
+    x_prev_ext: np.ndarray,
+    transition: bool,
+) -> tuple[float, int, bool]:
+    """ngspice's truncation-error rule for the converged step of ``h`` s ending at
+    ``t_new``: (next step (s), order, accepted). The charges' and the switches' limits;
+    reject below 0.9 h, unless the step ends just past a switch transition (a
+    breakpoint); at order 1, try order 2 when it allows more than 1.05 h."""
+    options = system.options
+    method = METHODS[options.method]
+    step_times = [t_new, *history.times]
+    step_q = [ctx.q, *history.charges]
+    step_i = [ctx.qdot, history.currents[0]]
+    new_h = 2 * h
+    if len(step_times) >= order + 2:
+        new_h = min(new_h, truncation_step(method, order, step_times, step_q, step_i, options))
+    for family in system.discrete:
+        new_h = min(new_h, family.truncate(x_ext, x_prev_ext, h))
+    if not (new_h > 0.9 * h or transition):
+        return new_h, order, False
+    if order == 1 and options.maxord > 1 and len(step_times) >= 4:
+        trial = min(2 * h, truncation_step(method, 2, step_times, step_q, step_i, options))
+        for family in system.discrete:
+            trial = min(trial, family.truncate(x_ext, x_prev_ext, h))
+        new_h = trial
+        if trial > 1.05 * h:
+            order = 2
+    return new_h, order, True
 
 
 def wall_deadline(options, clock: Callable[[], float] = _time.perf_counter) -> float | None:
