@@ -1,7 +1,7 @@
 """Benchmark harness: our MNA solver against ngspice, at equal accuracy, and speed sweeps.
 
     python benchmarks/run.py [--quick] [--out DIR] [--parts wheelset golden sweep profile scaling
-                                                           macromodels]
+                                                           macromodels kernels]
 
 Parts: ``wheelset`` (work-precision of the generated wheelset circuit, ideal and TL074 op-amps,
 against the direct ODE solution), ``golden`` (tests/solver/golden netlists: time ratio and max
@@ -14,7 +14,9 @@ whole-process time against ngspice, accuracy against the direct ODE, growth expo
 ``ngspice -b``, where a process's time goes, the floor of numpy/scipy/numba, peak memory with
 and without ``--probe``; median of ``--repeat`` processes), ``macromodels`` (the wheelset with
 the JFET-input and bipolar Boyle op-amps of netlist/library/macromodels.lib, and the built-in
-TL074: time and accuracy against ngspice and the ODE; only when named in --parts). Prints text
+TL074: time and accuracy against ngspice and the ODE; only when named in --parts), ``kernels``
+(the scaling circuits up to 8 masses on the ports and the MNA kernel, CPU time, against
+``kernel="auto"``'s choice; only when named in --parts). Prints text
 tables and writes <part>.json / <part>.md and machine.json into --out (default
 benchmarks/results). Not part of the test suite.
 """
@@ -31,6 +33,7 @@ sys.path.insert(0, str(HERE))
 
 import bench_common  # noqa: E402
 import bench_golden  # noqa: E402
+import bench_kernels  # noqa: E402
 import bench_macromodels  # noqa: E402
 import bench_profile  # noqa: E402
 import bench_scaling  # noqa: E402
@@ -46,6 +49,7 @@ PARTS = {
     "scaling": bench_scaling,
     "startup": bench_startup,
     "macromodels": bench_macromodels,
+    "kernels": bench_kernels,
 }
 
 
@@ -61,7 +65,7 @@ def main(argv=None) -> int:
         "--parts",
         nargs="+",
         choices=list(PARTS),
-        default=[p for p in PARTS if p != "macromodels"],  # minutes of numpy loop: asked for
+        default=[p for p in PARTS if p not in ("macromodels", "kernels")],  # asked for by name
     )
     parser.add_argument("--sweep", action="store_true", help="only the sweep part")
     parser.add_argument(

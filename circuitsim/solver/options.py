@@ -85,7 +85,7 @@ class SimulationOptions:
         the machine does not allow it), ``"ports"`` (compiled, Newton on the junction
         voltages alone: solver/compiled/ports.py; same conditions), ``"python"`` (the
         reference engine, solver/transient.py) or ``"auto"`` (default: when numba is
-        installed and the circuit is supported, ports while at most 8 junctions carry
+        installed and the circuit is supported, ports while at most 16 junctions carry
         charge, else compiled (solver/compiled/runner.py, auto_kernel, from measurements in
         docs/solver.md), else python;
         ``Waveforms.stats["kernel"]`` says which ran).

@@ -65,7 +65,7 @@ def test_refactors_stay_few_as_junctions_grow(tmp_path):
 @requires_ngspice
 def test_large_chain_runs_compiled_and_agrees_with_ngspice(tmp_path):
     """Sixteen masses: 642 unknowns, 64 junctions with charge; auto runs the MNA kernel
-    (runner.auto_kernel: more than 8 such junctions) and it agrees with ngspice."""
+    (runner.auto_kernel: more than 16 such junctions) and it agrees with ngspice."""
     from circuitsim.interop.ngspice import run_ngspice
 
     circuit = chain_circuit(tmp_path, 16, 0.5)

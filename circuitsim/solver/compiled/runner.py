@@ -76,11 +76,11 @@ def kernel_unavailable(system: MnaSystem, kernel: str = "compiled") -> str | Non
 # kernel="auto": the ports kernel while at most this many junctions carry charge (CJO or TT:
 # a generated circuit's contact and precision-rectifier diodes, the junctions that switch
 # during a run; an op-amp macromodel's clamp diodes have none and sit in reverse), else the
-# MNA kernel. Measured (docs/solver.md, "Choosing the kernel"): the ideal wheelset and a
-# chain of one mass (4) run 3-5x faster on the ports kernel, the TL074 wheelset (4 charged of
-# 56) 3.6x and a TL074 chain of 2 masses (8) 2x; a chain of 4 masses (16) is even; from 8
-# masses (32) on the MNA kernel is 2x (8) to 10x (32) faster, its cost linear in the size.
-AUTO_PORTS_MAX_SWITCHING = 8
+# MNA kernel. Measured with ngspice's iteration floor (docs/solver.md, "Choosing the kernel";
+# benchmarks/bench_kernels.py): the ports kernel is 1.6-3.6x faster up to 16 (the wheelsets,
+# the ideal chains of 1-4 masses, TL074 chains of 1-2), the two are even at 32 (8 masses) and
+# on the TL074 chain of 4 masses (16), the MNA kernel 2.4x and more from 64 (16 masses) on.
+AUTO_PORTS_MAX_SWITCHING = 16
 
 
 def switching_junctions(system: MnaSystem) -> int:
