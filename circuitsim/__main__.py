@@ -1,7 +1,5 @@
 """``python -m circuitsim`` runs the same command line as ``circuitsim``."""
 
-import sys
+from circuitsim.cli import run
 
-from circuitsim.cli import main
-
-sys.exit(main())
+run()

@@ -29,11 +29,13 @@ Exit codes, one convention for every verb (README.md, "Exit codes"):
 from __future__ import annotations
 
 import argparse
+import gc
 import os
 import signal
 import sys
 import threading
 from collections.abc import Sequence
+from typing import NoReturn
 
 from circuitsim import __version__
 from circuitsim.cli import (
@@ -255,3 +257,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+def run() -> NoReturn:
+    """The process's entry point (``circuitsim``, ``python -m circuitsim``): :func:`main`, then
+    exit with its code.
+
+    Before the interpreter shuts down, every object is moved to the garbage collector's
+    permanent generation (:func:`gc.freeze`), which the shutdown's collections skip: with
+    numba, scipy and a loaded kernel in the process those collections cost about 0.4 s of CPU,
+    a fifth of a ``simulate`` of the wheelset (docs/performance.md section 6). The process ends,
+    so what they would free goes back anyway; ``atexit`` handlers and ``weakref.finalize``
+    callbacks (temporary folders) still run, and every file of ours is closed by then.
+    :func:`main` itself (called in-process by tests and scripts) leaves the collector alone.
+    """
+    code = main()
+    gc.freeze()
+    sys.exit(code)
