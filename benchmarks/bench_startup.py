@@ -11,7 +11,8 @@ includes waiting for a core):
 1. whole processes on the same netlists: ``python -m circuitsim simulate FILE --csv OUT``
    against ``ngspice -b -r OUT.raw FILE`` (its binary rawfile: ngspice's output);
 2. where our process's time goes: interpreter start, imports, reading the netlist, the first
-   run's extra (numba loading the cached machine code, first calls), the solve, the CSV;
+   run's extra (numba loading the cached machine code, first calls), the solve, the CSV, the
+   interpreter's shutdown (ended as ``circuitsim.cli.run`` ends it: ``gc.freeze()`` first);
 3. the floor any process of this design pays before it does work: the interpreter, numpy (and
    the submodules of numpy that scipy.sparse's array-API layer imports),
    scipy.sparse and scipy.linalg (MnaSystem's matrices, LAPACK), numba, and loading one small
@@ -79,10 +80,14 @@ waves.to_csv(sys.argv[2])
 marks.append(("first CSV", cpu()))
 waves.to_csv(sys.argv[2])
 marks.append(("write CSV", cpu()))
-print(json.dumps(marks))
+print(json.dumps(marks), flush=True)
+import gc
+gc.freeze()  # as circuitsim.cli.run ends a process: the shutdown's collections skip all
 """
 
-# The floor: what a process pays before it does any work (progressively more imported).
+# The floor: what a process pays before it does any work (progressively more imported),
+# each ended as circuitsim.cli.run ends a process.
+END = "import gc\ngc.freeze()"
 FLOOR = {
     "interpreter (python -c pass)": "pass",
     "+ numpy": "import numpy",
@@ -205,6 +210,8 @@ def phases(folder: Path, env: dict, log) -> dict:
                     - (cpu["write CSV"] - cpu["first CSV"]),
                     "solve": cpu["solve"] - cpu["first run"],
                     "write CSV": cpu["write CSV"] - cpu["first CSV"],
+                    # the process's CPU (wait4) after its last mark: the interpreter's shutdown
+                    "interpreter exit": done["cpu_s"] - cpu["write CSV"],
                 }
             )
         samples = samples[1:]  # the first one warmed the caches
@@ -214,10 +221,12 @@ def phases(folder: Path, env: dict, log) -> dict:
 
 
 def floor(env: dict, log) -> dict:
-    """Table 3: the cost of start-up before any work, step by step."""
+    """Table 3: the cost of start-up before any work, step by step (each process ended as
+    ``circuitsim.cli.run`` ends one: ``gc.freeze()``, then the interpreter's shutdown)."""
     log("  floor")
     return {
-        label: repeated([sys.executable, "-c", code], env, label) for label, code in FLOOR.items()
+        label: repeated([sys.executable, "-c", f"{code}\n{END}"], env, label)
+        for label, code in FLOOR.items()
     }
 
 
