@@ -101,12 +101,13 @@ def test_simulate_loads_no_comparison_or_sweep_code(tmp_path):
 
 
 def test_command_line_parser_loads_no_numerics():
-    """Building the command line (every verb's options) imports no scipy, numba, matplotlib
-    or networkx, and none of the translator, ODE or engine side: a verb loads what it runs.
-    (The bench verb's --overload default once imported the translator, and with it
-    scipy.optimize and scipy.integrate, into every process: docs/performance.md section 6.)"""
+    """Building the command line (every verb's options) imports no numpy, scipy, numba,
+    matplotlib or networkx, and none of the translator, ODE or engine side: a verb loads what
+    it runs. (The bench verb's --overload default once imported the translator, and with it
+    scipy.optimize and scipy.integrate, into every process; the sweep verb's help, naming
+    compare.values' limit, imported numpy: docs/performance.md section 6.)"""
     code = "from circuitsim.cli import build_parser\nbuild_parser()"
-    heavy = ("scipy", "numba", "matplotlib", "networkx", "circuitsim.synthesis",
+    heavy = ("numpy", "scipy", "numba", "matplotlib", "networkx", "circuitsim.synthesis",
              "circuitsim.mechanics", "circuitsim.solver", "circuitsim.interop",
              "circuitsim.studies", "circuitsim.bench")  # fmt: skip
     assert _loaded_after(code, heavy) == []
