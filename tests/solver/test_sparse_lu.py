@@ -10,7 +10,6 @@ import scipy.sparse as sp
 
 from circuitsim.solver.compiled.sparse_lu import (
     ALL_COLUMNS,
-    UNCHANGED,
     analyse,
     assemble,
     lu_solve,
@@ -90,20 +89,22 @@ def test_a_singular_matrix_is_reported():
 
 def refactor_changed(lu, a0, g_ports, scan=False):
     """Assemble and refactor only what mark_changed marks (the MNA kernel's Newton;
-    ``scan``: refactor's scan of every column instead of refactor_marked's reach)."""
+    ``scan``: refactor's scan from column 0 instead of refactor_marked's from the first
+    column marked); mark_changed's answer."""
     md = 2
     assemble(lu.a_val, lu.g_val, lu.m_val, a0, lu.port_pos, g_ports[:md], g_ports[md:])
-    change = mark_changed(lu.entry_col, lu.port_pos, lu.m_cols, lu.extra_cols, lu.factored,
-                          lu.dirty, lu.todo, g_ports[:md], g_ports[md:], a0)  # fmt: skip
-    every = change == ALL_COLUMNS
-    if every or (scan and change != UNCHANGED):
+    first = mark_changed(lu.entry_col, lu.port_pos, lu.m_cols, lu.extra_cols, lu.factored,
+                         lu.dirty, g_ports[:md], g_ports[md:], a0)  # fmt: skip
+    every = first == ALL_COLUMNS
+    n = lu.a_ptr.size - 1
+    if every or (scan and first < n):
         assert refactor(lu.a_ptr, lu.a_row, lu.a_val, lu.l_ptr, lu.l_row, lu.l_val, lu.u_ptr,
                         lu.u_row, lu.u_val, lu.work, lu.dirty, every) < 0  # fmt: skip
-    elif change != UNCHANGED:
+    elif first < n:
         assert refactor_marked(lu.a_ptr, lu.a_row, lu.a_val, lu.l_ptr, lu.l_row, lu.l_val,
-                               lu.u_ptr, lu.u_row, lu.u_val, lu.work, lu.dirty, lu.todo, change,
-                               lu.ut_ptr, lu.ut_col) < 0  # fmt: skip
-    return change
+                               lu.u_ptr, lu.u_row, lu.u_val, lu.work, lu.dirty,
+                               first) < 0  # fmt: skip
+    return first
 
 
 @pytest.mark.parametrize("scan", [False, True])
@@ -113,13 +114,13 @@ def test_refactoring_the_changed_columns_gives_the_whole_refactor_bit_for_bit(se
     partial = analyse(G, M, port_p, port_n, values, 1e5)
     whole = analyse(G, M, port_p, port_n, values, 1e5)
     assert refactor_changed(partial, 1e5, values, scan) == ALL_COLUMNS  # no factors yet
-    assert refactor_changed(partial, 1e5, values, scan) == UNCHANGED  # nothing changed: kept
+    assert refactor_changed(partial, 1e5, values, scan) == n  # nothing changed: kept
     rng = np.random.default_rng(seed)
     for a0, port in ((1e5, 0), (1e5, 1), (2e5, None), (2e5, 3), (3e5, 2)):
         g = values.copy()
         if port is not None:
             g[port] *= 1.0 + rng.random()
-        assert refactor_changed(partial, a0, g, scan) > 0  # the columns marked
+        assert 0 <= refactor_changed(partial, a0, g, scan) < n  # the first column marked
         assert not partial.dirty.any()  # cleared for the next call
         column, _ = factor_and_solve(whole, a0, g, np.ones(n))
         assert column < 0

@@ -29,7 +29,6 @@ from circuitsim.solver.compiled.newton import FACTORIZATIONS, RESUME_NONCON
 from circuitsim.solver.compiled.slots import ABSTOL, CHORD, ITL4, PIVOT_ORDERS, RELTOL
 from circuitsim.solver.compiled.sparse_lu import (
     ALL_COLUMNS,
-    UNCHANGED,
     assemble,
     lu_solve,
     mark_changed,
@@ -88,15 +87,13 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume):
         lu.u_val,
     )
     row_to, col_of, work = lu.row_to, lu.col_of, lu.work
-    entry_col, m_cols, extra_cols, factored, dirty, todo = (
+    entry_col, m_cols, extra_cols, factored, dirty = (
         lu.entry_col,
         lu.m_cols,
         lu.extra_cols,
         lu.factored,
         lu.dirty,
-        lu.todo,
     )
-    ut_ptr, ut_col = lu.ut_ptr, lu.ut_col
     tp, ts, extra_pos = plan.terms, st.terms, lu.extra_pos  # JFETs, BJTs, POLY: mna_terminals
     ms = sw.shape[0]
     md = jp.shape[0]
@@ -145,20 +142,19 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume):
         if terminals:
             stamp_terminals(tp, ts, extra_pos, a_val)
         # the columns whose entries changed since the factors were made, and those their
-        # change reaches, are factored again (none: a repeated step, junctions unchanged)
-        change = mark_changed(
-            entry_col, port_pos, m_cols, extra_cols, factored, dirty, todo, gd, g_sw, a0
-        )
-        if change != UNCHANGED:
+        # change reaches, are factored again (none, first == n: a repeated step, junctions
+        # unchanged)
+        first = mark_changed(entry_col, port_pos, m_cols, extra_cols, factored, dirty, gd, g_sw,
+                             a0)  # fmt: skip
+        small = -1
+        if first < n:
             st.ints[FACTORIZATIONS] += 1
-        if change == ALL_COLUMNS:
+        if first == ALL_COLUMNS:
             small = refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work,
                              dirty, True)  # fmt: skip
-        elif change != UNCHANGED:
+        elif first < n:
             small = refactor_marked(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row,
-                                    u_val, work, dirty, todo, change, ut_ptr, ut_col)  # fmt: skip
-        else:
-            small = -1
+                                    u_val, work, dirty, first)  # fmt: skip
         if small >= 0:
             factored[-1] = np.nan  # the factors stopped at that column: all of them next
             if iteration == resume:  # on the order made at this very matrix

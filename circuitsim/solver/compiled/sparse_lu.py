@@ -74,11 +74,6 @@ class SparseLU(NamedTuple):
     # that stopped at a small pivot)
     factored: np.ndarray  # (nports + 1,)
     dirty: np.ndarray  # (n,) bool scratch: the columns to redo, False between calls
-    todo: np.ndarray  # (n,) int64 scratch: the columns marked in ``dirty``, listed
-    # U's strictly upper pattern by rows: the columns j > k with U[k, j] != 0 (those whose
-    # factors column k's enter), for the columns a change reaches (:func:`refactor_marked`)
-    ut_ptr: np.ndarray  # (n + 1,) int64
-    ut_col: np.ndarray  # int64
 
 
 def port_stamps(n: int, port_p: np.ndarray, port_n: np.ndarray):
@@ -189,8 +184,6 @@ def analyse(G, M, port_p, port_n, values, a0, spare: float = 1.0, extra=None) ->
         port_pos[stamped, slot] = positions(i[stamped], j[stamped])
     extra_pos = -np.ones(e_row.size, dtype=np.int64)
     extra_pos[inside] = positions(e_row[inside], e_col[inside])
-    upper = sp.csr_matrix(sp.triu(U, k=1))
-    upper.sort_indices()
     l_count = np.diff(L.indptr)
     flops = float(np.sum(l_count * np.diff(U.indptr)) + L.nnz)
     m_val = scatter(M)
@@ -220,9 +213,6 @@ def analyse(G, M, port_p, port_n, values, a0, spare: float = 1.0, extra=None) ->
         extra_cols=np.unique(entry_col[extra_pos[extra_pos >= 0]]),
         factored=np.full(len(port_p) + 1, np.nan),
         dirty=np.zeros(n, dtype=np.bool_),
-        todo=np.zeros(n, dtype=np.int64),
-        ut_ptr=upper.indptr.astype(np.int64),
-        ut_col=_room(upper.indices, spare),
     )
 
 
@@ -252,18 +242,17 @@ def repivot(lu: SparseLU, port_p, port_n, values, a0, extra_val=None) -> int:
     extra_val = np.zeros(lu.extra_row.size) if extra_val is None else extra_val
     # G's and M's stored zeros drop out here: the extra entries put their positions back
     new = analyse(G, M, port_p, port_n, values, a0, extra=(lu.extra_row, lu.extra_col, extra_val))
-    used_l, used_u, used_ut = new.l_ptr[-1], new.u_ptr[-1], new.ut_ptr[-1]
-    if used_l > lu.l_row.size or used_u > lu.u_row.size or used_ut > lu.ut_col.size:
+    used_l, used_u = new.l_ptr[-1], new.u_ptr[-1]
+    if used_l > lu.l_row.size or used_u > lu.u_row.size:
         return 1
     for name in ("a_ptr", "a_row", "g_val", "m_val", "port_pos", "l_ptr", "u_ptr", "row_to",
-                 "col_of", "extra_pos", "entry_col", "factored", "ut_ptr"):  # fmt: skip
+                 "col_of", "extra_pos", "entry_col", "factored"):  # fmt: skip
         getattr(lu, name)[...] = getattr(new, name)
     # the same columns hold M and the extra entries in any order (sizes kept), not their places
     lu.m_cols[...] = new.m_cols
     lu.extra_cols[...] = new.extra_cols
     lu.l_row[:used_l] = new.l_row[:used_l]
     lu.u_row[:used_u] = new.u_row[:used_u]
-    lu.ut_col[:used_ut] = new.ut_col[:used_ut]
     return 0
 
 
@@ -282,38 +271,31 @@ def assemble(a_val, g_val, m_val, a0, port_pos, gd, g_sw_present):
                 a_val[pos] += g if slot < 2 else -g
 
 
-# mark_changed's answer when there are no valid factors (else how many columns it marked)
-UNCHANGED, ALL_COLUMNS = 0, -1
+# mark_changed's answer when there are no valid factors (else the first column it marked)
+ALL_COLUMNS = -1
 
 
 @njit(cache=True, inline="always")
-def _mark(dirty, todo, count, column) -> int:
-    """Mark ``column`` in ``dirty`` and list it in todo[count] unless marked; the new count."""
-    if not dirty[column]:
-        dirty[column] = True
-        todo[count] = column
-        count += 1
-    return count
-
-
-@njit(cache=True, inline="always")
-def mark_changed(entry_col, port_pos, m_cols, extra_cols, factored, dirty, todo, gd,
-                 g_sw_present, a0) -> int:  # fmt: skip
-    """Mark in ``dirty`` (and list in ``todo``) the columns of P whose entries can differ from
-    those the present factors were made from, and record the values about to be factored in
-    ``factored``. Returns ALL_COLUMNS (no valid factors: refactor them all), else the number of
-    columns listed (UNCHANGED, 0: the factors hold). Exact comparisons: a conductance or a0
-    equal bit for bit stamps the same entries."""
+def mark_changed(entry_col, port_pos, m_cols, extra_cols, factored, dirty, gd, g_sw_present,
+                 a0) -> int:  # fmt: skip
+    """Mark in ``dirty`` the columns of P whose entries can differ from those the present
+    factors were made from, and record the values about to be factored in ``factored``.
+    Returns ALL_COLUMNS (no valid factors: refactor them all), else the first column marked
+    (n, the size of ``dirty``, when none is: the factors hold). Exact comparisons: a
+    conductance or a0 equal bit for bit stamps the same entries. (Marks without a branch:
+    listing each column once cost a mispredicted branch per stamp.)"""
     nports = factored.size - 1
     md = gd.size
     every = np.isnan(factored[nports])
-    count = 0
+    first = dirty.size
     for c in extra_cols:  # the multi-terminal devices' entries: at every iteration
-        count = _mark(dirty, todo, count, c)
+        dirty[c] = True
+        first = min(first, c)
     if a0 != factored[nports]:
         factored[nports] = a0
         for c in m_cols:
-            count = _mark(dirty, todo, count, c)
+            dirty[c] = True
+            first = min(first, c)
     for k in range(nports):
         g = gd[k] if k < md else g_sw_present[k - md]
         if g != factored[k]:  # also when factored[k] is NaN
@@ -321,8 +303,10 @@ def mark_changed(entry_col, port_pos, m_cols, extra_cols, factored, dirty, todo,
             for slot in range(4):
                 pos = port_pos[k, slot]
                 if pos >= 0:
-                    count = _mark(dirty, todo, count, entry_col[pos])
-    return ALL_COLUMNS if every else count
+                    c = entry_col[pos]
+                    dirty[c] = True
+                    first = min(first, c)
+    return ALL_COLUMNS if every else first
 
 
 @njit(cache=True, inline="always")
@@ -362,56 +346,44 @@ def refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work
     column whose pivot is below PIVOT_THRESHOLD of its column (a new pivot order is due).
     U's diagonal is stored inverted (the solves multiply by it). Unless ``every``, only the
     columns marked in ``dirty`` and those whose U column reaches a redone one are computed
-    (the others keep their factors, which depend on nothing redone); ``dirty`` is cleared.
-    (:func:`refactor_marked` finds the same columns without visiting the others.)"""
-    n = a_ptr.size - 1
-    column = -1
-    for j in range(n):
-        if not every and not dirty[j]:
-            last = u_ptr[j + 1] - 1
-            reached = False
-            for e in range(u_ptr[j], last):
-                if dirty[u_row[e]]:
-                    reached = True
-                    break
-            if not reached:
-                continue
-            dirty[j] = True
+    (:func:`refactor_marked` from column 0); ``dirty`` is cleared."""
+    if not every:
+        return refactor_marked(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val,
+                               work, dirty, 0)  # fmt: skip
+    for j in range(a_ptr.size - 1):
         if _factor_column(j, a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val,
                           work):  # fmt: skip
-            column = j
-            break
-    for j in range(n):
-        dirty[j] = False
-    return column
+            dirty[:] = False
+            return j
+    dirty[:] = False
+    return -1
 
 
 @njit(cache=True)
 def refactor_marked(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work,
-                    dirty, todo, count, ut_ptr, ut_col) -> int:  # fmt: skip
-    """:func:`refactor` of the ``count`` columns listed in ``todo`` (marked in ``dirty``, by
-    :func:`mark_changed`) and of those they reach: column j is computed from the columns k
-    with U[k, j] != 0, so the reach follows U's rows (``ut_ptr``, ``ut_col``); the same
-    columns as refactor's scan, in the same ascending order, at a cost that grows with their
-    number instead of with n. -1 when done, else the column of a too small pivot; ``dirty``
-    is cleared."""
-    i = 0
-    while i < count:  # todo grows as the reach is found
-        k = todo[i]
-        i += 1
-        for e in range(ut_ptr[k], ut_ptr[k + 1]):
-            count = _mark(dirty, todo, count, ut_col[e])
-    listed = todo[:count]
-    listed.sort()
+                    dirty, first) -> int:  # fmt: skip
+    """:func:`refactor` of the columns marked in ``dirty`` (by :func:`mark_changed`, the
+    first of them ``first``; none before it can be reached) and of those they reach: column
+    j is computed from the columns k with U[k, j] != 0, so it is redone when one of those
+    is. In ascending order, the others keep their factors, which depend on nothing redone:
+    bit for bit what a whole refactor computes. The test of a column's U entries has no
+    branch per entry (the reach followed through U's rows, listed, then sorted, cost 1.5-2
+    times a whole refactor when many columns were marked). -1 when done, else the column of
+    a too small pivot; ``dirty`` is cleared."""
+    n = a_ptr.size - 1
     column = -1
-    for index in range(count):
-        j = listed[index]
-        if _factor_column(j, a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val,
-                          work):  # fmt: skip
-            column = j
-            break
-    for index in range(count):
-        dirty[listed[index]] = False
+    for j in range(first, n):
+        if column < 0 and not dirty[j]:
+            reached = False
+            for e in range(u_ptr[j], u_ptr[j + 1] - 1):
+                reached |= dirty[u_row[e]]
+            dirty[j] = reached
+        if dirty[j] and column < 0:
+            if _factor_column(j, a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val,
+                              work):  # fmt: skip
+                column = j
+    for j in range(first, n):
+        dirty[j] = False
     return column
 
 
