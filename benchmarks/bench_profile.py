@@ -32,7 +32,8 @@ from circuitsim.solver.compiled import newton as nw
 from circuitsim.solver.compiled import plan as kp
 from circuitsim.solver.compiled import run_compiled
 from circuitsim.solver.compiled import transient as tr
-from circuitsim.solver.compiled.sparse_lu import analyse, assemble, lu_solve, refactor
+from circuitsim.solver.compiled.sparse_lu import assemble, lu_solve, refactor
+from circuitsim.solver.compiled.sparse_order import analyse
 from circuitsim.solver.dc import operating_point_solution
 from circuitsim.solver.devices.diode_kernel import linearize_junction
 from circuitsim.solver.engine import build_system

@@ -42,8 +42,8 @@ def test_probed_signals_are_those_of_the_full_run(kernel, monkeypatch):
     recorded = []
     original_state, original_loop = runner._loop_state, engine.run_transient
 
-    def spy(kind, start, plan, rows, capacity):
-        loop_state = original_state(kind, start, plan, rows, capacity)
+    def spy(kind, start, plan, rows, capacity, *more):
+        loop_state = original_state(kind, start, plan, rows, capacity, *more)
         recorded.append(loop_state[1].out_x.shape[1])  # the loop's output table's columns
         return loop_state
 

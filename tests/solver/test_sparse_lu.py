@@ -4,19 +4,28 @@ magnitude, and a new pivot order when a pivot becomes too small."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
 from circuitsim.solver.compiled.sparse_lu import (
     ALL_COLUMNS,
-    analyse,
     assemble,
     lu_solve,
     mark_changed,
-    present_matrix,
     refactor,
     refactor_marked,
+)
+from circuitsim.solver.compiled.sparse_order import (
+    COLUMN_ORDERS,
+    ORDER_MARGIN,
+    _on_order,
+    analyse,
+    iteration_cost,
+    pivot_orders,
+    present_matrix,
     repivot,
 )
 
@@ -136,3 +145,37 @@ def test_refactoring_the_changed_columns_gives_the_whole_refactor_bit_for_bit(se
     refactor_changed(partial, 3e5, g, scan)
     kept = np.count_nonzero(np.isnan(partial.u_val[: partial.u_ptr[-1]]))
     assert 0 < kept < partial.u_ptr[-1]
+
+
+def test_iteration_cost_counts_the_reached_columns_and_the_solves():
+    # a tridiagonal matrix in its natural order: L has (1, 0), (2, 1), (3, 2) and U the
+    # diagonal and (0, 1), (1, 2), (2, 3); column j is computed from column j - 1
+    n = 4
+    G = sp.diags([np.full(n - 1, -1.0), np.full(n, 3.0), np.full(n - 1, -1.0)], [-1, 0, 1])
+    G = sp.csc_matrix(G)
+    pattern = G.tocoo()
+    natural = SimpleNamespace(perm_r=np.arange(n), perm_c=np.arange(n))
+    port_p, port_n = np.array([0, 3]), np.array([-1, -1])
+    lu = _on_order(G, sp.csc_matrix((n, n)), port_p, port_n, np.zeros(0, dtype=np.int64),
+                   np.zeros(0, dtype=np.int64), pattern, natural, 1.0)  # fmt: skip
+    solves = 3 + 7  # L's and U's entries
+    assert iteration_cost(lu, np.array([False, False])) == solves
+    # a port at node 3: column 3 alone, one L column (2's: 1 entry) and its own (none)
+    assert iteration_cost(lu, np.array([False, True])) == 1 + solves
+    # at node 0: every column (column 0 reaches 1, 2 and 3): 1 + 2 + 2 + 1
+    assert iteration_cost(lu, np.array([True, False])) == 6 + solves
+
+
+def test_the_pivot_order_of_fewer_operations_is_chosen_and_the_other_kept():
+    n, (G, M, port_p, port_n), values = 60, mna_like(60, 1), PORT_VALUES
+    changing = np.array([True, True, False, False])
+    orders = pivot_orders(G, M, port_p, port_n, values, 1e5, changing=changing)
+    assert len(orders) == len(COLUMN_ORDERS)
+    costs = [iteration_cost(lu, changing) for lu in orders]
+    assert all(costs[0] <= cost / ORDER_MARGIN for cost in costs[1:])
+    for lu in orders:  # each one solves the matrix
+        b = np.arange(1.0, n + 1)
+        column, x = factor_and_solve(lu, 1e5, values, b)
+        assert column < 0
+        dense = present_matrix(G, M, port_p, port_n, values, 1e5).toarray()
+        assert np.allclose(dense @ x, b, rtol=1e-12, atol=0)

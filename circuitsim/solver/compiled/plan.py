@@ -38,8 +38,10 @@ class KernelPlan(NamedTuple):
     """Constant data of one transient run (shapes: n unknowns, md junctions, ms switches,
     nl linear charges, r = md + ms + nl low-rank columns, ns sources)."""
 
-    G: np.ndarray  # (n, n) constant stamps
-    M: np.ndarray  # (n, n) E Q, the linear charges' matrix (times a0)
+    # (n, n) constant stamps, and E Q, the linear charges' matrix (times a0); (0, 0) in the
+    # MNA kernel's plan (it takes them sparse from the system: runner._constant_parts)
+    G: np.ndarray
+    M: np.ndarray
     U: np.ndarray  # (n, r) low-rank columns: junction ports, switch ports, E of linear charges
     VT: np.ndarray  # (r, n) low-rank rows: the same ports, Q of linear charges
     VT_ptr: np.ndarray  # VT in CSR form
@@ -211,11 +213,14 @@ def build_plan(
     max_step: float,
     min_step: float,
     uic: bool = False,
+    dense: bool = True,
 ) -> tuple[KernelPlan, dict]:
     """The plan, and the families' present states (for the kernel's initial state).
 
     ``uic``: the run starts from initial conditions, not a solution (``ints[UIC]``: the first
-    step then locates no switch transition: solver/transient.py, run_transient).
+    step then locates no switch transition: solver/transient.py, run_transient). ``dense``:
+    G and M as dense (n, n) arrays (the ports kernel's), else empty (the MNA kernel's: 2 x
+    52 MB at 2562 unknowns, and 80-90 ms of CPU to fill).
     """
     options = system.options
     n = system.size
@@ -294,8 +299,8 @@ def build_plan(
     ints[slots.MAX_STEPS] = options.max_steps
     ints[slots.UIC] = int(uic)
     plan = KernelPlan(
-        G=_dense(system.G),
-        M=_dense(system.M),
+        G=_dense(system.G) if dense else np.zeros((0, 0)),
+        M=_dense(system.M) if dense else np.zeros((0, 0)),
         U=U,
         VT=VT,
         **_csr("VT", VT),
@@ -383,7 +388,7 @@ def initial_state(
     plan: KernelPlan, families: dict, x0: np.ndarray, q0: np.ndarray, capacity: int, lu
 ) -> KernelState:
     """The MNA loop's state at t = 0 from the start solution, the families' states and the
-    first pivot order ``lu`` (sparse_lu.analyse)."""
+    first pivot order ``lu`` (sparse_order.analyse)."""
     n, nq = x0.size, q0.size
     hx = np.zeros((4, n))
     hx[0] = x0

@@ -16,6 +16,7 @@ from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
+import scipy.sparse as sp
 
 from circuitsim.solver.compiled.cache import (
     check_cache,
@@ -24,6 +25,7 @@ from circuitsim.solver.compiled.cache import (
     record_compile_seconds,
 )
 from circuitsim.solver.compiled.failures import failure, singular_row
+from circuitsim.solver.compiled.fill import FILL_FUNCTIONS
 from circuitsim.solver.compiled.order_cache import EarlierOrders, compile_trial, python_called
 from circuitsim.solver.compiled.plan import (
     KernelPlan,
@@ -34,12 +36,8 @@ from circuitsim.solver.compiled.plan import (
 )
 from circuitsim.solver.compiled.slots import CFG_COUNT, MAX_STEP, PIVOT_ORDERS, TSTOP
 from circuitsim.solver.compiled.sparse_factors import factor_sparse
-from circuitsim.solver.compiled.sparse_lu import (
-    SparseLU,
-    analyse,
-    present_matrix,
-    repivot,
-)
+from circuitsim.solver.compiled.sparse_lu import SparseLU
+from circuitsim.solver.compiled.sparse_order import pivot_orders, present_matrix, repivot
 from circuitsim.solver.compiled.terminal_plan import entry_pattern, entry_values, terminal_state
 from circuitsim.solver.devices.diode_kernel import CJO, TT
 from circuitsim.solver.errors import (
@@ -217,14 +215,16 @@ def ports_start(
     tmax: float | None = None,
     uic: bool = False,
     stats: dict | None = None,
+    dense: bool = True,
 ) -> PortsStart:
     """The checks, breakpoints, start solution and plan of a ports-kernel run (what
-    :func:`run_ports` does before its first step), for :func:`run_ports_from`."""
+    :func:`run_ports` does before its first step), for :func:`run_ports_from`; ``dense``:
+    False for an MNA-kernel run (its plan without dense G and M: plan.build_plan)."""
     stats = stats if stats is not None else {}
     max_step, min_step, breaks, x, ctx0 = start_transient(
         system, tstep, tstop, tstart, tmax, uic, stats
     )
-    plan, families = build_plan(system, breaks, tstop, max_step, min_step, uic)
+    plan, families = build_plan(system, breaks, tstop, max_step, min_step, uic, dense)
     return PortsStart(system, plan, families, x, ctx0.q.copy(), tstep, tstart, min_step, bool(uic))
 
 
@@ -263,7 +263,8 @@ def run_ports_from(
 
 def _run(kind, system, tstep, tstop, tstart, tmax, uic, progress, stats, rows, fixed=False):
     stats = stats if stats is not None else {}
-    start = ports_start(system, tstep, tstop, tstart, tmax, uic, stats)  # the same for both
+    # the same for both, but for the MNA kernel's plan without dense G and M
+    start = ports_start(system, tstep, tstop, tstart, tmax, uic, stats, dense=kind == "ports")
     counted: list[int] = []
     try:
         return _integrate(kind, start, start.plan, progress, stats, rows, counted, fixed)
@@ -271,21 +272,24 @@ def _run(kind, system, tstep, tstop, tstart, tmax, uic, progress, stats, rows, f
         system.factorizations += sum(counted)
 
 
-def _loop_state(kind, start: PortsStart, plan, rows, capacity):
+def _loop_state(kind, start: PortsStart, plan, rows, capacity, constant=None, earlier=None):
     """The kernel module and its state at t = 0 (with the rows it records, and the slots of
-    a return to Python in the middle of a step: newton.RESUME_*)."""
+    a return to Python in the middle of a step: newton.RESUME_*); for the MNA kernel,
+    ``constant``: its (G, M), sparse (:func:`_constant_parts`), and ``earlier``: the
+    EarlierOrders that gets the pivot orders not chosen."""
+    loop = _loop_module(kind)
     if kind == "ports":
-        from circuitsim.solver.compiled import port_loop as loop
         from circuitsim.solver.compiled.port_state import initial_port_state
 
         rows = np.arange(start.system.size) if rows is None else np.asarray(rows, dtype=np.int64)
         state = initial_port_state(plan, start.families, start.x, start.q0.copy(), capacity, rows)
     else:
-        from circuitsim.solver.compiled import transient as loop
-
         devices = device_states(start.families)
         terms = terminal_state(start.families["terminals"], plan.terms)
-        lu = _pivot_order(plan, devices["gd"], devices["state"], _a0_start(start), terms)
+        a0 = _a0_start(start)
+        lu, *others = _pivot_order(plan, devices["gd"], devices["state"], a0, terms, constant)
+        for other in others:  # the other column orders' (tried when a pivot gets small)
+            earlier.keep(other)
         state = initial_state(plan, start.families, start.x, start.q0.copy(), capacity, lu)
         if rows is not None:  # only these are recorded (the loop's MidStep.rows)
             rows = np.asarray(rows, dtype=np.int64)
@@ -301,6 +305,17 @@ def _loop_state(kind, start: PortsStart, plan, rows, capacity):
     if kind == "ports" and factors_in_python(state):
         state.ints[nw.FACTOR_IN_PYTHON] = 1
     return loop, state, _mid_step(kind, state, rows)
+
+
+def _loop_module(kind: str):
+    """The module of the kernel's loop: port_loop (ports) or transient (MNA)."""
+    if kind == "ports":
+        from circuitsim.solver.compiled import port_loop
+
+        return port_loop
+    from circuitsim.solver.compiled import transient
+
+    return transient
 
 
 def _mid_step(kind, st, rows) -> tuple:
@@ -323,7 +338,7 @@ def _reorder(plan, st, a0: float) -> int:
     values = np.concatenate((st.gd, g_switch))
     extra = entry_values(plan.terms, st.terms)
     try:
-        return repivot(st.lu, plan.port_p, plan.port_n, values, a0, extra)
+        return repivot(st.lu, plan.port_p, plan.port_n, values, a0, extra, _changing(plan))
     except np.linalg.LinAlgError:  # singular
         return 2
 
@@ -352,12 +367,34 @@ def _a0_start(start: PortsStart) -> float:
     return (2.0 if options.method == "trap" else 1.5) / step
 
 
-def _pivot_order(plan, gd, state, a0, terms, spare: float = 1.5) -> SparseLU:
-    """sparse_lu.analyse at the junction conductances ``gd``, switch states ``state``, a0 and
-    the multi-terminal elements' state ``terms`` (with room for ``spare`` times the fill in L
-    and U, for later orders)."""
+def _pivot_order(plan, gd, state, a0, terms, constant, spare: float = 1.5) -> list[SparseLU]:
+    """sparse_order.pivot_orders at the junction conductances ``gd``, switch states
+    ``state``, a0 and the multi-terminal elements' state ``terms`` (with room for ``spare``
+    times the fill in L and U, for later orders): the chosen order first; ``constant``:
+    (G, M), sparse (:func:`_constant_parts`)."""
     values, extra = _present(plan, gd, state, terms)
-    return analyse(plan.G, plan.M, plan.port_p, plan.port_n, values, a0, spare, extra)
+    G, M = constant
+    return pivot_orders(G, M, plan.port_p, plan.port_n, values, a0, spare, extra,
+                        _changing(plan))  # fmt: skip
+
+
+def _changing(plan) -> np.ndarray:
+    """(nports,) bool: the ports whose conductance changes at every Newton iteration, the
+    charged junctions (the switches' change at their toggles)."""
+    return np.concatenate([plan.charged, np.zeros(plan.sw.shape[0], dtype=bool)])
+
+
+def _constant_parts(system: MnaSystem) -> tuple[sp.csc_matrix, sp.csc_matrix]:
+    """The system's G and M in compressed columns, as the plan's dense copies give them
+    (duplicates summed, no stored zeros) without scanning those (n^2 entries: 2 x 6.6
+    million at the 64-mass chain's 2562 unknowns)."""
+    parts = []
+    for matrix in (system.G, system.M):
+        part = sp.csc_matrix(matrix, dtype=float, copy=True)
+        part.sum_duplicates()
+        part.eliminate_zeros()
+        parts.append(part)
+    return parts[0], parts[1]
 
 
 def _present(plan, gd, state, terms):
@@ -370,7 +407,8 @@ def _present(plan, gd, state, terms):
 def _singular(system, plan, gd, state, a0, terms) -> str:
     """describe_singular for the whole matrix at these device states (dense: an error path)."""
     values, extra = _present(plan, gd, state, terms)
-    matrix = present_matrix(plan.G, plan.M, plan.port_p, plan.port_n, values, a0, extra)
+    G, M = _constant_parts(system)
+    matrix = present_matrix(G, M, plan.port_p, plan.port_n, values, a0, extra)
     return system.describe_singular(singular_row(matrix.toarray()))
 
 
@@ -386,8 +424,17 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     fixed = options.fixed_step
     tstop, max_step = float(plan.real[TSTOP]), float(plan.real[MAX_STEP])
     capacity = int(min(max(2 * (tstop / (fixed or max_step)) + 100, 1000), 5_000_000))
+    constant = _constant_parts(system) if kind != "ports" else None
+    orders = EarlierOrders()  # the MNA kernel's earlier pivot orders
+    # the compiled functions the runner calls from Python (the MNA kernel's pivot orders'
+    # fill, its trials of earlier pivot orders): compiled with the kernel, announced with it,
+    # not in the middle of the run
+    cold_helpers = kind != "ports" and any(
+        is_cold(f) for f in (*FILL_FUNCTIONS, *python_called(plan))
+    )
+    compiling = _announce_compile(kind, _loop_module(kind).run, cold_helpers)
     try:
-        loop, st, mid = _loop_state(kind, start, plan, rows, capacity)
+        loop, st, mid = _loop_state(kind, start, plan, rows, capacity, constant, orders)
     except np.linalg.LinAlgError:  # the first pivot order: the start's matrix is singular
         devices = device_states(start.families)
         terms = terminal_state(start.families["terminals"], plan.terms)
@@ -396,10 +443,6 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
         ) from None
     st.fs[nw.H] = fixed if fixed else min(tstop / 100, tstep) / 10
     st.fs[nw.SAVED_H] = tstop / 50
-    # the compiled functions the runner calls from Python (the MNA kernel's trials of earlier
-    # pivot orders): compiled now, announced with the kernel, not in the middle of the run
-    cold_helpers = kind != "ports" and any(is_cold(f) for f in python_called(plan))
-    compiling = _announce_compile(kind, loop.run, cold_helpers)
     if cold_helpers:
         compile_trial(plan, st)
     deadline = wall_deadline(options, time.perf_counter)  # the clock the pauses read
@@ -407,8 +450,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     t_until = report_every
     st.ints[nw.PAUSE_ATTEMPTS] = FIRST_PAUSE
     began = time.perf_counter()
-    pivot_orders, repivoted_at, same_step = 1, -1, 0
-    orders = EarlierOrders()  # the MNA kernel's earlier pivot orders
+    made, repivoted_at, same_step = 1, -1, 0  # pivot orders made by SuperLU
     factored_in_python = 0  # FACTOR returns
     try:
         if kind == "ports":  # the first factorization: by the loop (newton.FIRST_FACTOR)
@@ -453,9 +495,9 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
                     raise np.linalg.LinAlgError("no pivot order suits the matrix")
                 repivoted_at = int(st.ints[nw.ATTEMPTS])
                 a0 = float(st.fs[loop.REPIVOT_A0])
-                lu = _pivot_order(plan, st.gd, st.state, a0, st.terms, 2.0)
+                lu = _pivot_order(plan, st.gd, st.state, a0, st.terms, constant, 2.0)[0]
                 st = st._replace(lu=lu)
-                pivot_orders += 1
+                made += 1
             elif status == loop.PAUSED:
                 if st.fs[nw.T] >= t_until:
                     if progress is not None:
@@ -494,7 +536,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
             stats["factor_returns"] = factored_in_python
         else:
             # orders made by SuperLU; "orders_reused": an earlier one taken again instead
-            stats["pivot_orders"] = pivot_orders + int(st.ints[PIVOT_ORDERS]) - orders.reused
+            stats["pivot_orders"] = made + int(st.ints[PIVOT_ORDERS]) - orders.reused
             stats["orders_reused"] = orders.reused
         counted.append(int(st.ints[nw.FACTORIZATIONS]))
     if status != loop.FINISHED:
