@@ -1,12 +1,11 @@
 """Where the ports kernel's time goes, by ablation (part of bench_profile).
 
 A compiled loop cannot be profiled by function, and its pieces are too small to time alone
-(a 4 x 4 solve is ~0.1 us): instead the kernel (solver/compiled/port_loop.py and the Newton
-it calls, port_newton.py) is recompiled with one piece switched off at a time, from patched
-copies of their sources, and run on the same circuit. The difference in time per step
-against the intact kernel is that piece's cost per step. A switched-off piece changes the
-numbers (and slightly the steps), so the ablated runs are timing instruments only; every
-patch must apply (else the part fails).
+(a 4 x 4 solve is ~0.1 us): instead the kernel (solver/compiled/port_loop.py) is recompiled
+with one piece switched off at a time, from a patched copy of its source, and run on the
+same circuit. The difference in time per step against the intact kernel is that piece's
+cost per step. A switched-off piece changes the numbers (and slightly the steps), so the
+ablated runs are timing instruments only; every patch must apply (else the part fails).
 """
 
 from __future__ import annotations
@@ -27,51 +26,42 @@ from circuitsim.solver.compiled.port_state import initial_port_state
 from circuitsim.solver.engine import build_system
 from circuitsim.solver.transient import start_transient
 
-# the modules copied and patched, the loop last (it imports the other)
-MODULES = ("port_newton", "port_loop")
-_PIVOT = "        pivot_row = k"  # the elimination's first line, as in port_newton.solve_active
-# piece -> (module, source text, replacement)
+_PIVOT = "                            pivot_row = k"  # the elimination's first line, as there
+# piece -> (source text, replacement) in port_loop.py
 ABLATIONS = {
     "junction charges (depletion + diffusion, per iteration)": [
-        ("port_newton", "charged_k = has_charge and charged[k]\n", "charged_k = False\n")
+        (
+            "charged_k = has_charge and charged[k]\n",
+            "charged_k = False\n",
+        )
     ],
     "truncation error (CKTterr over all charges, per step)": [
-        ("port_loop", "charges = truncation_step(", "charges = _no_truncation("),
-        ("port_loop", "charges2 = truncation_step(", "charges2 = _no_truncation("),
+        ("charges = truncation_step(", "charges = _no_truncation("),
+        ("charges2 = truncation_step(", "charges2 = _no_truncation("),
         (
-            "port_loop",
             "@njit(cache=True, nogil=True)\ndef run(",
             "@njit(inline='always')\ndef _no_truncation(real, order, times, q, qdot, hq, hi, live):"
             "\n    return np.inf\n\n\n@njit(cache=True, nogil=True)\ndef run(",
         ),
-        ("port_loop", "zero_charge_step(real, order, times[0] - times[1])", "np.inf"),
-        ("port_loop", "zero_charge_step(real, 2, times[0] - times[1])", "np.inf"),
+        ("zero_charge_step(real, order, times[0] - times[1])", "np.inf"),
+        ("zero_charge_step(real, 2, times[0] - times[1])", "np.inf"),
     ],
     "junction solve (active md x md system, per iteration)": [
-        ("port_newton", "for k in range(m):\n" + _PIVOT, "for k in range(0):\n" + _PIVOT),
-        ("port_newton", "for k in range(m - 1, -1, -1):", "for k in range(0):"),
+        ("for k in range(m):\n" + _PIVOT, "for k in range(0):\n" + _PIVOT),
+        ("for k in range(m - 1, -1, -1):", "for k in range(0):"),
     ],
 }
 
 
 def _load(folder: Path, name: str, patches) -> object:
-    """The loop compiled from patched copies of MODULES (importing each other's copies)."""
-    tag = abs(hash(name)) % 10**8
-    source = Path(port_loop.__file__).parent
-    for module in MODULES:
-        text = (source / f"{module}.py").read_text().replace("cache=True", "cache=False")
-        for other in MODULES:
-            text = text.replace(
-                f"from circuitsim.solver.compiled.{other} import", f"from {other}_{tag} import"
-            )
-        for where, old, new in patches:
-            if where != module:
-                continue
-            if text.count(old) != 1:
-                raise RuntimeError(f"bench_ports: patch for {name!r} does not apply once: {old!r}")
-            text = text.replace(old, new)
-        (folder / f"{module}_{tag}.py").write_text(text)
-    return importlib.import_module(f"port_loop_{tag}")
+    text = Path(port_loop.__file__).read_text().replace("cache=True", "cache=False")
+    for old, new in patches:
+        if text.count(old) != 1:
+            raise RuntimeError(f"bench_ports: patch for {name!r} does not apply once: {old!r}")
+        text = text.replace(old, new)
+    module = f"ablated_{abs(hash(name)) % 10**8}"
+    (folder / f"{module}.py").write_text(text)
+    return importlib.import_module(module)
 
 
 def _timed(module, system, rows, repeat: int = 3) -> tuple[float, int, int]:

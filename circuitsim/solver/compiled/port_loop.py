@@ -1,16 +1,15 @@
 """The ports kernel's time loop: transient.py's step control around a Newton on the junction
-voltages alone (port_newton.py, on ports.py's factorization).
+voltages alone (ports.py).
 
 Breakpoints, order changes, the truncation-error rule, Newton-failure and switch-transition
 handling, re-factoring after a new step size has settled: all as compiled/transient.py. What
-differs is Newton's unknowns and its convergence test (port_newton.py). The recorded unknowns
-are formed once per accepted point.
-
-The steps (``refactor_wanted``, ``port_newton.newton_at``, ``judge_step``, ``accept``) are
-compiled without numba's reference counting and inlined by LLVM (``_nrt=False``,
-``forceinline=True``): they allocate nothing, and ``run`` holds every array they read. So
-they cost nothing over a loop written out in one function (docs/solver.md, "The ports
-kernel's loop in named steps").
+differs is Newton's unknowns and its convergence test. The iterate is the junction voltages
+(and the switches' control voltages); an iteration converges when nothing was limited or
+toggled, every junction voltage moved by less than reltol * |v| + vntol and every junction
+passes SPICE's current check. The other unknowns are affine in the junction currents, so they
+have converged with them; the reference engine also tests each of them, which can ask for one
+more iteration. Nothing of size n is formed inside Newton; the recorded unknowns are formed
+once per accepted point.
 """
 
 from __future__ import annotations
@@ -18,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from circuitsim.solver.compiled.lowrank import NEGLIGIBLE
 from circuitsim.solver.compiled.newton import (
     AFTER_REFACTOR,
     AT_REFACTOR_TEST,
@@ -29,6 +29,7 @@ from circuitsim.solver.compiled.newton import (
     FIRST,
     FIRST_FACTOR,
     IN_ITERATION,
+    JUNCTION_NEGLIGIBLE,
     LAST_A0,
     MEASURED_VERSION,
     NEWTON,
@@ -45,23 +46,36 @@ from circuitsim.solver.compiled.newton import (
     H,
     T,
     factor_now,
+    junction_charges,
     rebase_wanted,
     resumed_step,
     wait_for_factor,
 )
-from circuitsim.solver.compiled.port_newton import CONVERGED, NOT_CONVERGED, REFACTOR, newton_at
-from circuitsim.solver.compiled.ports import all_unknowns, unknown
+from circuitsim.solver.compiled.ports import (
+    all_unknowns,
+    configure,
+    h_column,
+    unknown,
+)
 from circuitsim.solver.compiled.slots import (
+    ABSTOL,
     ACTIVE_STREAK,
+    CFG_A0,
+    CFG_COUNT,
+    CFG_STALE,
+    CFG_VERSION,
     FIXED_STEP,
+    ITL4,
     MAX_STEP,
     MAX_STEPS,
     MAXORD,
     METHOD,
     MIN_STEP,
     NEW_H_MATRIX,
+    RELTOL,
     TSTOP,
     UIC,
+    VNTOL,
     Y_VERSION,
 )
 from circuitsim.solver.compiled.transient import (
@@ -82,17 +96,13 @@ from circuitsim.solver.compiled.transient import (
     truncation_step,
     zero_charge_step,
 )
+from circuitsim.solver.devices.diode_kernel import linearize_junction
 from circuitsim.solver.devices.source_kernel import source_value
 from circuitsim.solver.devices.switch_kernel import (
-    CONTROL_NEGATIVE,
-    CONTROL_POSITIVE,
     switch_transition,
     switch_truncate,
     transition_retry,
 )
-
-# judge_step's verdicts on a converged step
-ACCEPTED, CUT_AT_TRANSITION, TRUNCATION_REJECTED = 0, 1, 2
 
 
 @njit(cache=True, nogil=True)
@@ -108,23 +118,70 @@ def run(plan, st, t_until):
     linear_slots = plan.lin_slots
     n_linear = linear_slots.size
     n_charges = st.q_history.shape[1]
-    floats, counters, breaks = st.fs, st.ints, plan.breaks
-    t_history, q_history, qdot_history = st.t_history, st.q_history, st.qdot_history
-    v_history, control_history = st.v_history, st.control_history
-    v_junction, v_control, out_t = st.v_junction, st.v_control, st.out_t
-    ref = st.fac.ref  # the factorization is rebuilt in place
+    floats, counters = st.fs, st.ints
+    breaks = plan.breaks
+    t_history, q_history, qdot_history, v_history, control_history = (
+        st.t_history,
+        st.q_history,
+        st.qdot_history,
+        st.v_history,
+        st.control_history,
+    )
+    x_ext, x_prev_ext, state, accepted = st.x_ext, st.x_prev_ext, st.state, st.accepted
+    vd_accepted, v_junction, v_control, p_eliminated = (
+        st.vd_accepted,
+        st.v_junction,
+        st.v_control,
+        st.p_eliminated,
+    )
+    sw, approach = plan.sw, plan.approach
+    rows, out_t, out_x, fail_v = st.rows, st.out_t, st.out_x, st.fail_v
+    # every array taken out of the tuples once (the factorization is rebuilt in place)
+    fac = st.fac
+    ref, K, cc, Cb, Kq = fac.ref, fac.K, fac.cc, fac.Cb, fac.Kq
+    yc, Yb, Zq, Z = fac.yc, fac.Yb, fac.Zq, fac.Z
+    vd, cd, gd, ieq, v_new, dg = st.vd, st.cd, st.gd, st.ieq, st.v_new, st.dg
+    d_eliminated, F, G, h_matrix, bound, formed_at = (
+        st.d_eliminated,
+        st.F,
+        st.G,
+        st.H,
+        st.bound,
+        st.formed_at,
+    )
+    scratch, scratch2 = st.scratch, st.scratch2
+    c0, e0, Fc0, A, b, current_dev, w = st.c0, st.e0, st.Fc0, st.A, st.b, st.current_dev, st.w
+    h_max, h_ieq, ieq_applied, active, x_active = (
+        st.h_max,
+        st.h_ieq,
+        st.ieq_applied,
+        st.active,
+        st.x_active,
+    )
+    # many recorded unknowns: form them all column by column (ports.all_unknowns)
+    record_all = rows.size * 4 > fac.yc.size
+    ZT, zrel = fac.ZT, fac.zrel
+    x_all = np.empty(fac.yc.size)
+    # kept in the state, so that a return to Python (a pause) changes nothing
+    y_junctions, current_applied = st.y_junctions, st.current_applied
+    reltol, abstol, vntol = real[RELTOL], real[ABSTOL], real[VNTOL]
+    itl4 = ints[ITL4]
+    jp, cp, jslot, has_charge, charged = plan.jp, plan.cp, plan.jslot, plan.has_charge, plan.charged
+    g_switch = plan.g_switch
+    linear = n_junctions == 0 and n_switches == 0
     src_kind, src_par, src_dc = plan.src_kind, plan.src_par, plan.src_dc
     pwl_start, pwl_t, pwl_v = plan.pwl_start, plan.pwl_t, plan.pwl_v
-    src_values = np.empty(src_kind.size)
+    n_sources = src_kind.size
+    n_eliminated = n_switches + n_linear
+    n_all_ports = n_junctions + n_eliminated
+    src_values = np.empty(n_sources)
     hist = np.empty(n_charges)
     hist_lin = np.empty(n_linear)
     q = np.zeros(n_charges)
     qdot = np.zeros(n_charges)
     times = np.empty(4)
-    live, zeros = charge_slots(n_charges, plan.jslot, plan.charged, plan.has_charge)
-    # many recorded unknowns: form them all column by column (ports.all_unknowns)
-    record_all = st.rows.size * 4 > st.fac.yc.size
-    x_all = np.empty(st.fac.yc.size)
+    live, zeros = charge_slots(n_charges, jslot, charged, has_charge)
+    negligible_v = JUNCTION_NEGLIGIBLE * vntol
     last_active = 0  # active junctions in the last Newton iteration
     resume = counters[RESUME_AT]  # back from a factorization made in Python: where the step was
     counters[RESUME_AT] = NOT_RESUMING
@@ -162,9 +219,13 @@ def run(plan, st, t_until):
                 hist[k] = a1 * q_history[0, k] + b1 * qdot_history[0, k] + a2 * q_history[1, k]
             for k in range(n_linear):
                 hist_lin[k] = hist[linear_slots[k]]
-            if resume == NOT_RESUMING and refactor_wanted(
-                floats, counters, ref, n_ports, n_linear, a0
-            ):
+            ref_a0 = ref[n_ports] if n_linear else a0
+            settled = a0 != ref_a0 and a0 == floats[LAST_A0] and counters[SAME_A0] >= REBASE_STEPS
+            # or the junctions have left the conductances factored (a uic start factors all
+            # of them at 0 V; then the op-amps' output stages settle far from there): each
+            # iteration then eliminates many active columns, which a refactor makes few
+            stale = counters[ACTIVE_STREAK] >= REBASE_STEPS
+            if resume == NOT_RESUMING and ((n_linear and settled) or stale):
                 counters[ACTIVE_STREAK] = 0
                 if not factor_now(plan, st, a0):
                     return wait_for_factor(
@@ -172,47 +233,285 @@ def run(plan, st, t_until):
                     )
             if resume == AT_REFACTOR_TEST:
                 resume = NOT_RESUMING
-            for k in range(src_kind.size):
+            for k in range(n_sources):
                 src_values[k] = source_value(
                     t + h, k, src_kind, src_par, src_dc, pwl_start, pwl_t, pwl_v
                 )
             ratio = h / h_prev if n_history > 1 else 0.0
-            outcome = NOT_CONVERGED
+            ok = False
             first_attempt = counters[RESUME_ATTEMPT] if resume != NOT_RESUMING else 0
             if resume == AT_SECOND_ATTEMPT:
                 resume = NOT_RESUMING
             for attempt in range(first_attempt, 2):
-                if resume == NOT_RESUMING:
-                    predict(v_history, control_history, ratio, v_junction, v_control)
+                for k in range(n_junctions if resume == NOT_RESUMING else 0):  # the predictor
+                    v_junction[k] = v_history[0, k] + ratio * (v_history[0, k] - v_history[1, k])
+                for k in range(n_switches if resume == NOT_RESUMING else 0):
+                    v_control[k] = control_history[0, k] + ratio * (
+                        control_history[0, k] - control_history[1, k]
+                    )
                 for k in range(n_charges):
                     q[k] = 0.0
                     qdot[k] = 0.0
-                resumed = (0, 0)  # or the iteration (and its nonconverged count) to go on from
-                if resume == IN_ITERATION:
-                    resumed = (counters[RESUME_ITERATION], counters[RESUME_NONCON])
-                resume = NOT_RESUMING
-                while True:
-                    outcome, iterations, noncon, last_active = newton_at(
-                        plan, st, a0, hist, hist_lin, src_values, q, qdot, resumed, last_active
-                    )
-                    if outcome != REFACTOR:
-                        break
-                    if not factor_now(plan, st, a0):
-                        return wait_for_factor(
-                            floats, counters, IN_ITERATION, h, order, landing, attempt,
-                            iterations, noncon,
+                # Newton at this time point, written out rather than called: a call, or a
+                # tuple of arrays unpacked per call, costs reference-count updates (atomic
+                # operations) that measured more than the arithmetic of an iteration here
+                ok = False
+                iterations = 0
+                fresh = True  # the time point's responses are to be (re)computed
+                first_iteration = counters[RESUME_ITERATION] if resume == IN_ITERATION else 1
+                for iteration in range(first_iteration, itl4 + 1):
+                    iterations = iteration
+                    first = iteration == 1
+                    noncon = 0
+                    first_again = 0
+                    if resume == IN_ITERATION:  # linearized before the factorization
+                        noncon = counters[RESUME_NONCON]
+                        junction_charges(vd, a0, hist, jp, cp, jslot, has_charge, charged, q, qdot)
+                        first_again = 1
+                    for k in range(n_switches if resume == NOT_RESUMING else 0):  # update_state
+                        keep = accepted[k] if first else state[k]
+                        new = (keep or v_control[k] > approach[k, 0]) and v_control[k] >= approach[
+                            k, 1
+                        ]
+                        if new != state[k]:
+                            state[k] = new
+                            noncon += 1
+                            counters[CFG_STALE] = 1
+                    for k in range(
+                        n_junctions if resume == NOT_RESUMING else 0
+                    ):  # DiodeFamily.port_load
+                        charged_k = has_charge and charged[k]
+                        slot = jslot[k]
+                        v, limited, current, conductance, charge, charge_current = (
+                            linearize_junction(
+                                jp, cp, k, v_junction[k], vd_accepted[k] if first else vd[k],
+                                charged_k, a0, hist[slot] if charged_k else 0.0,
+                            )
                         )  # fmt: skip
-                    resumed = (iterations, noncon)
+                        noncon += limited
+                        if charged_k:
+                            q[slot] = charge
+                            qdot[slot] = charge_current
+                        vd[k], cd[k], gd[k] = v, current, conductance
+                        ieq[k] = current - conductance * v
+                    resume = NOT_RESUMING
+                    solved = False
+                    for again in range(first_again, 2):  # the second on a refactor here
+                        if (
+                            counters[CFG_STALE] == 1
+                            or counters[CFG_VERSION] != counters[VERSION]
+                            or floats[CFG_A0] != a0
+                        ):
+                            # eliminate the switch and charge ports at a0 and the switch states
+                            for k in range(n_switches):
+                                on = g_switch[k, 0] if state[k] else g_switch[k, 1]
+                                d_eliminated[k] = on - ref[n_junctions + k]
+                            for k in range(n_switches, d_eliminated.size):
+                                d_eliminated[k] = a0 - ref[n_junctions + k]
+                            if not configure(K, n_junctions, d_eliminated, F, G, bound):
+                                if again == 1:
+                                    break
+                                if not factor_now(plan, st, a0):
+                                    return wait_for_factor(
+                                        floats, counters, IN_ITERATION, h, order, landing, attempt,
+                                        iteration, noncon,
+                                    )  # fmt: skip
+                                continue
+                            floats[CFG_A0] = a0
+                            counters[CFG_VERSION] = counters[VERSION]
+                            counters[CFG_STALE] = 0
+                            counters[CFG_COUNT] += 1  # every column of H to be formed anew
+                            fresh = True
+                            counters[NEW_H_MATRIX] = 1
+                        if fresh:  # the time point's port responses (ports.py: c0, e0, F c0_R)
+                            for i in range(n_all_ports):
+                                acc = cc[i]
+                                for k in range(n_sources):
+                                    acc += Cb[i, k] * src_values[k]
+                                for k in range(n_linear):
+                                    acc -= Kq[i, k] * hist_lin[k]
+                                c0[i] = acc
+                            for i in range(n_eliminated):  # tr = G c0_R, Fc0 = F c0_R
+                                acc = 0.0
+                                acc2 = 0.0
+                                for k in range(n_eliminated):
+                                    acc += G[i, k] * c0[n_junctions + k]
+                                    acc2 += F[i, k] * c0[n_junctions + k]
+                                scratch[i] = acc
+                                Fc0[i] = acc2
+                            for i in range(n_junctions):  # e0 = c0_J - K_JR G c0_R
+                                acc = c0[i]
+                                for k in range(n_eliminated):
+                                    acc -= K[i, n_junctions + k] * scratch[k]
+                                e0[i] = acc
+                            fresh = False
+                        for k in range(n_junctions):
+                            dg[k] = gd[k] - ref[k]
+                        # (I + H D_J) p_J = e0 - H ieq, for the *active* junctions only: those
+                        # whose conductance change moves the solution, |dJ_k| max_i |H_ik| >
+                        # NEGLIGIBLE (as lowrank.active_columns). The others' columns of
+                        # I + H D_J are unit columns to round-off (an op-amp macromodel's clamp
+                        # diodes, far in reverse, keep their factorization's conductance), so
+                        # their p follows by one product. H ieq is kept up to date by the
+                        # columns whose companion current changed (by more than negligibly,
+                        # below). (Written out, not called: see the Newton comment above.)
+                        count = counters[CFG_COUNT]
+                        # H changed: H ieq = K_JJ ieq - K_JR G (K_RJ ieq) in full, no H formed
+                        if counters[NEW_H_MATRIX] == 1:
+                            for s in range(n_eliminated):
+                                acc = 0.0
+                                for k in range(n_junctions):
+                                    acc += K[n_junctions + s, k] * ieq[k]
+                                scratch2[s] = acc
+                            for s in range(n_eliminated):
+                                acc = 0.0
+                                for p in range(n_eliminated):
+                                    acc += G[s, p] * scratch2[p]
+                                scratch[s] = acc
+                            for i in range(n_junctions):
+                                acc = 0.0
+                                for k in range(n_junctions):
+                                    acc += K[i, k] * ieq[k]
+                                for s in range(n_eliminated):
+                                    acc -= K[i, n_junctions + s] * scratch[s]
+                                h_ieq[i] = acc
+                            for k in range(n_junctions):
+                                ieq_applied[k] = ieq[k]
+                            counters[NEW_H_MATRIX] = 0
+                        # A change that moves no junction voltage by more than
+                        # JUNCTION_NEGLIGIBLE vntol (bound: max_i |H_ik| or more) waits until it
+                        # grows, as in newton.junction_response: the companion currents of clamp
+                        # diodes far in reverse change by round-off at every iteration (42 of the
+                        # TL074 wheelset's 56; applying them took a third of its step).
+                        for k in range(n_junctions):
+                            change = ieq[k] - ieq_applied[k]
+                            if change != 0.0 and abs(change) * bound[k] > negligible_v:
+                                if formed_at[k] != count:
+                                    h_column(K, G, n_junctions, k, h_matrix, h_max, scratch)
+                                    formed_at[k] = count
+                                for i in range(n_junctions):
+                                    h_ieq[i] += h_matrix[i, k] * change
+                                ieq_applied[k] = ieq[k]
+                        m = 0
+                        for k in range(n_junctions):
+                            if dg[k] != 0.0 and abs(dg[k]) * bound[k] > NEGLIGIBLE:
+                                if formed_at[k] != count:
+                                    h_column(K, G, n_junctions, k, h_matrix, h_max, scratch)
+                                    formed_at[k] = count
+                                if abs(dg[k]) * h_max[k] > NEGLIGIBLE:
+                                    active[m] = k
+                                    m += 1
+                        last_active = m
+                        for a in range(m):
+                            i = active[a]
+                            for c in range(m):
+                                A[a, c] = h_matrix[i, active[c]] * dg[active[c]]
+                            A[a, a] += 1.0
+                            b[a] = e0[i] - h_ieq[i]
+                        # A xa = b (m x m, partial pivoting), written out as well
+                        solved = True
+                        for k in range(m):
+                            pivot_row = k
+                            big = abs(A[k, k])
+                            for i in range(k + 1, m):
+                                if abs(A[i, k]) > big:
+                                    big = abs(A[i, k])
+                                    pivot_row = i
+                            if big == 0.0:
+                                solved = False
+                                break
+                            if pivot_row != k:
+                                for c in range(m):
+                                    A[k, c], A[pivot_row, c] = A[pivot_row, c], A[k, c]
+                                b[k], b[pivot_row] = b[pivot_row], b[k]
+                            pivot = A[k, k]
+                            for i in range(k + 1, m):
+                                f = A[i, k] / pivot
+                                for c in range(k + 1, m):
+                                    A[i, c] -= f * A[k, c]
+                                b[i] -= f * b[k]
+                        if solved:
+                            for k in range(m - 1, -1, -1):
+                                acc = b[k]
+                                for c in range(k + 1, m):
+                                    acc -= A[k, c] * x_active[c]
+                                x_active[k] = acc / A[k, k]
+                                if not np.isfinite(x_active[k]):
+                                    solved = False
+                        if solved:
+                            for i in range(n_junctions):
+                                acc = e0[i] - h_ieq[i]
+                                for c in range(m):
+                                    acc -= h_matrix[i, active[c]] * dg[active[c]] * x_active[c]
+                                v_new[i] = acc
+                            for c in range(m):
+                                v_new[active[c]] = x_active[c]
+                        if solved or again == 1:
+                            break
+                        if not factor_now(plan, st, a0):
+                            return wait_for_factor(
+                                floats,
+                                counters,
+                                IN_ITERATION,
+                                h,
+                                order,
+                                landing,
+                                attempt,
+                                iteration,
+                                noncon,
+                            )
+                    if not solved:
+                        break
+                    # j = ieq + D_J p_J, p_R = F c0_R - F K_RJ j, w = D_R p_R (ports.py)
+                    for k in range(n_junctions):
+                        current_dev[k] = ieq[k] + dg[k] * v_new[k]
+                    for s in range(n_eliminated):  # tr = K_RJ j
+                        acc = 0.0
+                        for k in range(n_junctions):
+                            acc += K[n_junctions + s, k] * current_dev[k]
+                        scratch[s] = acc
+                    for i in range(n_eliminated):
+                        acc = Fc0[i]
+                        for k in range(n_eliminated):
+                            acc -= F[i, k] * scratch[k]
+                        p_eliminated[i] = acc
+                        w[i] = d_eliminated[i] * acc
+                    for k in range(n_switches):  # the control nodes of this iterate
+                        for side in (2, 3):
+                            node = sw[k, side]
+                            if node >= 0:
+                                x_ext[node] = unknown(
+                                    node, yc, Yb, Zq, Z, src_values, hist_lin, current_dev, w
+                                )
+                        v_control[k] = x_ext[sw[k, 2]] - x_ext[sw[k, 3]]
+                    done = noncon == 0 and (iteration > 1 or linear)
+                    for k in range(n_junctions if done else 0):
+                        change = abs(v_new[k] - v_junction[k])
+                        if change > reltol * max(abs(v_new[k]), abs(v_junction[k])) + vntol:
+                            done = False
+                            break
+                    for k in range(n_junctions if done else 0):  # DiodeFamily.port_converged
+                        delta = gd[k] * (v_new[k] - vd[k])
+                        if abs(delta) > reltol * max(abs(cd[k] + delta), abs(cd[k])) + abstol:
+                            done = False
+                            break
+                    for k in range(n_junctions):
+                        fail_v[0, k] = v_new[k]
+                        fail_v[1, k] = v_junction[k]
+                        v_junction[k] = v_new[k]
+                    if done:
+                        ok = True
+                        break
                 counters[NEWTON] += iterations
                 # the update's round-off, not the step, may be what failed (RETRY_RATIO)
                 far = n_linear and not (a0 / RETRY_RATIO < ref[n_ports] < RETRY_RATIO * a0)
-                if outcome == CONVERGED or attempt == 1 or not far:
+                if ok or attempt == 1 or not far:
                     break
                 if not factor_now(plan, st, a0):
                     return wait_for_factor(
                         floats, counters, AT_SECOND_ATTEMPT, h, order, landing, 1, 0, 0
                     )
-            if outcome != CONVERGED:
+            if not ok:
                 counters[REJECTED] += 1
                 floats[H] = h
                 if fixed > 0:
@@ -224,159 +523,109 @@ def run(plan, st, t_until):
                     floats[H] = h
                     return STEP_TOO_SMALL
                 continue
-            verdict, new_h, order = judge_step(
-                plan, st, t, h, order, n_history, a0, hist, q, qdot, times, live, zeros
-            )
-            if verdict != ACCEPTED:
-                counters[REJECTED] += 1
-                h = new_h
-                landing = False
-                if verdict == TRUNCATION_REJECTED and h < min_step:
-                    floats[H] = h
-                    return STEP_TOO_SMALL_LTE
-                continue
+            for k in range(n_linear):
+                charge = p_eliminated[n_switches + k]
+                q[linear_slots[k]] = charge
+                qdot[linear_slots[k]] = a0 * charge + hist[linear_slots[k]]
+            transition = False
+            if (
+                fixed == 0 and n_switches and not (ints[UIC] and counters[FIRST])
+            ):  # uic: solver/transient.py
+                fraction = switch_transition(x_ext, x_prev_ext, sw, state, accepted, approach)
+                retry = transition_retry(
+                    fraction, h, t_history[0] - t_history[1] if n_history > 1 else h, min_step
+                )
+                if retry > 0:  # cut short of the crossing, then just past it (devices/switch.py)
+                    counters[REJECTED] += 1
+                    h = retry
+                    landing = False
+                    continue
+                transition = fraction < 1.0
+            new_h = h if fixed > 0 else 2 * h
+            if fixed == 0 and not counters[FIRST]:
+                times[0] = t + h
+                for k in range(3):
+                    times[k + 1] = t_history[k]
+                n_points = n_history + 1
+                charges = charges2 = switches = np.inf
+                if n_points >= order + 2 and n_charges:
+                    charges = truncation_step(
+                        real, order, times, q, qdot, q_history, qdot_history, live
+                    )
+                    if zeros:
+                        charges = min(charges, zero_charge_step(real, order, times[0] - times[1]))
+                if order == 1 and max_order > 1 and n_points >= 4 and n_charges:
+                    charges2 = truncation_step(
+                        real, 2, times, q, qdot, q_history, qdot_history, live
+                    )
+                    if zeros:
+                        charges2 = min(charges2, zero_charge_step(real, 2, times[0] - times[1]))
+                if n_switches:
+                    switches = switch_truncate(x_ext, x_prev_ext, h, sw, accepted, approach)
+                new_h, order, good = next_step(
+                    real, max_order, n_points, order, h, transition, charges, charges2, switches
+                )
+                if not good:
+                    counters[REJECTED] += 1
+                    h = new_h
+                    landing = False
+                    if h < min_step:
+                        floats[H] = h
+                        return STEP_TOO_SMALL_LTE
+                    continue
             break
 
+        # accept
+        if (
+            counters[VERSION] != counters[MEASURED_VERSION]
+        ):  # the first accepted step on a new refactor
+            counters[AFTER_REFACTOR] = last_active
+            counters[MEASURED_VERSION] = counters[VERSION]
+        if rebase_wanted(last_active, counters[AFTER_REFACTOR]):
+            counters[ACTIVE_STREAK] += 1
+        else:
+            counters[ACTIVE_STREAK] = 0
         t = next_break if landing else t + h
-        toggled = accept(plan, st, t, q, qdot, src_values, hist_lin, record_all, x_all, last_active)
+        toggled = False
+        for k in range(n_switches):
+            if state[k] != accepted[k]:
+                toggled = True
+            accepted[k] = state[k]
+            for side in (2, 3):
+                node = sw[k, side]
+                if node >= 0:
+                    x_prev_ext[node] = x_ext[node]
+            control_history[1, k] = control_history[0, k]
+            control_history[0, k] = v_control[k]
+        for k in range(n_junctions):
+            vd_accepted[k] = v_junction[k]
+            v_history[1, k] = v_history[0, k]
+            v_history[0, k] = v_junction[k]
+        for j in range(3, 0, -1):
+            t_history[j] = t_history[j - 1]
+            for i in range(n_charges):
+                q_history[j, i] = q_history[j - 1, i]
+        t_history[0] = t
+        row = counters[COUNT]
+        out_t[row] = t
+        if record_all:
+            all_unknowns(
+                x_all, yc, Yb, ZT, src_values, hist_lin, current_dev, w, n_junctions,
+                y_junctions, current_applied, zrel, counters[Y_VERSION] != counters[VERSION],
+            )  # fmt: skip
+            counters[Y_VERSION] = counters[VERSION]
+            for k in range(rows.size):
+                out_x[row, k] = x_all[rows[k]]
+        else:
+            for k in range(rows.size):
+                out_x[row, k] = unknown(
+                    rows[k], yc, Yb, Zq, Z, src_values, hist_lin, current_dev, w
+                )
+        for i in range(n_charges):
+            qdot_history[1, i] = qdot_history[0, i]
+            qdot_history[0, i] = qdot[i]
+            q_history[0, i] = q[i]
         finish_step(
             floats, counters, t, new_h, a0, order, landing, toggled, fixed, max_order, n_history
         )
     return FINISHED
-
-
-@njit(cache=True, _nrt=False, forceinline=True)
-def refactor_wanted(fs, counters, ref, n_ports, n_linear, a0):
-    """Whether to refactor before a step at a0 (1/s): the linear charges' a0 has settled at a
-    value other than the factored one, or the junctions have left the conductances factored
-    (a uic start factors all of them at 0 V; then the op-amps' output stages settle far from
-    there): each iteration then eliminates many active columns, which a refactor makes few."""
-    ref_a0 = ref[n_ports] if n_linear else a0
-    settled = a0 != ref_a0 and a0 == fs[LAST_A0] and counters[SAME_A0] >= REBASE_STEPS
-    stale = counters[ACTIVE_STREAK] >= REBASE_STEPS
-    return (n_linear > 0 and settled) or stale
-
-
-@njit(cache=True)
-def predict(v_history, control_history, ratio, v_junction, v_control):
-    """The Newton iterate's start: the junction and control voltages (V) extrapolated from
-    the last two accepted points (``ratio``: this step over the last one; 0 at the start)."""
-    for k in range(v_junction.size):
-        v_junction[k] = v_history[0, k] + ratio * (v_history[0, k] - v_history[1, k])
-    for k in range(v_control.size):
-        v_control[k] = control_history[0, k] + ratio * (
-            control_history[0, k] - control_history[1, k]
-        )
-
-
-@njit(cache=True, _nrt=False, forceinline=True)
-def judge_step(plan, st, t, h, order, n_history, a0, hist, q, qdot, times, live, zeros):
-    """A step to t + h (s) whose Newton converged, judged: the linear charges into q and
-    qdot, then the switches' transitions (devices/switch.py) and the truncation error
-    (solver/transient.py's rules). Returns (ACCEPTED, the next step proposed, order), or
-    (CUT_AT_TRANSITION or TRUNCATION_REJECTED, the step to retry, order). Without numba's
-    reference counting, as port_newton.newton_at."""
-    real, ints, counters, linear_slots = plan.real, plan.ints, st.ints, plan.lin_slots
-    sw, approach, accepted = plan.sw, plan.approach, st.accepted
-    x_ext, x_prev_ext, t_history = st.x_ext, st.x_prev_ext, st.t_history
-    fixed, n_switches = real[FIXED_STEP], sw.shape[0]
-    for k in range(linear_slots.size):
-        charge = st.p_eliminated[n_switches + k]
-        q[linear_slots[k]] = charge
-        qdot[linear_slots[k]] = a0 * charge + hist[linear_slots[k]]
-    transition = False
-    if fixed == 0 and n_switches and not (ints[UIC] and counters[FIRST]):  # uic: transient.py
-        fraction = switch_transition(x_ext, x_prev_ext, sw, st.state, accepted, approach)
-        retry = transition_retry(
-            fraction, h, t_history[0] - t_history[1] if n_history > 1 else h, real[MIN_STEP]
-        )
-        if retry > 0:  # cut short of the crossing, then just past it (devices/switch.py)
-            return CUT_AT_TRANSITION, retry, order
-        transition = fraction < 1.0
-    new_h = h if fixed > 0 else 2 * h
-    if fixed == 0 and not counters[FIRST]:
-        times[0] = t + h
-        for k in range(3):
-            times[k + 1] = t_history[k]
-        n_points = n_history + 1
-        max_order = ints[MAXORD]
-        charges = charges2 = switches = np.inf
-        if n_points >= order + 2 and q.size:
-            charges = truncation_step(
-                real, order, times, q, qdot, st.q_history, st.qdot_history, live
-            )
-            if zeros:
-                charges = min(charges, zero_charge_step(real, order, times[0] - times[1]))
-        if order == 1 and max_order > 1 and n_points >= 4 and q.size:
-            charges2 = truncation_step(real, 2, times, q, qdot, st.q_history, st.qdot_history, live)
-            if zeros:
-                charges2 = min(charges2, zero_charge_step(real, 2, times[0] - times[1]))
-        if n_switches:
-            switches = switch_truncate(x_ext, x_prev_ext, h, sw, accepted, approach)
-        new_h, order, good = next_step(
-            real, max_order, n_points, order, h, transition, charges, charges2, switches
-        )
-        if not good:
-            return TRUNCATION_REJECTED, new_h, order
-    return ACCEPTED, new_h, order
-
-
-@njit(cache=True, _nrt=False, forceinline=True)
-def accept(plan, st, t, q, qdot, src_values, hist_lin, record_all, x_all, last_active):
-    """The converged point at t (s) accepted: the streak of steps with many active junctions
-    (``last_active`` in the last iteration; newton.rebase_wanted), switch states, histories,
-    the recorded row (all unknowns formed column by column when ``record_all``); returns
-    whether a switch toggled in the step."""
-    counters, sw, fac = st.ints, plan.sw, st.fac
-    state, accepted, x_ext, x_prev_ext = st.state, st.accepted, st.x_ext, st.x_prev_ext
-    control_history, v_history, v_junction = st.control_history, st.v_history, st.v_junction
-    t_history, q_history, qdot_history = st.t_history, st.q_history, st.qdot_history
-    rows, out_x, current_dev, w = st.rows, st.out_x, st.current_dev, st.w
-    if counters[VERSION] != counters[MEASURED_VERSION]:  # the first step on a new refactor
-        counters[AFTER_REFACTOR] = last_active
-        counters[MEASURED_VERSION] = counters[VERSION]
-    if rebase_wanted(last_active, counters[AFTER_REFACTOR]):
-        counters[ACTIVE_STREAK] += 1
-    else:
-        counters[ACTIVE_STREAK] = 0
-    toggled = False
-    for k in range(state.size):
-        if state[k] != accepted[k]:
-            toggled = True
-        accepted[k] = state[k]
-        for side in (CONTROL_POSITIVE, CONTROL_NEGATIVE):
-            node = sw[k, side]
-            if node >= 0:
-                x_prev_ext[node] = x_ext[node]
-        control_history[1, k] = control_history[0, k]
-        control_history[0, k] = st.v_control[k]
-    for k in range(v_junction.size):
-        st.vd_accepted[k] = v_junction[k]
-        v_history[1, k] = v_history[0, k]
-        v_history[0, k] = v_junction[k]
-    for j in range(3, 0, -1):
-        t_history[j] = t_history[j - 1]
-        for i in range(q.size):
-            q_history[j, i] = q_history[j - 1, i]
-    t_history[0] = t
-    row = counters[COUNT]
-    st.out_t[row] = t
-    if record_all:
-        all_unknowns(
-            x_all, fac.yc, fac.Yb, fac.ZT, src_values, hist_lin, current_dev, w,
-            v_junction.size, st.y_junctions, st.current_applied, fac.zrel,
-            counters[Y_VERSION] != counters[VERSION],
-        )  # fmt: skip
-        counters[Y_VERSION] = counters[VERSION]
-        for k in range(rows.size):
-            out_x[row, k] = x_all[rows[k]]
-    else:
-        for k in range(rows.size):
-            out_x[row, k] = unknown(
-                rows[k], fac.yc, fac.Yb, fac.Zq, fac.Z, src_values, hist_lin, current_dev, w
-            )
-    for i in range(q.size):
-        qdot_history[1, i] = qdot_history[0, i]
-        qdot_history[0, i] = qdot[i]
-        q_history[0, i] = q[i]
-    return toggled

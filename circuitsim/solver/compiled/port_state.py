@@ -49,8 +49,6 @@ class PortState(NamedTuple):
     h_max: np.ndarray  # (md,) max |H[:, k]| of the formed columns
     bound: np.ndarray  # (md,) an upper bound of it for every column
     formed_at: np.ndarray  # (md,) int: the configuration count column k was formed at
-    elimination: np.ndarray  # (rR, 2 rR) ports.configure's Gauss-Jordan work array
-    bound_weights: np.ndarray  # (rR,) ports.configure's weights of the column bounds
     scratch: np.ndarray  # (rR,)
     scratch2: np.ndarray  # (rR,)
     h_ieq: np.ndarray  # (md,) H ieq_applied
@@ -123,8 +121,6 @@ def initial_port_state(
         h_max=z(md),
         bound=z(md),
         formed_at=np.full(md, -1, dtype=np.int64),
-        elimination=z((rR, 2 * rR)),
-        bound_weights=z(rR),
         scratch=z(rR),
         scratch2=z(rR),
         h_ieq=z(md),

@@ -41,17 +41,17 @@ from circuitsim.solver.compiled.newton import JUNCTION_NEGLIGIBLE
 
 
 @njit(cache=True)
-def configure(K, md, dR, F, G, bound, a, u) -> bool:
+def configure(K, md, dR, F, G, bound) -> bool:
     """Eliminate the R ports at their value changes ``dR`` (shape (rR,)).
 
     Fills F = (I + K_RR D_R)^-1 and G = D_R F (rR x rR), so that H = K_JJ - K_JR G K_RJ, and
     ``bound`` (md,), an upper bound of max_i |H_ik| for each column k. H itself is formed
     column by column when a column is needed (:func:`h_column`): a circuit with many
     junctions needs few of them, and forming all would cost md^2 rR at every new step size.
-    False when I + K_RR D_R is singular. ``a`` (rR, 2 rR) and ``u`` (rR,) are work arrays (it
-    allocates nothing: port_newton.newton_at runs without numba's reference counting).
+    False when I + K_RR D_R is singular.
     """
     rR = dR.size
+    a = np.empty((rR, 2 * rR))
     for i in range(rR):
         for k in range(rR):
             a[i, k] = K[md + i, md + k] * dR[k]
@@ -82,8 +82,7 @@ def configure(K, md, dR, F, G, bound, a, u) -> bool:
             F[i, k] = a[i, rR + k]
             G[i, k] = dR[i] * a[i, rR + k]
     # bound_k = max_i |K_JJ[i, k]| + sum_s u_s |K_RJ[s, k]|, u_s = sum_r max_i |K_JR[i, r]| |G_rs|
-    for s in range(rR):
-        u[s] = 0.0
+    u = np.zeros(rR)
     for r in range(rR):
         big = 0.0
         for i in range(md):
