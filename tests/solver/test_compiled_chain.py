@@ -12,19 +12,21 @@ import pytest
 from circuitsim.mechanics import load_model
 from circuitsim.mechanics.chain import chain_model_text
 from circuitsim.solver import SimulationOptions, simulate
+from circuitsim.solver.compiled import runner
 from circuitsim.solver.compiled.sparse_factors import SPARSE_FROM
+from circuitsim.solver.engine import build_system
 from circuitsim.synthesis.options import SynthesisOptions
 from circuitsim.synthesis.translator import synthesize
 from tests.solver.conftest import requires_ngspice
 from tests.solver.test_compiled_kernel import kernel_deviation
 
 
-def chain_circuit(tmp_path, masses: int, t_stop: float):
+def chain_circuit(tmp_path, masses: int, t_stop: float, opamp: str = "ideal"):
     path = tmp_path / f"chain{masses}.toml"
     path.write_text(chain_model_text(masses, t_stop=5.0))
     model = load_model(path)
     system = model.system(nonlinear={group: True for group in model.nonlinear_terms})
-    options = SynthesisOptions(opamp="ideal", series="exact", t_stop=5.0)
+    options = SynthesisOptions(opamp=opamp, series="exact", t_stop=5.0)
     circuit = synthesize(system, options).circuit
     tran = circuit.transient
     circuit.analyses = [replace(tran, tstop=t_stop) if a is tran else a for a in circuit.analyses]
@@ -79,3 +81,24 @@ def test_large_chain_runs_compiled_and_agrees_with_ngspice(tmp_path):
         mine = np.interp(theirs.time, ours.time, ours[name])
         # the golden netlists' bound against ngspice (tests/solver/test_golden.py: 1e-3)
         assert np.max(np.abs(mine - theirs[name])) <= 1e-3 * span, name
+
+
+@pytest.mark.parametrize(
+    ("masses", "opamp", "charged", "eliminated", "kernel"),
+    [
+        (4, "ideal", 16, 12, "ports"),
+        (8, "ideal", 32, 24, "compiled"),
+        (2, "tl074", 8, 24, "ports"),
+        (4, "tl074", 16, 48, "compiled"),
+    ],
+)
+def test_auto_kernel_rule(tmp_path, masses, opamp, charged, eliminated, kernel):
+    """runner.auto_kernel on the scaling benchmark's chains: the ports kernel up to 16 charged
+    junctions and 32 eliminated ports (switches and linear charges), the MNA kernel beyond
+    either (docs/solver.md, "Choosing the kernel": the MNA kernel measured 1.6x faster on the
+    8-mass ideal chain and the 4-mass TL074 chain, the ports kernel 1.4x and more below)."""
+    circuit = chain_circuit(tmp_path, masses, 0.1, opamp)
+    system = build_system(circuit, SimulationOptions.from_circuit(circuit))
+    assert runner.switching_junctions(system) == charged
+    assert runner.eliminated_ports(system) == eliminated
+    assert runner.auto_kernel(system) == kernel

@@ -71,14 +71,21 @@ def kernel_unavailable(system: MnaSystem, kernel: str = "compiled") -> str | Non
     return unsupported(system, kernel)
 
 
-# kernel="auto": the ports kernel while at most this many junctions carry charge (CJO or TT:
-# a generated circuit's contact and precision-rectifier diodes, the junctions that switch
-# during a run; an op-amp macromodel's clamp diodes have none and sit in reverse), else the
-# MNA kernel. Measured with ngspice's iteration floor (docs/solver.md, "Choosing the kernel";
-# benchmarks/bench_kernels.py): the ports kernel is 1.6-3.6x faster up to 16 (the wheelsets,
-# the ideal chains of 1-4 masses, TL074 chains of 1-2), the two are even at 32 (8 masses) and
-# on the TL074 chain of 4 masses (16), the MNA kernel 2.4x and more from 64 (16 masses) on.
+# kernel="auto": the ports kernel while at most AUTO_PORTS_MAX_SWITCHING junctions carry
+# charge (CJO or TT: a generated circuit's contact and precision-rectifier diodes, the junctions
+# that switch during a run; an op-amp macromodel's clamp diodes have none and sit in reverse)
+# and at most AUTO_PORTS_MAX_ELIMINATED ports are eliminated at each new step size (switches
+# and linear charges: the ports kernel's Gauss-Jordan on them is cubic in their number; a
+# TL074 macromodel brings two to three capacitors per op-amp), else the MNA kernel. Measured
+# with ngspice's iteration floor (docs/solver.md, "Choosing the kernel";
+# benchmarks/bench_kernels.py) at 381736a+: the ports kernel is 1.4-3.8x faster on the
+# wheelsets, the ideal chains of 1-4 masses and the TL074 chains of 1-2 (at most 16 charged
+# junctions, 24 eliminated ports), the MNA kernel 1.6x faster on the ideal chain of 8 masses
+# (32 charged) and the TL074 chain of 4 (48 eliminated ports); on TL074 bogies (44 and 48
+# eliminated ports, 8 charged junctions), not used to set the rule, the MNA kernel is 7-9 %
+# faster.
 AUTO_PORTS_MAX_SWITCHING = 16
+AUTO_PORTS_MAX_ELIMINATED = 32
 
 
 def switching_junctions(system: MnaSystem) -> int:
@@ -92,12 +99,25 @@ def switching_junctions(system: MnaSystem) -> int:
     return count
 
 
+def eliminated_ports(system: MnaSystem) -> int:
+    """Switches and linear charges: the ports the ports kernel eliminates at a new step size."""
+    count = len(system.linear_slots)
+    for family in system.families:
+        part = family.kernel_data()
+        if part is not None and part["kind"] == "switches":
+            count += len(part["nodes"])
+    return count
+
+
 def auto_kernel(system: MnaSystem) -> str:
     """The kernel ``kernel="auto"`` runs for a supported system: ``"ports"`` while few
-    junctions switch (AUTO_PORTS_MAX_SWITCHING), else ``"compiled"`` (the MNA kernel); and
-    the MNA kernel for JFETs, BJTs and nonlinear POLY sources, which only it models."""
-    if unsupported(system, "ports") is None and (
-        switching_junctions(system) <= AUTO_PORTS_MAX_SWITCHING
+    junctions switch (AUTO_PORTS_MAX_SWITCHING) and few ports are eliminated at each new step
+    size (AUTO_PORTS_MAX_ELIMINATED), else ``"compiled"`` (the MNA kernel); and the MNA kernel
+    for JFETs, BJTs and nonlinear POLY sources, which only it models."""
+    if (
+        unsupported(system, "ports") is None
+        and switching_junctions(system) <= AUTO_PORTS_MAX_SWITCHING
+        and eliminated_ports(system) <= AUTO_PORTS_MAX_ELIMINATED
     ):
         return "ports"
     return "compiled"
