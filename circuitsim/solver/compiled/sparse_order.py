@@ -161,6 +161,7 @@ def _on_order(G, M, port_p, port_n, e_row, e_col, pattern, lu, spare: float) -> 
     flops = float(np.sum(np.diff(l_ptr) * np.diff(u_ptr)) + l_row.size)
     m_val = scatter(M)
     entry_col = np.repeat(np.arange(n, dtype=np.int64), np.diff(a_ptr))
+    l_room, u_room = _room(l_row, spare), _room(u_row, spare)
     return SparseLU(
         a_ptr=a_ptr,
         a_row=a_row,
@@ -169,11 +170,11 @@ def _on_order(G, M, port_p, port_n, e_row, e_col, pattern, lu, spare: float) -> 
         m_val=m_val,
         port_pos=port_pos,
         l_ptr=l_ptr,
-        l_row=_room(l_row, spare),
-        l_val=np.zeros(_room(l_row, spare).size),
+        l_row=l_room,
+        l_val=np.zeros(l_room.size),
         u_ptr=u_ptr,
-        u_row=_room(u_row, spare),
-        u_val=np.zeros(_room(u_row, spare).size),
+        u_row=u_room,
+        u_val=np.zeros(u_room.size),
         row_to=row_to,
         col_of=col_of,
         work=np.zeros(n),
