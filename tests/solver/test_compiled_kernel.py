@@ -519,7 +519,7 @@ def test_warm_up_runs_every_device_kind_through_the_kernels_it_names():
 def test_the_zero_charge_limit_equals_reading_a_zero_slot(order, h):
     # Slots of junctions without CJO and TT are not read by the truncation error; what they
     # would allow is formed once instead, and must be that value bit for bit.
-    from circuitsim.solver.compiled.transient import (
+    from circuitsim.solver.compiled.step_control import (
         charge_slots,
         truncation_step,
         zero_charge_step,

@@ -56,6 +56,14 @@ JUNCTION_NEGLIGIBLE = 1e-9
 # absolute count alone refactored every 8 steps from 16 junctions on (docs/solver.md).
 REBASE_ACTIVE = 8
 REBASE_GROWTH = 2
+REBASE_STEPS = 8  # also: refactor when this many accepted steps in a row used one new a0
+# A Newton failure at an a0 this far from the factorization's is retried once on a
+# factorization at this a0 before the step is cut: with the charge columns' update
+# d = a0 - a0_ref dominating B (steps far shorter than the factored one, right after a
+# breakpoint or a switch transition), the Woodbury solve can lose the digits that Newton's
+# branch-current tolerance (abstol 1e-12 A) needs, where an exact solve converges
+# (measured: the wheelset at reltol 1e-6 with uic failed at t = 6e-16 s without it).
+RETRY_RATIO = 16.0
 
 
 @njit(cache=True, inline="always")

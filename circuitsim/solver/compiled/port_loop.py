@@ -2,14 +2,11 @@
 voltages alone (ports.py).
 
 Breakpoints, order changes, the truncation-error rule, Newton-failure and switch-transition
-handling, re-factoring after a new step size has settled: all as compiled/transient.py. What
-differs is Newton's unknowns and its convergence test. The iterate is the junction voltages
-(and the switches' control voltages); an iteration converges when nothing was limited or
-toggled, every junction voltage moved by less than reltol * |v| + vntol and every junction
-passes SPICE's current check. The other unknowns are affine in the junction currents, so they
-have converged with them; the reference engine also tests each of them, which can ask for one
-more iteration. Nothing of size n is formed inside Newton; the recorded unknowns are formed
-once per accepted point.
+handling, re-factoring after a new step size has settled: all as compiled/transient.py. The
+iterate is the junction (and switch control) voltages; an iteration converges when nothing was
+limited or toggled and every junction passes SPICE's voltage and current checks (the other
+unknowns are affine in the junction currents: docs/solver.md, "The ports kernel"). Nothing of
+size n is formed inside Newton; the recorded unknowns are formed once per accepted point.
 """
 
 from __future__ import annotations
@@ -36,11 +33,13 @@ from circuitsim.solver.compiled.newton import (
     NHIST,
     NOT_RESUMING,
     PAUSE_ATTEMPTS,
+    REBASE_STEPS,
     REJECTED,
     RESUME_AT,
     RESUME_ATTEMPT,
     RESUME_ITERATION,
     RESUME_NONCON,
+    RETRY_RATIO,
     SAME_A0,
     VERSION,
     H,
@@ -78,13 +77,11 @@ from circuitsim.solver.compiled.slots import (
     VNTOL,
     Y_VERSION,
 )
-from circuitsim.solver.compiled.transient import (
+from circuitsim.solver.compiled.step_control import (
     FINISHED,
     FULL,
     NEWTON_FAILED_FIXED,
     PAUSED,
-    REBASE_STEPS,
-    RETRY_RATIO,
     STEP_TOO_SMALL,
     STEP_TOO_SMALL_LTE,
     TOO_MANY_STEPS,
@@ -120,20 +117,11 @@ def run(plan, st, t_until):
     n_charges = st.q_history.shape[1]
     floats, counters = st.fs, st.ints
     breaks = plan.breaks
-    t_history, q_history, qdot_history, v_history, control_history = (
-        st.t_history,
-        st.q_history,
-        st.qdot_history,
-        st.v_history,
-        st.control_history,
-    )
+    t_history, q_history, qdot_history = st.t_history, st.q_history, st.qdot_history
+    v_history, control_history = st.v_history, st.control_history
     x_ext, x_prev_ext, state, accepted = st.x_ext, st.x_prev_ext, st.state, st.accepted
-    vd_accepted, v_junction, v_control, p_eliminated = (
-        st.vd_accepted,
-        st.v_junction,
-        st.v_control,
-        st.p_eliminated,
-    )
+    vd_accepted, v_junction = st.vd_accepted, st.v_junction
+    v_control, p_eliminated = st.v_control, st.p_eliminated
     sw, approach = plan.sw, plan.approach
     rows, out_t, out_x, fail_v = st.rows, st.out_t, st.out_x, st.fail_v
     # every array taken out of the tuples once (the factorization is rebuilt in place)
@@ -141,23 +129,12 @@ def run(plan, st, t_until):
     ref, K, cc, Cb, Kq = fac.ref, fac.K, fac.cc, fac.Cb, fac.Kq
     yc, Yb, Zq, Z = fac.yc, fac.Yb, fac.Zq, fac.Z
     vd, cd, gd, ieq, v_new, dg = st.vd, st.cd, st.gd, st.ieq, st.v_new, st.dg
-    d_eliminated, F, G, h_matrix, bound, formed_at = (
-        st.d_eliminated,
-        st.F,
-        st.G,
-        st.H,
-        st.bound,
-        st.formed_at,
-    )
+    d_eliminated, F, G, h_matrix = st.d_eliminated, st.F, st.G, st.H
+    bound, formed_at = st.bound, st.formed_at
     scratch, scratch2 = st.scratch, st.scratch2
     c0, e0, Fc0, A, b, current_dev, w = st.c0, st.e0, st.Fc0, st.A, st.b, st.current_dev, st.w
-    h_max, h_ieq, ieq_applied, active, x_active = (
-        st.h_max,
-        st.h_ieq,
-        st.ieq_applied,
-        st.active,
-        st.x_active,
-    )
+    h_max, h_ieq, ieq_applied = st.h_max, st.h_ieq, st.ieq_applied
+    active, x_active = st.active, st.x_active
     # many recorded unknowns: form them all column by column (ports.all_unknowns)
     record_all = rows.size * 4 > fac.yc.size
     ZT, zrel = fac.ZT, fac.zrel
@@ -252,9 +229,8 @@ def run(plan, st, t_until):
                 for k in range(n_charges):
                     q[k] = 0.0
                     qdot[k] = 0.0
-                # Newton at this time point, written out rather than called: a call, or a
-                # tuple of arrays unpacked per call, costs reference-count updates (atomic
-                # operations) that measured more than the arithmetic of an iteration here
+                # Newton at this time point, written out rather than called (reference counts:
+                # docs/solver.md, "A numba detail that shaped both loops")
                 ok = False
                 iterations = 0
                 fresh = True  # the time point's responses are to be (re)computed
@@ -450,16 +426,9 @@ def run(plan, st, t_until):
                             break
                         if not factor_now(plan, st, a0):
                             return wait_for_factor(
-                                floats,
-                                counters,
-                                IN_ITERATION,
-                                h,
-                                order,
-                                landing,
-                                attempt,
-                                iteration,
-                                noncon,
-                            )
+                                floats, counters, IN_ITERATION, h, order, landing, attempt,
+                                iteration, noncon,
+                            )  # fmt: skip
                     if not solved:
                         break
                     # j = ieq + D_J p_J, p_R = F c0_R - F K_RJ j, w = D_R p_R (ports.py)
