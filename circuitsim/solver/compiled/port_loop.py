@@ -80,26 +80,21 @@ from circuitsim.solver.compiled.slots import (
 from circuitsim.solver.compiled.step_control import (
     FINISHED,
     FULL,
+    GOOD_STEP,
     NEWTON_FAILED_FIXED,
     PAUSED,
     STEP_TOO_SMALL,
     STEP_TOO_SMALL_LTE,
     TOO_MANY_STEPS,
+    TRUNCATION_REJECTED,
     charge_slots,
     coefficients,
     finish_step,
-    next_step,
+    judge_step,
     step_start,
-    truncation_step,
-    zero_charge_step,
 )
 from circuitsim.solver.devices.diode_kernel import linearize_junction
 from circuitsim.solver.devices.source_kernel import source_value
-from circuitsim.solver.devices.switch_kernel import (
-    switch_transition,
-    switch_truncate,
-    transition_retry,
-)
 
 
 @njit(cache=True, nogil=True)
@@ -496,53 +491,19 @@ def run(plan, st, t_until):
                 charge = p_eliminated[n_switches + k]
                 q[linear_slots[k]] = charge
                 qdot[linear_slots[k]] = a0 * charge + hist[linear_slots[k]]
-            transition = False
-            if (
-                fixed == 0 and n_switches and not (ints[UIC] and counters[FIRST])
-            ):  # uic: solver/transient.py
-                fraction = switch_transition(x_ext, x_prev_ext, sw, state, accepted, approach)
-                retry = transition_retry(
-                    fraction, h, t_history[0] - t_history[1] if n_history > 1 else h, min_step
-                )
-                if retry > 0:  # cut short of the crossing, then just past it (devices/switch.py)
-                    counters[REJECTED] += 1
-                    h = retry
-                    landing = False
-                    continue
-                transition = fraction < 1.0
-            new_h = h if fixed > 0 else 2 * h
-            if fixed == 0 and not counters[FIRST]:
-                times[0] = t + h
-                for k in range(3):
-                    times[k + 1] = t_history[k]
-                n_points = n_history + 1
-                charges = charges2 = switches = np.inf
-                if n_points >= order + 2 and n_charges:
-                    charges = truncation_step(
-                        real, order, times, q, qdot, q_history, qdot_history, live
-                    )
-                    if zeros:
-                        charges = min(charges, zero_charge_step(real, order, times[0] - times[1]))
-                if order == 1 and max_order > 1 and n_points >= 4 and n_charges:
-                    charges2 = truncation_step(
-                        real, 2, times, q, qdot, q_history, qdot_history, live
-                    )
-                    if zeros:
-                        charges2 = min(charges2, zero_charge_step(real, 2, times[0] - times[1]))
-                if n_switches:
-                    switches = switch_truncate(x_ext, x_prev_ext, h, sw, accepted, approach)
-                new_h, order, good = next_step(
-                    real, max_order, n_points, order, h, transition, charges, charges2, switches
-                )
-                if not good:
-                    counters[REJECTED] += 1
-                    h = new_h
-                    landing = False
-                    if h < min_step:
-                        floats[H] = h
-                        return STEP_TOO_SMALL_LTE
-                    continue
-            break
+            verdict, new_h, order = judge_step(
+                real, max_order, counters[FIRST], ints[UIC], t, h, order, n_history, t_history,
+                x_ext, x_prev_ext, sw, state, accepted, approach, q, qdot, q_history,
+                qdot_history, times, live, zeros,
+            )  # fmt: skip
+            if verdict == GOOD_STEP:
+                break
+            counters[REJECTED] += 1
+            h = new_h
+            landing = False
+            if verdict == TRUNCATION_REJECTED and h < min_step:
+                floats[H] = h
+                return STEP_TOO_SMALL_LTE
 
         # accept
         if (
