@@ -6,7 +6,8 @@ the MNA kernel, interleaved, each the best of ``--repeat`` rounds (at least 2) o
 (user + system of this process: a loaded machine disturbs it far less than wall time). The
 table says which kernel ``auto`` chose (circuitsim.solver.compiled.runner.auto_kernel, from the
 number of junctions with charge) and which one was faster, so a wrong choice shows as a row
-where they differ.
+where they differ. With ``bench_scaling.FAMILY = "lattice"`` (``run.py --family lattice``) the
+cases are the lattices of :mod:`circuitsim.mechanics.lattice` instead (no wheelset).
 """
 
 from __future__ import annotations
@@ -14,8 +15,9 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import bench_scaling
 from bench_common import REPEAT, table
-from bench_scaling import chain_case, wheelset_case
+from bench_scaling import family_case, wheelset_case
 
 from circuitsim.netlist.reader import read_netlist
 from circuitsim.solver import SimulationOptions, simulate
@@ -25,6 +27,7 @@ from circuitsim.solver.engine import build_system
 
 SIZES = {"ideal": (1, 2, 4, 8), "tl074": (1, 2, 4)}
 QUICK_SIZES = {"ideal": (1, 4), "tl074": (1,)}
+LATTICE_SIZES = {"ideal": (1, 2, 4, 8, 16, 32), "tl074": (1, 2, 4, 8)}
 KERNELS = ("ports", "compiled")
 
 
@@ -64,10 +67,13 @@ def run(folder: Path, quick: bool, log) -> dict:
     folder.mkdir(parents=True, exist_ok=True)
     log(f"  kernels ready in {warm_up(('ports', 'compiled')):.3g} s")
     cases = []
-    for opamp, sizes in (QUICK_SIZES if quick else SIZES).items():
+    family = bench_scaling.FAMILY
+    chosen = QUICK_SIZES if quick else SIZES if family == "chain" else LATTICE_SIZES
+    for opamp, sizes in chosen.items():
         for masses in sizes:
-            cases.append(measure(chain_case(masses, opamp, folder), log))
-        cases.append(measure(wheelset_case(opamp, folder), log))
+            cases.append(measure(family_case(masses, opamp, folder, family), log))
+        if family == "chain":
+            cases.append(measure(wheelset_case(opamp, folder), log))
     return {"repeat": max(2, REPEAT[0]), "cases": cases}
 
 

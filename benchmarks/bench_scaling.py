@@ -3,7 +3,10 @@
 Each case is a generated circuit (exact resistor values, ideal or TL074 op-amps) of a model:
 a chain of N = 1, 2, 4 ... 64 masses with a dead-zone contact on each
 (:func:`circuitsim.mechanics.chain.chain_model_text`; 4 diodes per mass with ``--nonlinear
-abs``), and the wheelset. Both engines run the same netlist file, side by side in one run:
+abs``), and the wheelset. ``FAMILY = "lattice"`` (``run.py --family lattice``) runs instead a
+family the solver was not tuned on: an R x C grid of N masses with a one-sided floor under each
+and one-sided bumpers along the rows (:func:`circuitsim.mechanics.lattice.lattice_model_text`),
+without the wheelset. Both engines run the same netlist file, side by side in one run:
 
 - in-process: ngspice's own ``Transient analysis time`` (``rusage all``, which also gives
   its step and Newton counts; the netlist is parsed and the operating point solved outside
@@ -39,6 +42,7 @@ from circuitsim.compare.signals import nrmsd_percent
 from circuitsim.interop.rawfile import parse_rawfile
 from circuitsim.mechanics import load_model, solve
 from circuitsim.mechanics.chain import chain_model_text
+from circuitsim.mechanics.lattice import lattice_model_text
 from circuitsim.netlist.reader import read_netlist
 from circuitsim.solver import SimulationOptions, simulate
 from circuitsim.synthesis.generate import generate
@@ -51,16 +55,20 @@ T_STOP = 5.0
 WHEELSET = {"V": 55.0, "f": 3.0, "a": 0.040}
 FIT_FROM = 4  # growth exponents over N >= this
 REPO = Path(__file__).resolve().parent.parent
+FAMILIES = {"chain": chain_model_text, "lattice": lattice_model_text}  # model text of N masses
+FAMILY = "chain"  # which family run() measures (run.py --family)
 
 
-def chain_case(masses: int, opamp: str, folder: Path) -> dict:
-    """Generate the chain's netlist; its ODE reference on a dense grid."""
-    model_file = folder / f"chain{masses}.toml"
-    model_file.write_text(chain_model_text(masses, T_STOP))
+def family_case(masses: int, opamp: str, folder: Path, family: str = "chain") -> dict:
+    """Generate the family's netlist of ``masses`` masses; its ODE reference on a dense grid
+    (probed: x1 and xN, the chain's ends or the lattice's opposite corners)."""
+    model_file = folder / f"{family}{masses}.toml"
+    model_file.write_text(FAMILIES[family](masses, T_STOP))
     model = load_model(model_file)
     system = model.system(nonlinear={group: True for group in model.nonlinear_terms})
     states = sorted({"x1", f"x{masses}"}, key=lambda s: int(s[1:]))
-    return _case(f"chain {masses}", masses, system, states, opamp, folder / f"chain{masses}")
+    stem = folder / f"{family}{masses}"
+    return _case(f"{family} {masses}", masses, system, states, opamp, stem)
 
 
 def wheelset_case(opamp: str, folder: Path) -> dict:
@@ -283,7 +291,8 @@ def run(folder: Path, quick: bool, log, sizes=None, opamps=("ideal", "tl074")) -
     """Every case, both engines; the chains' growth exponents per op-amp model."""
     folder.mkdir(parents=True, exist_ok=True)
     log(f"  kernels ready in {warm_up():.3g} s")
-    out: dict = {"t_stop_s": T_STOP, "repeat": REPEAT[0], "cases": [], "growth": {}}
+    out: dict = {"t_stop_s": T_STOP, "repeat": REPEAT[0], "family": FAMILY, "cases": [],
+                 "growth": {}}  # fmt: skip
     for opamp in opamps:
         chain_sizes = sizes or (QUICK_SIZES if quick else CHAIN_SIZES)
         if opamp == "tl074":
@@ -291,16 +300,17 @@ def run(folder: Path, quick: bool, log, sizes=None, opamps=("ideal", "tl074")) -
         rows = []
         for masses in chain_sizes:
             try:
-                case = chain_case(masses, opamp, folder)
+                case = family_case(masses, opamp, folder, FAMILY)
             except Exception as exc:  # noqa: BLE001 - a size that cannot be generated is a row
                 rows.append(
-                    {"label": f"chain {masses}", "masses": masses, "opamp": opamp,
+                    {"label": f"{FAMILY} {masses}", "masses": masses, "opamp": opamp,
                      "ours_error": f"not generated: {type(exc).__name__}: {exc}"}
                 )  # fmt: skip
-                log(f"  chain {masses} ({opamp}): not generated: {exc}")
+                log(f"  {FAMILY} {masses} ({opamp}): not generated: {exc}")
                 continue
             rows.append(measure(case, log))
-        rows.append(measure(wheelset_case(opamp, folder), log))
+        if FAMILY == "chain":
+            rows.append(measure(wheelset_case(opamp, folder), log))
         out["cases"].extend(rows)
         out["growth"][opamp] = {
             "ours": growth(rows, "ours_s"),
@@ -338,15 +348,19 @@ def report(data: dict) -> str:
                 r.get("ours_error") or r.get("ngspice_error") or "",
             ]
         )  # fmt: skip
+    family = {
+        "chain": "chains of N masses with a dead-zone contact on each, and the wheelset",
+        "lattice": "lattices of N masses (R x C grid) with one-sided floors and bumpers",
+    }[data.get("family", "chain")]
     lines = [
-        f"Scaling: chains of N masses with a dead-zone contact on each, and the wheelset; "
+        f"Scaling: {family}; "
         f"0-{data['t_stop_s']:g} s, best of {data['repeat']}; in-process: ngspice's "
         f"'Transient analysis time' against our simulate() (assembly, operating point, "
         f"transient); process: the whole command; %NRMSD: the worst probed state against the "
         f"direct ODE",
         table(headers, rows),
         "",
-        f"growth exponents (slope of log time against log N, chains with N >= {FIT_FROM}):",
+        f"growth exponents (slope of log time against log N, N >= {FIT_FROM} masses):",
     ]
     for opamp, fit in data["growth"].items():
         lines.append(

@@ -16,7 +16,9 @@ and without ``--probe``; median of ``--repeat`` processes), ``macromodels`` (the
 the JFET-input and bipolar Boyle op-amps of netlist/library/macromodels.lib, and the built-in
 TL074: time and accuracy against ngspice and the ODE; only when named in --parts), ``kernels``
 (the scaling circuits up to 8 masses on the ports and the MNA kernel, CPU time, against
-``kernel="auto"``'s choice; only when named in --parts). Prints text
+``kernel="auto"``'s choice; only when named in --parts). ``--family lattice``: ``scaling``
+and ``kernels`` on lattices of N masses with one-sided stops (circuitsim.mechanics.lattice), a
+family the solver was not tuned on, written to scaling_lattice.* / kernels_lattice.*. Prints text
 tables and writes <part>.json / <part>.md and machine.json into --out (default
 benchmarks/results). Not part of the test suite.
 """
@@ -74,9 +76,16 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--sizes", type=int, nargs="+", help="scaling: the chains' masses (default 1 2 4 ... 64)"
     )
+    parser.add_argument(
+        "--family",
+        choices=list(bench_scaling.FAMILIES),
+        default="chain",
+        help="scaling, kernels: the model family (default chain; lattice: not tuned on)",
+    )
     args = parser.parse_args(argv)
     if args.sizes:
         bench_scaling.CHAIN_SIZES = tuple(args.sizes)
+    bench_scaling.FAMILY = args.family
     parts = ["sweep"] if args.sweep else args.parts
     bench_common.REPEAT[0] = args.repeat
     bench_startup.REPEAT[0] = max(args.repeat, 3)
@@ -94,7 +103,8 @@ def main(argv=None) -> int:
         text = module.report(data)
         print()
         print(text)
-        bench_common.save(out, name, data, text)
+        family = args.family if name in ("scaling", "kernels") and args.family != "chain" else ""
+        bench_common.save(out, "_".join(filter(None, (name, family))), data, text)
     print(f"\nwrote {out}")
     return 0
 
