@@ -16,6 +16,14 @@ by tests.
 
 from __future__ import annotations
 
+from circuitsim.mechanics.families import (
+    matrices,
+    matrix_text,
+    model_head,
+    model_tail,
+    sine_forcing,
+)
+
 # the gap oscillator's values (tests/synthesis/models/gap_oscillator.toml): contact at 5 cm,
 # stops 10x stiffer than the chain's springs
 PARAMETERS = {
@@ -50,48 +58,22 @@ def chain_model_text(masses: int, t_stop: float = 5.0) -> str:
     names = [f"x{i + 1}" for i in range(masses)]
 
     def tridiagonal(symbol: str) -> str:
-        rows = []
+        entries = []
         for i in range(masses):
-            row = ["0"] * masses
-            row[i] = f'"2 * {symbol}"' if i < masses - 1 else f'"{symbol}"'
-            if i > 0:
-                row[i - 1] = f'"-{symbol}"'
-            if i < masses - 1:
-                row[i + 1] = f'"-{symbol}"'
-            rows.append("[" + ", ".join(row) + "]")
-        return "[\n    " + ",\n    ".join(rows) + ",\n]"
+            row = {i: f"2 * {symbol}" if i < masses - 1 else symbol}
+            row.update({j: f"-{symbol}" for j in (i - 1, i + 1) if 0 <= j < masses})
+            entries.append(row)
+        return matrix_text(entries, masses)
 
-    mass_rows = []
-    for i in range(masses):
-        row = ["0"] * masses
-        row[i] = '"m"'
-        mass_rows.append("[" + ", ".join(row) + "]")
-    lines = [
-        f"# A chain of {masses} masses with a dead-zone contact on each "
+    lines = model_head(
+        f"A chain of {masses} masses with a dead-zone contact on each "
         "(circuitsim.mechanics.chain).",
-        "",
-        "[model]",
-        f'name = "chain{masses}"',
-        f'description = "chain of {masses} masses, a dead-zone contact on each"',
-        'kind = "second_order"',
-        "",
-        "[coordinates]",
-        "names = [" + ", ".join(f'"{n}"' for n in names) + "]",
-        "units = [" + ", ".join('"m"' for _ in names) + "]",
-        "",
-        "[parameters]",
-    ]
-    for name, (value, unit, description) in PARAMETERS.items():
-        lines.append(
-            f'{name} = {{ value = {value!r}, unit = "{unit}", description = "{description}" }}'
-        )
-    lines += [
-        "",
-        "[matrices]",
-        "M = [\n    " + ",\n    ".join(mass_rows) + ",\n]",
-        "C = " + tridiagonal("c"),
-        "K = " + tridiagonal("k"),
-    ]
+        f"chain{masses}",
+        f"chain of {masses} masses, a dead-zone contact on each",
+        names,
+        PARAMETERS,
+    )
+    lines += matrices(masses, tridiagonal("c"), tridiagonal("k"))
     for name in names:
         lines += [
             "",
@@ -103,19 +85,6 @@ def chain_model_text(masses: int, t_stop: float = 5.0) -> str:
             f'    {{ gain = "kg / 2", row = {{ {name} = 1 }}, offset = "-d" }},',
             "]",
         ]
-    lines += [
-        "",
-        "[forcing.drive]",
-        'amplitude = "F0"',
-        'unit = "N"',
-        'frequency = "f"',
-        "enters = { " + ", ".join(f"{n} = 1" for n in names) + " }",
-        "",
-        "[initial]",
-        f"{names[0]} = 0.02",
-        "",
-        "[circuit]",
-        f"t_stop = {float(t_stop)!r}",
-        "",
-    ]
+    lines += sine_forcing("drive", "F0", "f", names)
+    lines += model_tail(names[0], t_stop)
     return "\n".join(lines)

@@ -31,6 +31,8 @@ from __future__ import annotations
 
 import math
 
+from circuitsim.mechanics import families
+
 PARAMETERS = {
     "m": (1.0, "kg", "mass of each body"),
     "k0": (40.0, "N/m", "spring to ground"),
@@ -62,15 +64,11 @@ def lattice_model_text(masses: int, t_stop: float = 5.0) -> str:
     Parameters
     ----------
     masses : int
-        N >= 1, laid out as :func:`lattice_shape`; the model has 2 N states (x1..xN in metres,
-        row by row, and their rates), N floors and R (C - 1) bumpers.
+        N >= 1 (fewer raises ValueError), laid out as :func:`lattice_shape`; the model has
+        2 N states (x1..xN in metres, row by row, and their rates), N floors and R (C - 1)
+        bumpers.
     t_stop : float
-        The ``[circuit] t_stop`` hint, model seconds.
-
-    Raises
-    ------
-    ValueError
-        ``masses`` below 1.
+        Model seconds, written as the file's ``[circuit] t_stop``.
     """
     rows, columns = lattice_shape(masses)
     names = [f"x{i + 1}" for i in range(masses)]
@@ -81,48 +79,23 @@ def lattice_model_text(masses: int, t_stop: float = 5.0) -> str:
         return [a * columns + b for a, b in around if 0 <= a < rows and 0 <= b < columns]
 
     def matrix(ground: str, coupling: str) -> str:
-        lines = []
+        entries = []
         for i in range(masses):
-            row = ["0"] * masses
             around = neighbours(i)
-            row[i] = f'"{ground} + {len(around)} * {coupling}"' if around else f'"{ground}"'
-            for j in around:
-                row[j] = f'"-{coupling}"'
-            lines.append("[" + ", ".join(row) + "]")
-        return "[\n    " + ",\n    ".join(lines) + ",\n]"
+            row = {i: f"{ground} + {len(around)} * {coupling}" if around else ground}
+            row.update({j: f"-{coupling}" for j in around})
+            entries.append(row)
+        return families.matrix_text(entries, masses)
 
-    mass_rows = []
-    for i in range(masses):
-        row = ["0"] * masses
-        row[i] = '"m"'
-        mass_rows.append("[" + ", ".join(row) + "]")
-    lines = [
-        f"# A {rows} x {columns} lattice of masses with one-sided stops "
+    lines = families.model_head(
+        f"A {rows} x {columns} lattice of masses with one-sided stops "
         "(circuitsim.mechanics.lattice).",
-        "",
-        "[model]",
-        f'name = "lattice{masses}"',
-        f'description = "{rows} x {columns} lattice of masses, a floor under each, '
-        'bumpers along the rows"',
-        'kind = "second_order"',
-        "",
-        "[coordinates]",
-        "names = [" + ", ".join(f'"{n}"' for n in names) + "]",
-        "units = [" + ", ".join('"m"' for _ in names) + "]",
-        "",
-        "[parameters]",
-    ]
-    for name, (value, unit, description) in PARAMETERS.items():
-        lines.append(
-            f'{name} = {{ value = {value!r}, unit = "{unit}", description = "{description}" }}'
-        )
-    lines += [
-        "",
-        "[matrices]",
-        "M = [\n    " + ",\n    ".join(mass_rows) + ",\n]",
-        "C = " + matrix("c0", "c"),
-        "K = " + matrix("k0", "k"),
-    ]
+        f"lattice{masses}",
+        f"{rows} x {columns} lattice of masses, a floor under each, bumpers along the rows",
+        names,
+        PARAMETERS,
+    )
+    lines += families.matrices(masses, matrix("c0", "c"), matrix("k0", "k"))
     for name in names:
         lines += [
             "",
@@ -144,29 +117,11 @@ def lattice_model_text(masses: int, t_stop: float = 5.0) -> str:
             'constant = "-kb * h / 2"',
             f'abs = [{{ gain = "kb / 2", row = {{ {left} = 1, {right} = -1 }}, offset = "-h" }}]',
         ]
-    even = [n for i, n in enumerate(names) if sum(divmod(i, columns)) % 2 == 0]
-    odd = [n for i, n in enumerate(names) if sum(divmod(i, columns)) % 2 == 1]
-    for group, amplitude, frequency, entered in (
-        ("drive_even", "F0", "f", even),
-        ("drive_odd", "F1", "f1", odd),
-    ):
-        if not entered:
-            continue
-        lines += [
-            "",
-            f"[forcing.{group}]",
-            f'amplitude = "{amplitude}"',
-            'unit = "N"',
-            f'frequency = "{frequency}"',
-            "enters = { " + ", ".join(f"{n} = 1" for n in entered) + " }",
-        ]
-    lines += [
-        "",
-        "[initial]",
-        f"{names[0]} = 0.02",
-        "",
-        "[circuit]",
-        f"t_stop = {float(t_stop)!r}",
-        "",
-    ]
+    parity = [sum(divmod(i, columns)) % 2 for i in range(masses)]
+    even = [n for n, odd in zip(names, parity, strict=True) if not odd]
+    odd = [n for n, odd in zip(names, parity, strict=True) if odd]
+    lines += families.sine_forcing("drive_even", "F0", "f", even)
+    if odd:  # a single mass has no odd neighbour
+        lines += families.sine_forcing("drive_odd", "F1", "f1", odd)
+    lines += families.model_tail(names[0], t_stop)
     return "\n".join(lines)
