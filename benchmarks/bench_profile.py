@@ -93,7 +93,7 @@ def _time_refactor(lu, k):
     bad = 0
     for _ in range(k):
         bad += refactor(lu.a_ptr, lu.a_row, lu.a_val, lu.l_ptr, lu.l_row, lu.l_val, lu.u_ptr,
-                        lu.u_row, lu.u_val, lu.work, lu.dirty, True) >= 0  # fmt: skip
+                        lu.u_row, lu.u_val, lu.work, lu.redo, True) >= 0  # fmt: skip
     return bad
 
 

@@ -30,7 +30,7 @@ PLAN = SimpleNamespace(g_switch=np.zeros((0, 2)), terms=SimpleNamespace(kind=np.
 def refactors(lu, g) -> bool:
     slu.assemble(lu.a_val, lu.g_val, lu.m_val, 0.0, lu.port_pos, g, np.zeros(0))
     return slu.refactor(lu.a_ptr, lu.a_row, lu.a_val, lu.l_ptr, lu.l_row, lu.l_val, lu.u_ptr,
-                        lu.u_row, lu.u_val, lu.work, lu.dirty, True) < 0  # fmt: skip
+                        lu.u_row, lu.u_val, lu.work, lu.redo, True) < 0  # fmt: skip
 
 
 def state(g):

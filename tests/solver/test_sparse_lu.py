@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
+from circuitsim.solver.compiled.fill import reach_sets
 from circuitsim.solver.compiled.sparse_lu import (
     ALL_COLUMNS,
     assemble,
@@ -49,7 +50,7 @@ def factor_and_solve(lu, a0, g_ports, b):
     md = 2  # the first two ports are "junctions", the others "switches"
     assemble(lu.a_val, lu.g_val, lu.m_val, a0, lu.port_pos, g_ports[:md], g_ports[md:])
     column = refactor(lu.a_ptr, lu.a_row, lu.a_val, lu.l_ptr, lu.l_row, lu.l_val, lu.u_ptr,
-                      lu.u_row, lu.u_val, lu.work, lu.dirty, True)  # fmt: skip
+                      lu.u_row, lu.u_val, lu.work, lu.redo, True)  # fmt: skip
     x = np.zeros(b.size)
     if column < 0:
         lu_solve(lu.l_ptr, lu.l_row, lu.l_val, lu.u_ptr, lu.u_row, lu.u_val, lu.row_to,
@@ -98,20 +99,20 @@ def test_a_singular_matrix_is_reported():
 
 def refactor_changed(lu, a0, g_ports, scan=False):
     """Assemble and refactor only what mark_changed marks (the MNA kernel's Newton;
-    ``scan``: refactor's scan from column 0 instead of refactor_marked's from the first
+    ``scan``: through refactor, from column 0, instead of refactor_marked from the first
     column marked); mark_changed's answer."""
     md = 2
     assemble(lu.a_val, lu.g_val, lu.m_val, a0, lu.port_pos, g_ports[:md], g_ports[md:])
-    first = mark_changed(lu.entry_col, lu.port_pos, lu.m_cols, lu.extra_cols, lu.factored,
-                         lu.dirty, g_ports[:md], g_ports[md:], a0)  # fmt: skip
-    every = first == ALL_COLUMNS
     n = lu.a_ptr.size - 1
+    first = mark_changed(lu.port_reach, lu.port_from, lu.m_reach, lu.extra_reach, lu.factored,
+                         lu.redo, g_ports[:md], g_ports[md:], a0, n)  # fmt: skip
+    every = first == ALL_COLUMNS
     if every or (scan and first < n):
         assert refactor(lu.a_ptr, lu.a_row, lu.a_val, lu.l_ptr, lu.l_row, lu.l_val, lu.u_ptr,
-                        lu.u_row, lu.u_val, lu.work, lu.dirty, every) < 0  # fmt: skip
+                        lu.u_row, lu.u_val, lu.work, lu.redo, every) < 0  # fmt: skip
     elif first < n:
         assert refactor_marked(lu.a_ptr, lu.a_row, lu.a_val, lu.l_ptr, lu.l_row, lu.l_val,
-                               lu.u_ptr, lu.u_row, lu.u_val, lu.work, lu.dirty,
+                               lu.u_ptr, lu.u_row, lu.u_val, lu.work, lu.redo,
                                first) < 0  # fmt: skip
     return first
 
@@ -130,7 +131,7 @@ def test_refactoring_the_changed_columns_gives_the_whole_refactor_bit_for_bit(se
         if port is not None:
             g[port] *= 1.0 + rng.random()
         assert 0 <= refactor_changed(partial, a0, g, scan) < n  # the first column marked
-        assert not partial.dirty.any()  # cleared for the next call
+        assert not partial.redo.any()  # cleared for the next call
         column, _ = factor_and_solve(whole, a0, g, np.ones(n))
         assert column < 0
         used_l, used_u = whole.l_ptr[-1], whole.u_ptr[-1]
@@ -164,6 +165,21 @@ def test_iteration_cost_counts_the_reached_columns_and_the_solves():
     assert iteration_cost(lu, np.array([False, True])) == 1 + solves
     # at node 0: every column (column 0 reaches 1, 2 and 3): 1 + 2 + 2 + 1
     assert iteration_cost(lu, np.array([True, False])) == 6 + solves
+
+
+def test_the_reach_sets_hold_the_columns_a_refactor_redoes():
+    # U of a tridiagonal matrix in its natural order: column j is computed from column
+    # j - 1, so a change in column c is carried to every column from c on
+    n = 70  # two words: columns 0-63 and 64-69
+    u_ptr = np.concatenate([[0, 1], 2 * np.arange(1, n) + 1]).astype(np.int64)
+    u_row = np.concatenate([[0]] + [[j - 1, j] for j in range(1, n)]).astype(np.int64)
+    seed_ptr = np.array([0, 1, 2, 4, 4], dtype=np.int64)
+    seed_col = np.array([0, 66, 65, 3], dtype=np.int64)
+    reach, first = reach_sets(u_ptr, u_row, seed_ptr, seed_col)
+    columns = [[j for j in range(n) if reach[s, j // 64] >> np.uint64(j % 64) & np.uint64(1)]
+               for s in range(4)]  # fmt: skip
+    assert columns == [list(range(n)), list(range(66, n)), list(range(3, n)), []]
+    assert first.tolist() == [0, 1, 0, 2]  # the empty set: none (the number of words)
 
 
 def test_the_pivot_order_of_fewer_operations_is_chosen_and_the_other_kept():

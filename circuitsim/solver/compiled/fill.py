@@ -7,13 +7,16 @@ columns k < j with U[k, j] != 0, so column j of L + U holds the rows that A's co
 in the graph whose edges lead from k to the rows of L's column k (Gilbert and Peierls). This
 module walks that graph once per column; it replaces a second, symbolic SuperLU pass on
 generic values, and gives the exact pattern (no stored zeros, which the refactor would skip
-anyway: the factors' values are the same bit for bit).
+anyway: the factors' values are the same bit for bit). :func:`reach_sets` finds, on that
+pattern, the columns a partial refactor redoes when given columns change.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from circuitsim.solver.compiled.sparse_lu import WORD
 
 
 @njit(cache=True)
@@ -104,4 +107,33 @@ def upper_by_rows(u_ptr, u_row):
     return ut_ptr, ut_col
 
 
-FILL_FUNCTIONS = (lu_pattern, upper_by_rows)  # called from Python at a run's start
+@njit(cache=True)
+def reach_sets(u_ptr, u_row, seed_ptr, seed_col):
+    """For each set s of columns (``seed_col[seed_ptr[s]:seed_ptr[s + 1]]``), the columns a
+    change of their entries makes sparse_lu.refactor_marked redo: those columns, and column j
+    whenever U[k, j] != 0 for a redone k (the scan a refactor would make, done once per
+    order). Returns (reach, first): reach (nsets, words) uint64 as ``SparseLU.port_reach``,
+    first (nsets,) int64 the first word of each that is not zero (words for an empty set)."""
+    n = u_ptr.size - 1
+    words = (n + WORD - 1) // WORD
+    nsets = seed_ptr.size - 1
+    reach = np.zeros((nsets, words), dtype=np.uint64)
+    first = np.full(nsets, words, dtype=np.int64)
+    marked = np.zeros(n, dtype=np.bool_)
+    for s in range(nsets):
+        start = n
+        for e in range(seed_ptr[s], seed_ptr[s + 1]):
+            marked[seed_col[e]] = True
+            start = min(start, seed_col[e])
+        for j in range(start, n):
+            for e in range(u_ptr[j], u_ptr[j + 1] - 1):
+                marked[j] |= marked[u_row[e]]
+            if marked[j]:
+                reach[s, j // WORD] |= np.uint64(1) << np.uint64(j % WORD)
+        marked[start:] = False
+        if start < n:
+            first[s] = start // WORD
+    return reach, first
+
+
+FILL_FUNCTIONS = (lu_pattern, upper_by_rows, reach_sets)  # called from Python at a run's start

@@ -87,12 +87,13 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume):
         lu.u_val,
     )
     row_to, col_of, work = lu.row_to, lu.col_of, lu.work
-    entry_col, m_cols, extra_cols, factored, dirty = (
-        lu.entry_col,
-        lu.m_cols,
-        lu.extra_cols,
+    port_reach, port_from, m_reach, extra_reach, factored, redo = (
+        lu.port_reach,
+        lu.port_from,
+        lu.m_reach,
+        lu.extra_reach,
         lu.factored,
-        lu.dirty,
+        lu.redo,
     )
     tp, ts, extra_pos = plan.terms, st.terms, lu.extra_pos  # JFETs, BJTs, POLY: mna_terminals
     ms = sw.shape[0]
@@ -144,17 +145,17 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume):
         # the columns whose entries changed since the factors were made, and those their
         # change reaches, are factored again (none, first == n: a repeated step, junctions
         # unchanged)
-        first = mark_changed(entry_col, port_pos, m_cols, extra_cols, factored, dirty, gd, g_sw,
-                             a0)  # fmt: skip
+        first = mark_changed(port_reach, port_from, m_reach, extra_reach, factored, redo, gd,
+                             g_sw, a0, n)  # fmt: skip
         small = -1
         if first < n:
             st.ints[FACTORIZATIONS] += 1
         if first == ALL_COLUMNS:
             small = refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work,
-                             dirty, True)  # fmt: skip
+                             redo, True)  # fmt: skip
         elif first < n:
             small = refactor_marked(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row,
-                                    u_val, work, dirty, first)  # fmt: skip
+                                    u_val, work, redo, first)  # fmt: skip
         if small >= 0:
             factored[-1] = np.nan  # the factors stopped at that column: all of them next
             if iteration == resume:  # on the order made at this very matrix

@@ -63,7 +63,7 @@ def _refactors(plan, st, lu: SparseLU, a0: float) -> bool:
     # whole (its factors are of another matrix); lu.factored stays NaN, set when the
     # order was given up, so the kernel's next refactor is whole too
     return refactor(lu.a_ptr, lu.a_row, lu.a_val, lu.l_ptr, lu.l_row, lu.l_val, lu.u_ptr,
-                    lu.u_row, lu.u_val, lu.work, lu.dirty, True) < 0  # fmt: skip
+                    lu.u_row, lu.u_val, lu.work, lu.redo, True) < 0  # fmt: skip
 
 
 def python_called(plan) -> tuple:

@@ -12,8 +12,11 @@ fill pattern are found once and every later factorization is numeric only.
   can differ from the present factors: those whose entries changed (:func:`mark_changed`: a
   port whose conductance changed, every charge column when a0 did, the multi-terminal
   devices' columns) and those whose U column reaches a redone one (their L and U are
-  computed from it), found through U's rows; the others' L and U are what a whole refactor
-  would compute again, bit for bit.
+  computed from it); the others' L and U are what a whole refactor would compute again, bit
+  for bit. Which columns a change reaches depends on the pattern only, so it is found once
+  per order (compiled/fill.py, ``reach_sets``: for each port, for M and for the
+  multi-terminal devices, a set of columns as the bits of 64-bit words), and
+  :func:`mark_changed` takes the union of the sets of what changed.
 - :func:`lu_solve` (numba): the two triangular solves with the permutations.
 
 The matrix is ``A = G + a0 M + sum_k g_k w_k w_k^T + T`` (w_k = e_p - e_n: junction and
@@ -29,10 +32,13 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+from numba.cpython.unsafe.numbers import trailing_zeros
 
 # a pivot below this fraction of its column's largest entry asks for a new pivot order (the
 # relative threshold of ngspice's spOrderAndFactor, PivRelThreshold 1e-3)
 PIVOT_THRESHOLD = 1e-3
+# columns per word of a set of columns (bit j % WORD of word j // WORD: column j)
+WORD = 64
 
 
 class SparseLU(NamedTuple):
@@ -68,7 +74,15 @@ class SparseLU(NamedTuple):
     # the port conductances, then the a0, of the present factors (NaN: none, or a refactor
     # that stopped at a small pivot)
     factored: np.ndarray  # (nports + 1,)
-    dirty: np.ndarray  # (n,) bool scratch: the columns to redo, False between calls
+    # the columns to redo when a port's conductance changes (its stamps' columns and those
+    # they reach), when a0 does (M's), and at every iteration (the extra entries'); sets of
+    # columns as (words,) uint64 (bit j % WORD of word j // WORD: column j), words = n / WORD
+    # rounded up; port_from: each port's first word that is not zero
+    port_reach: np.ndarray  # (nports, words) uint64
+    port_from: np.ndarray  # (nports,) int64
+    m_reach: np.ndarray  # (words,) uint64
+    extra_reach: np.ndarray  # (words,) uint64
+    redo: np.ndarray  # (words,) uint64 scratch: the columns to redo, zero between calls
 
 
 @njit(cache=True, inline="always")
@@ -91,37 +105,43 @@ ALL_COLUMNS = -1
 
 
 @njit(cache=True, inline="always")
-def mark_changed(entry_col, port_pos, m_cols, extra_cols, factored, dirty, gd, g_sw_present,
-                 a0) -> int:  # fmt: skip
-    """Mark in ``dirty`` the columns of P whose entries can differ from those the present
-    factors were made from, and record the values about to be factored in ``factored``.
-    Returns ALL_COLUMNS (no valid factors: refactor them all), else the first column marked
-    (n, the size of ``dirty``, when none is: the factors hold). Exact comparisons: a
-    conductance or a0 equal bit for bit stamps the same entries. (Marks without a branch:
-    listing each column once cost a mispredicted branch per stamp.)"""
+def _add_set(redo, reach, start):
+    """redo |= reach, from word ``start`` on."""
+    for w in range(start, redo.size):
+        redo[w] |= reach[w]
+
+
+@njit(cache=True, inline="always")
+def first_column(redo) -> int:
+    """The first column in the set ``redo`` (WORD times its size when it is empty)."""
+    for w in range(redo.size):
+        if redo[w] != 0:
+            return w * WORD + int(trailing_zeros(redo[w]))
+    return redo.size * WORD
+
+
+@njit(cache=True, inline="always")
+def mark_changed(port_reach, port_from, m_reach, extra_reach, factored, redo, gd, g_sw_present,
+                 a0, n) -> int:  # fmt: skip
+    """Add to ``redo`` the columns of P whose factors can differ from those the present
+    factors were made from (the reach sets of what changed: fill.reach_sets), and record
+    the values about to be factored in ``factored``. Returns ALL_COLUMNS (no valid factors:
+    refactor them all), else the first column marked (``n`` when none is: the factors
+    hold). Exact comparisons: a conductance or a0 equal bit for bit stamps the same
+    entries."""
     nports = factored.size - 1
     md = gd.size
     every = np.isnan(factored[nports])
-    first = dirty.size
-    for c in extra_cols:  # the multi-terminal devices' entries: at every iteration
-        dirty[c] = True
-        first = min(first, c)
+    _add_set(redo, extra_reach, 0)  # the multi-terminal devices' entries: at every iteration
     if a0 != factored[nports]:
         factored[nports] = a0
-        for c in m_cols:
-            dirty[c] = True
-            first = min(first, c)
+        _add_set(redo, m_reach, 0)
     for k in range(nports):
         g = gd[k] if k < md else g_sw_present[k - md]
         if g != factored[k]:  # also when factored[k] is NaN
             factored[k] = g
-            for slot in range(4):
-                pos = port_pos[k, slot]
-                if pos >= 0:
-                    c = entry_col[pos]
-                    dirty[c] = True
-                    first = min(first, c)
-    return ALL_COLUMNS if every else first
+            _add_set(redo, port_reach[k], port_from[k])
+    return ALL_COLUMNS if every else min(first_column(redo), n)
 
 
 @njit(cache=True, inline="always")
@@ -155,50 +175,42 @@ def _factor_column(j, a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_
 
 
 @njit(cache=True)
-def refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work, dirty,
+def refactor(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work, redo,
              every) -> int:  # fmt: skip
     """Left-looking LU of P (compressed columns) on the fixed pattern: -1 when done, else the
     column whose pivot is below PIVOT_THRESHOLD of its column (a new pivot order is due).
     U's diagonal is stored inverted (the solves multiply by it). Unless ``every``, only the
-    columns marked in ``dirty`` and those whose U column reaches a redone one are computed
-    (:func:`refactor_marked` from column 0); ``dirty`` is cleared."""
+    columns in the set ``redo`` (:func:`refactor_marked`) are computed; ``redo`` is
+    cleared."""
     if not every:
         return refactor_marked(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val,
-                               work, dirty, 0)  # fmt: skip
+                               work, redo, 0)  # fmt: skip
+    redo[:] = 0
     for j in range(a_ptr.size - 1):
         if _factor_column(j, a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val,
                           work):  # fmt: skip
-            dirty[:] = False
             return j
-    dirty[:] = False
     return -1
 
 
 @njit(cache=True)
 def refactor_marked(a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val, work,
-                    dirty, first) -> int:  # fmt: skip
-    """:func:`refactor` of the columns marked in ``dirty`` (by :func:`mark_changed`, the
-    first of them ``first``; none before it can be reached) and of those they reach: column
-    j is computed from the columns k with U[k, j] != 0, so it is redone when one of those
-    is. In ascending order, the others keep their factors, which depend on nothing redone:
-    bit for bit what a whole refactor computes. The test of a column's U entries has no
-    branch per entry (the reach followed through U's rows, listed, then sorted, cost 1.5-2
-    times a whole refactor when many columns were marked). -1 when done, else the column of
-    a too small pivot; ``dirty`` is cleared."""
-    n = a_ptr.size - 1
+                    redo, first) -> int:  # fmt: skip
+    """:func:`refactor` of the columns in the set ``redo`` (by :func:`mark_changed`, the
+    first of them ``first``): with each column, the columns it reaches (column j is
+    computed from the columns k with U[k, j] != 0), so the others keep their factors, which
+    depend on nothing redone: bit for bit what a whole refactor computes. In ascending
+    order. -1 when done, else the column of a too small pivot; ``redo`` is cleared."""
     column = -1
-    for j in range(first, n):
-        if column < 0 and not dirty[j]:
-            reached = False
-            for e in range(u_ptr[j], u_ptr[j + 1] - 1):
-                reached |= dirty[u_row[e]]
-            dirty[j] = reached
-        if dirty[j] and column < 0:
+    for w in range(first // WORD, redo.size):
+        bits = redo[w]
+        redo[w] = 0
+        while bits != 0 and column < 0:
+            j = w * WORD + int(trailing_zeros(bits))
+            bits &= bits - np.uint64(1)
             if _factor_column(j, a_ptr, a_row, a_val, l_ptr, l_row, l_val, u_ptr, u_row, u_val,
                               work):  # fmt: skip
                 column = j
-    for j in range(first, n):
-        dirty[j] = False
     return column
 
 

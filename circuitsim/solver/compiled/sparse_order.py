@@ -20,7 +20,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order
 from scipy.sparse.linalg import splu
 
-from circuitsim.solver.compiled.fill import lu_pattern, upper_by_rows
+from circuitsim.solver.compiled.fill import lu_pattern, reach_sets, upper_by_rows
 from circuitsim.solver.compiled.sparse_lu import SparseLU
 
 # SuperLU's column orders (permc_spec) tried for each pivot order; the first is kept unless
@@ -161,6 +161,10 @@ def _on_order(G, M, port_p, port_n, e_row, e_col, pattern, lu, spare: float) -> 
     flops = float(np.sum(np.diff(l_ptr) * np.diff(u_ptr)) + l_row.size)
     m_val = scatter(M)
     entry_col = np.repeat(np.arange(n, dtype=np.int64), np.diff(a_ptr))
+    m_cols = np.unique(entry_col[m_val != 0])
+    extra_cols = np.unique(entry_col[extra_pos[extra_pos >= 0]])
+    port_reach, port_from, m_reach, extra_reach = _reach(u_ptr, u_row, entry_col, port_pos,
+                                                         m_cols, extra_cols)  # fmt: skip
     l_room, u_room = _room(l_row, spare), _room(u_row, spare)
     return SparseLU(
         a_ptr=a_ptr,
@@ -183,11 +187,26 @@ def _on_order(G, M, port_p, port_n, e_row, e_col, pattern, lu, spare: float) -> 
         extra_col=e_col,
         extra_pos=extra_pos,
         entry_col=entry_col,
-        m_cols=np.unique(entry_col[m_val != 0]),
-        extra_cols=np.unique(entry_col[extra_pos[extra_pos >= 0]]),
+        m_cols=m_cols,
+        extra_cols=extra_cols,
         factored=np.full(len(port_p) + 1, np.nan),
-        dirty=np.zeros(n, dtype=np.bool_),
+        port_reach=port_reach,
+        port_from=port_from,
+        m_reach=m_reach,
+        extra_reach=extra_reach,
+        redo=np.zeros(m_reach.size, dtype=np.uint64),
     )
+
+
+def _reach(u_ptr, u_row, entry_col, port_pos, m_cols, extra_cols):
+    """The reach sets of SparseLU (port_reach, port_from, m_reach, extra_reach): the columns
+    each port's stamps are in, M's and the extra entries', and the columns they reach."""
+    stamped = np.where(port_pos >= 0, entry_col[np.maximum(port_pos, 0)], -1)
+    sets = [np.unique(row[row >= 0]) for row in stamped] + [m_cols, extra_cols]
+    seed_ptr = np.concatenate([[0], np.cumsum([c.size for c in sets])]).astype(np.int64)
+    seed_col = np.concatenate(sets).astype(np.int64)
+    reach, first = reach_sets(u_ptr, u_row, seed_ptr, seed_col)
+    return reach[:-2].copy(), first[:-2].copy(), reach[-2].copy(), reach[-1].copy()
 
 
 def iteration_cost(lu: SparseLU, changing: np.ndarray) -> float:
@@ -248,7 +267,8 @@ def repivot(lu: SparseLU, port_p, port_n, values, a0, extra_val=None, changing=N
     if used_l > lu.l_row.size or used_u > lu.u_row.size:
         return 1
     for name in ("a_ptr", "a_row", "g_val", "m_val", "port_pos", "l_ptr", "u_ptr", "row_to",
-                 "col_of", "extra_pos", "entry_col", "factored"):  # fmt: skip
+                 "col_of", "extra_pos", "entry_col", "factored", "port_reach", "port_from",
+                 "m_reach", "extra_reach"):  # fmt: skip
         getattr(lu, name)[...] = getattr(new, name)
     # the same columns hold M and the extra entries in any order (sizes kept), not their places
     lu.m_cols[...] = new.m_cols
