@@ -69,6 +69,24 @@ def test_golden_against_ngspice(name):
 
 
 @requires_ngspice
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_golden_with_the_wide_chord_against_ngspice(name, monkeypatch):
+    """The MNA kernel's wide chord (plan.WIDE_CHORD_TOLERANCE, taken from WIDE_CHORD_FROM
+    unknowns) on circuits below that size too: within the same limits of ngspice."""
+    from circuitsim.interop.ngspice import run_ngspice
+    from circuitsim.solver.compiled import plan
+
+    monkeypatch.setattr(plan, "WIDE_CHORD_FROM", 0)
+    limit, which = CASES[name]
+    circuit = read_netlist(GOLDEN / name)
+    ours = simulate(circuit, SimulationOptions.from_circuit(circuit, kernel="compiled"))
+    assert ours.stats["kernel"] == "compiled"
+    devs = deviations(ours, run_ngspice(GOLDEN / name), which)
+    worst = max(devs, key=devs.get)
+    assert devs[worst] <= limit, f"{name} (wide chord): {worst} deviates {devs[worst]:.3g}"
+
+
+@requires_ngspice
 @pytest.mark.parametrize("kernel", ["python", "compiled"])
 @pytest.mark.parametrize("name", ["rlc.cir", "halfwave.cir"])
 def test_gear_golden_against_ngspice(name, kernel, tmp_path):
