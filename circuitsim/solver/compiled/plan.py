@@ -33,10 +33,10 @@ from circuitsim.solver.system import MnaSystem
 # accept decisions (docs/solver.md, "The MNA kernel").
 CHORD_TOLERANCE = 1e-4
 # From WIDE_CHORD_FROM unknowns on, the chord's tolerance is WIDE_CHORD_TOLERANCE: there the
-# refactor is most of a Newton iteration, and the wider chord halves the refactors (and the
-# columns redone) at the same steps within 1 % and the same Newton iterations within 2 % (the
-# chains of 8-64 masses, docs/solver.md "The chord"); below, the golden netlists keep the
-# reference loop's time points.
+# refactor is most of a Newton iteration, and the wider chord leaves 0.5-0.65 of the
+# refactors at the same steps within 1 % and Newton iterations within 3 % (the chains of 8-64
+# masses, docs/solver.md "The wide chord"); below, the golden netlists keep the reference
+# loop's time points.
 WIDE_CHORD_TOLERANCE = 0.05
 WIDE_CHORD_FROM = 100
 
