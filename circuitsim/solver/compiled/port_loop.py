@@ -95,6 +95,15 @@ from circuitsim.solver.compiled.step_control import (
 )
 from circuitsim.solver.devices.diode_kernel import linearize_junction
 from circuitsim.solver.devices.source_kernel import source_value
+from circuitsim.solver.devices.switch_kernel import (
+    CONTROL_NEGATIVE,
+    CONTROL_POSITIVE,
+    G_OFF,
+    G_ON,
+    OFF_BELOW,
+    ON_ABOVE,
+    next_state,
+)
 
 
 @njit(cache=True, nogil=True)
@@ -241,9 +250,9 @@ def run(plan, st, t_until):
                         first_again = 1
                     for k in range(n_switches if resume == NOT_RESUMING else 0):  # update_state
                         keep = accepted[k] if first else state[k]
-                        new = (keep or v_control[k] > approach[k, 0]) and v_control[k] >= approach[
-                            k, 1
-                        ]
+                        new = next_state(
+                            v_control[k], keep, approach[k, ON_ABOVE], approach[k, OFF_BELOW]
+                        )
                         if new != state[k]:
                             state[k] = new
                             noncon += 1
@@ -275,7 +284,7 @@ def run(plan, st, t_until):
                         ):
                             # eliminate the switch and charge ports at a0 and the switch states
                             for k in range(n_switches):
-                                on = g_switch[k, 0] if state[k] else g_switch[k, 1]
+                                on = g_switch[k, G_ON] if state[k] else g_switch[k, G_OFF]
                                 d_eliminated[k] = on - ref[n_junctions + k]
                             for k in range(n_switches, d_eliminated.size):
                                 d_eliminated[k] = a0 - ref[n_junctions + k]
@@ -441,13 +450,15 @@ def run(plan, st, t_until):
                         p_eliminated[i] = acc
                         w[i] = d_eliminated[i] * acc
                     for k in range(n_switches):  # the control nodes of this iterate
-                        for side in (2, 3):
+                        for side in (CONTROL_POSITIVE, CONTROL_NEGATIVE):
                             node = sw[k, side]
                             if node >= 0:
                                 x_ext[node] = unknown(
                                     node, yc, Yb, Zq, Z, src_values, hist_lin, current_dev, w
                                 )
-                        v_control[k] = x_ext[sw[k, 2]] - x_ext[sw[k, 3]]
+                        v_control[k] = (
+                            x_ext[sw[k, CONTROL_POSITIVE]] - x_ext[sw[k, CONTROL_NEGATIVE]]
+                        )
                     done = noncon == 0 and (iteration > 1 or linear)
                     for k in range(n_junctions if done else 0):
                         change = abs(v_new[k] - v_junction[k])
@@ -521,7 +532,7 @@ def run(plan, st, t_until):
             if state[k] != accepted[k]:
                 toggled = True
             accepted[k] = state[k]
-            for side in (2, 3):
+            for side in (CONTROL_POSITIVE, CONTROL_NEGATIVE):
                 node = sw[k, side]
                 if node >= 0:
                     x_prev_ext[node] = x_ext[node]
