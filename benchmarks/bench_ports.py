@@ -1,11 +1,12 @@
 """Where the ports kernel's time goes, by ablation (part of bench_profile).
 
 A compiled loop cannot be profiled by function, and its pieces are too small to time alone
-(a 4 x 4 solve is ~0.1 us): instead the kernel (solver/compiled/port_loop.py) is recompiled
-with one piece switched off at a time, from a patched copy of its source, and run on the
-same circuit. The difference in time per step against the intact kernel is that piece's
-cost per step. A switched-off piece changes the numbers (and slightly the steps), so the
-ablated runs are timing instruments only; every patch must apply (else the part fails).
+(a 4 x 4 solve is ~0.1 us): instead the kernel (solver/compiled/port_loop.py, its Newton
+steps in port_newton.py, the step control in step_control.py) is recompiled with one piece
+switched off at a time, from patched copies of their source, and run on the same circuit.
+The difference in time per step against the intact kernel is that piece's cost per step. A
+switched-off piece changes the numbers (and slightly the steps), so the ablated runs are
+timing instruments only; every patch must apply (else the part fails).
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ from pathlib import Path
 import numpy as np
 
 import circuitsim.solver.compiled.port_loop as port_loop
+import circuitsim.solver.compiled.port_newton as port_newton
+import circuitsim.solver.compiled.step_control as step_control
 from circuitsim.netlist.reader import read_netlist
 from circuitsim.solver.compiled import newton as nw
 from circuitsim.solver.compiled.plan import build_plan
@@ -26,42 +29,57 @@ from circuitsim.solver.compiled.port_state import initial_port_state
 from circuitsim.solver.engine import build_system
 from circuitsim.solver.transient import start_transient
 
-_PIVOT = "                            pivot_row = k"  # the elimination's first line, as there
-# piece -> (source text, replacement) in port_loop.py
+# the modules a patch may change: the loop, its Newton steps, the shared step control
+MODULES = {
+    "port_loop": port_loop,
+    "port_newton": port_newton,
+    "step_control": step_control,
+}
+_PIVOT = "        pivot_row = k"  # the elimination's first line, as in port_newton.solve_active
+# piece -> [(module, source text, replacement)]
 ABLATIONS = {
     "junction charges (depletion + diffusion, per iteration)": [
-        (
-            "charged_k = has_charge and charged[k]\n",
-            "charged_k = False\n",
-        )
+        ("port_newton", "charged_k = has_charge and charged[k]\n", "charged_k = False\n"),
     ],
     "truncation error (CKTterr over all charges, per step)": [
-        ("charges = truncation_step(", "charges = _no_truncation("),
-        ("charges2 = truncation_step(", "charges2 = _no_truncation("),
+        ("step_control", "charges = truncation_step(", "charges = _no_truncation("),
+        ("step_control", "charges2 = truncation_step(", "charges2 = _no_truncation("),
         (
-            "@njit(cache=True, nogil=True)\ndef run(",
+            "step_control",
+            "@njit(cache=False, _nrt=False, forceinline=True)\ndef judge_step(",
             "@njit(inline='always')\ndef _no_truncation(real, order, times, q, qdot, hq, hi, live):"
-            "\n    return np.inf\n\n\n@njit(cache=True, nogil=True)\ndef run(",
+            "\n    return np.inf\n\n\n@njit(cache=False, _nrt=False, forceinline=True)\n"
+            "def judge_step(",
         ),
-        ("zero_charge_step(real, order, times[0] - times[1])", "np.inf"),
-        ("zero_charge_step(real, 2, times[0] - times[1])", "np.inf"),
+        ("step_control", "zero_charge_step(real, order, times[0] - times[1])", "np.inf"),
+        ("step_control", "zero_charge_step(real, 2, times[0] - times[1])", "np.inf"),
     ],
     "junction solve (active md x md system, per iteration)": [
-        ("for k in range(m):\n" + _PIVOT, "for k in range(0):\n" + _PIVOT),
-        ("for k in range(m - 1, -1, -1):", "for k in range(0):"),
+        ("port_newton", "for k in range(m):\n" + _PIVOT, "for k in range(0):\n" + _PIVOT),
+        ("port_newton", "for k in range(m - 1, -1, -1):", "for k in range(0):"),
     ],
 }
 
 
 def _load(folder: Path, name: str, patches) -> object:
-    text = Path(port_loop.__file__).read_text().replace("cache=True", "cache=False")
-    for old, new in patches:
-        if text.count(old) != 1:
-            raise RuntimeError(f"bench_ports: patch for {name!r} does not apply once: {old!r}")
-        text = text.replace(old, new)
-    module = f"ablated_{abs(hash(name)) % 10**8}"
-    (folder / f"{module}.py").write_text(text)
-    return importlib.import_module(module)
+    """The loop recompiled from patched copies of its modules (``tag_port_loop`` importing
+    ``tag_port_newton`` and ``tag_step_control``), uncached; every patch must apply once."""
+    tag = f"ablated_{abs(hash(name)) % 10**8}"
+    texts = {
+        short: Path(module.__file__).read_text().replace("cache=True", "cache=False")
+        for short, module in MODULES.items()
+    }
+    for short, old, new in patches:
+        if texts[short].count(old) != 1:
+            raise RuntimeError(
+                f"bench_ports: patch for {name!r} does not apply once in {short}.py: {old!r}"
+            )
+        texts[short] = texts[short].replace(old, new)
+    for short, text in texts.items():
+        for other in MODULES:
+            text = text.replace(f"circuitsim.solver.compiled.{other} ", f"{tag}_{other} ")
+        (folder / f"{tag}_{short}.py").write_text(text)
+    return importlib.import_module(f"{tag}_port_loop")
 
 
 def _timed(module, system, rows, repeat: int = 3) -> tuple[float, int, int]:

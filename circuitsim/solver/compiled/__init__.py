@@ -7,8 +7,9 @@ This package only re-exports. Where things are:
   loop in chunks (progress, wall-time limit, a new pivot order when the loop asks);
 - transient.py + mna_newton.py + sparse_lu.py: the MNA kernel (``kernel="compiled"``: Newton
   on the whole matrix, refactored sparse at every iteration on a fixed pivot order);
-- port_loop.py + ports.py + port_state.py + lowrank.py: the ports kernel (Newton on the
-  junction voltages, one factorization updated at low rank);
+- port_loop.py + port_newton.py + ports.py + port_state.py + lowrank.py: the ports kernel
+  (Newton on the junction voltages in port_newton.py's named steps, one factorization updated
+  at low rank);
 - newton.py (the ports kernel's factorization and refactor rule), slots.py (the named slots of
   the run's constants and the loops' state), plan.py (the arrays they run on); the device
   equations both loops inline are the families' kernel twins, solver/devices/*_kernel.py;

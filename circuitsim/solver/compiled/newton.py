@@ -5,7 +5,7 @@ here for both loops); ``factor_now``, the ports
 kernel's refactor at the present port values (dense, lowrank.rebuild; above SPARSE_FROM
 unknowns the loop returns FACTOR and the runner factors with SuperLU, then the loop goes on
 where it stopped); the rule that asks for a refactor when many junctions stay active. The MNA
-kernel's Newton is mna_newton.py, the ports kernel's is written out in port_loop.py.
+kernel's Newton is mna_newton.py, the ports kernel's is port_newton.py's steps, run by port_loop.py.
 """
 
 from __future__ import annotations

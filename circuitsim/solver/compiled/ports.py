@@ -25,11 +25,10 @@ junction current deviation ``j = ieq + D_J p_J``:
 Nothing of size n is touched inside Newton; the unknowns are formed only where they are
 recorded (every accepted point, or only the probed rows of a sweep).
 
-The per-time-point and per-iteration formulas above are written out inside the loop
-(port_loop.py) rather than called: numba updates the reference count of every array passed
-to a function, even an inlined one, and those atomic operations measured more than the
-arithmetic of a 4-junction iteration. Here remain what runs rarely (configure, h_column), once
-per point (all_unknowns) or once per control node and probe (unknown).
+The per-time-point and per-iteration formulas above are port_newton.py's steps, compiled
+without numba's reference counting and inlined into the loop (port_loop.py). Here remain what
+runs rarely (configure, h_column), once per point (all_unknowns) or once per control node and
+probe (unknown).
 """
 
 from __future__ import annotations
