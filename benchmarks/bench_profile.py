@@ -28,10 +28,10 @@ from circuitsim.mechanics import load_model
 from circuitsim.netlist.reader import read_netlist
 from circuitsim.netlist.writer import save_netlist
 from circuitsim.solver import SimulationOptions, simulate
+from circuitsim.solver.compiled import mna_steps as tr
 from circuitsim.solver.compiled import newton as nw
 from circuitsim.solver.compiled import plan as kp
 from circuitsim.solver.compiled import run_compiled
-from circuitsim.solver.compiled import transient as tr
 from circuitsim.solver.compiled.sparse_lu import assemble, lu_solve, refactor
 from circuitsim.solver.compiled.sparse_order import analyse
 from circuitsim.solver.dc import operating_point_solution

@@ -5,7 +5,8 @@ here for both loops); ``factor_now``, the ports
 kernel's refactor at the present port values (dense, lowrank.rebuild; above SPARSE_FROM
 unknowns the loop returns FACTOR and the runner factors with SuperLU, then the loop goes on
 where it stopped); the rule that asks for a refactor when many junctions stay active. The MNA
-kernel's Newton is mna_newton.py, the ports kernel's is port_newton.py's steps, run by port_loop.py.
+kernel's Newton is mna_newton.py, the ports kernel's is port_newton.py's steps (run by
+port_steps.py).
 """
 
 from __future__ import annotations
@@ -42,7 +43,7 @@ from circuitsim.solver.compiled.slots import (  # noqa: F401 (importable from he
 from circuitsim.solver.devices.diode_kernel import linearize_junction
 
 # a junction current change that moves no unknown by more than this fraction of its absolute
-# tolerance (vntol, abstol) is not applied until it grows (port_loop.py, ports.all_unknowns)
+# tolerance (vntol, abstol) is not applied until it grows (port_steps.py, ports.all_unknowns)
 JUNCTION_NEGLIGIBLE = 1e-9
 
 # When to refactor at the present conductances because many junctions stay active (both

@@ -1,4 +1,4 @@
-"""The ports kernel's Newton iteration in named steps (ports.py's algebra; port_loop.py runs them).
+"""The ports kernel's Newton iteration in named steps (ports.py's algebra; port_steps.py runs them).
 
 One iteration on the junction voltages: linearize the junctions and decide the switches
 (:func:`linearize_ports`); make the configuration if a0, the switch states or the
