@@ -19,7 +19,7 @@ from circuitsim.solver.compiled.mna_steps import (
     mna_step_begins,
     mna_workspace,
 )
-from circuitsim.solver.compiled.newton import FACTOR, FIRST_FACTOR, NOT_RESUMING
+from circuitsim.solver.compiled.newton import FACTOR, FIRST_FACTOR, NOT_RESUMING, copy_into
 from circuitsim.solver.compiled.port_steps import (
     port_accept,
     port_attempt,
@@ -135,8 +135,8 @@ def _ports_truncation_failure(st, mid, x_before):
 
 
 def _mna_truncation_failure(st, mid, x_before):
-    st.fail_x[:] = mid.x_new
-    st.fail_prev[:] = x_before
+    copy_into(st.fail_x, mid.x_new)
+    copy_into(st.fail_prev, x_before)
 
 
 def _ports_accept(plan, st, mid, work, t):

@@ -9,6 +9,7 @@ needs only within one call is :class:`MnaWork`.
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -26,6 +27,7 @@ from circuitsim.solver.compiled.newton import (
     RESUME_ITERATION,
     RESUME_NONCON,
     RESUME_RETRY,
+    copy_into,
     extend,
     wait_for_factor,
 )
@@ -35,11 +37,10 @@ from circuitsim.solver.devices.source_kernel import source_value
 
 
 @njit(cache=True, inline="always")
-def source_rhs(t, rhs_const, kind, par, dc, pwl_start, pwl_t, pwl_v, rows, signs):
-    """Right-hand side of the independent sources at time t (transient values), and the
-    time-dependent sources' values."""
-    rhs = rhs_const.copy()
-    values = np.empty(kind.size)
+def source_rhs(t, rhs_const, kind, par, dc, pwl_start, pwl_t, pwl_v, rows, signs, rhs, values):
+    """Right-hand side ``rhs`` of the independent sources at time t (transient values), and
+    the time-dependent sources' ``values``, written in place."""
+    copy_into(rhs, rhs_const)
     for k in range(kind.size):
         value = source_value(t, k, kind, par, dc, pwl_start, pwl_t, pwl_v)
         values[k] = value
@@ -47,7 +48,6 @@ def source_rhs(t, rhs_const, kind, par, dc, pwl_start, pwl_t, pwl_v, rows, signs
             row = rows[k, j]
             if row >= 0:
                 rhs[row] += signs[k, j] * value
-    return rhs, values
 
 
 @njit(cache=True, _nrt=False, forceinline=True)
@@ -104,6 +104,20 @@ class MnaWork(NamedTuple):
     retry_from: np.ndarray  # (1,) bool: the attempt goes on from the failed one's iterate
     q: np.ndarray  # (nq,) the time point's charges (mid.q: they outlive a return)
     qdot: np.ndarray  # (nq,) their currents
+    rhs0: np.ndarray  # (n,) the sources' right-hand side at the attempt's time
+    src_values: np.ndarray  # (number of sources,) their values there
+    u_weights: np.ndarray  # (linear charge slots,) minus their history terms
+    x_iterate: np.ndarray  # (n,) Newton's iterate (mna_newton)
+    x_iterate_ext: np.ndarray  # (n + 1,) it, ground last
+
+
+@njit(cache=True, inline="always")
+def all_finite(x) -> bool:
+    """Whether every entry of x is finite (np.isfinite allocates)."""
+    for value in x:
+        if not math.isfinite(value):
+            return False
+    return True
 
 
 @njit(cache=True, inline="always")
@@ -114,7 +128,8 @@ def mna_workspace(plan, st, mid):
     return MnaWork(
         np.empty(n + 1), np.empty(n_charges), np.empty(n), np.empty(n),
         np.empty(plan.sw.shape[0]), np.empty(n_ports + plan.lin_slots.size),
-        np.zeros(1, dtype=np.bool_), mid.q, mid.qdot,
+        np.zeros(1, dtype=np.bool_), mid.q, mid.qdot, np.empty(n), np.empty(plan.src_kind.size),
+        np.empty(plan.lin_slots.size), np.empty(n), np.empty(n + 1),
     )  # fmt: skip
 
 
@@ -124,8 +139,8 @@ def mna_step_begins(st, mid, work, resume):
     resumed; whether its first attempt goes on from a failed one's iterate (kept over a
     return to Python)."""
     if resume == NOT_RESUMING:
-        mid.fs_start[:] = st.fs
-        mid.ints_start[:] = st.ints
+        copy_into(mid.fs_start, st.fs)
+        copy_into(mid.ints_start, st.ints)
     work.retry_from[0] = resume != NOT_RESUMING and st.ints[RESUME_RETRY] != 0
 
 
@@ -149,24 +164,26 @@ def mna_attempt(plan, st, mid, work, t, h, order, landing, coefficients, ratio, 
     n_ports = plan.jp.shape[0] + plan.sw.shape[0]
     for j in range(n_charges):
         hist[j] = a1 * hq[0, j] + b1 * hi[0, j] + a2 * hq[1, j]
-    rhs0, _ = source_rhs(
+    rhs0, u_weights = work.rhs0, work.u_weights
+    source_rhs(
         t + h, plan.rhs_const, plan.src_kind, plan.src_par, plan.src_dc, plan.pwl_start,
-        plan.pwl_t, plan.pwl_v, plan.src_rows, plan.src_signs,
+        plan.pwl_t, plan.pwl_v, plan.src_rows, plan.src_signs, rhs0, work.src_values,
     )  # fmt: skip
     if linear_slots.size:
-        add_u_columns(
-            (plan.UT_ptr, plan.UT_idx, plan.UT_val), -hist[linear_slots], n_ports, rhs0
-        )
+        for j in range(linear_slots.size):
+            u_weights[j] = -hist[linear_slots[j]]
+        add_u_columns((plan.UT_ptr, plan.UT_idx, plan.UT_val), u_weights, n_ports, rhs0)
     for i in range(n):
         x_guess[i] = hx[0, i] + ratio * (hx[0, i] - hx[1, i])
     if n_history == 1 and retry_from[0]:  # go on from where the failed attempt got to
-        x_guess[:] = st.fail_x
+        copy_into(x_guess, st.fail_x)
     for j in range(n_charges if resume == NOT_RESUMING else 0):
         q[j] = 0.0
         qdot[j] = 0.0
     outcome, iterations, x_before = mna_newton(
         plan, st, x_guess, a0, hist, rhs0, q, qdot, work.g_sw, x_new, work.b,
-        si[RESUME_ITERATION] if resume != NOT_RESUMING else 0,
+        si[RESUME_ITERATION] if resume != NOT_RESUMING else 0, work.x_iterate,
+        work.x_iterate_ext,
     )  # fmt: skip
     if outcome == REORDER:
         si[RESUME_RETRY] = 1 if retry_from[0] else 0
@@ -176,15 +193,15 @@ def mna_attempt(plan, st, mid, work, t, h, order, landing, coefficients, ratio, 
         )
         return status, False, x_before
     if outcome == NEWTON_REPIVOT:
-        fs[:] = mid.fs_start
-        si[:] = mid.ints_start
+        copy_into(fs, mid.fs_start)
+        copy_into(si, mid.ints_start)
         fs[REPIVOT_A0] = a0
         return REPIVOT, False, x_before
     si[NEWTON] += iterations
     if outcome != CONVERGED:
-        st.fail_x[:] = x_new
-        st.fail_prev[:] = x_before
-        retry_from[0] = np.all(np.isfinite(x_new))
+        copy_into(st.fail_x, x_new)
+        copy_into(st.fail_prev, x_before)
+        retry_from[0] = all_finite(x_new)
         return CONTINUE, False, x_before
     if linear_slots.size:
         charges_lin = work.charges_lin

@@ -75,9 +75,18 @@ def rebase_wanted(active, after_refactor):
 
 
 @njit(cache=True, inline="always")
+def copy_into(target, source) -> None:
+    """target[:] = source, written out: numba's slice assignment of an array needs its
+    reference counting (it may copy an overlapping source first), which the time loop is
+    compiled without (time_loop.march)."""
+    for i in range(source.size):
+        target[i] = source[i]
+
+
+@njit(cache=True, inline="always")
 def extend(x, x_ext):
     """x_ext[:n] = x, x_ext[n] = 0 (ground, reached by node index -1)."""
-    x_ext[: x.size] = x
+    copy_into(x_ext, x)
     x_ext[x.size] = 0.0
 
 
@@ -132,7 +141,7 @@ class MidStep(NamedTuple):
     rows: np.ndarray  # (nrows,) int: the unknowns recorded at each accepted point (out_x)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=True)
 def factor_now(plan, st, a0):
     """Refactor at the present values and bump the factorization version (dense, in compiled
     code: lowrank.rebuild); False when the factorization is to be made in Python

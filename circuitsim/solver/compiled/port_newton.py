@@ -144,7 +144,7 @@ def configuration_stale(st, a0):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=True)
 def configure_ports(plan, st, a0):
     """Eliminate the switch and charge ports at a0 (1/s) and the switch states
     (ports.configure; then every column of H is to be formed anew); False when the

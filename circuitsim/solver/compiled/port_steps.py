@@ -237,7 +237,7 @@ def port_attempt(plan, st, work, t, h, order, landing, coefficients, ratio, resu
             return status, False
     if resume == AT_REFACTOR_TEST:
         resume = NOT_RESUMING
-    for k in range(src_kind.size):  # (np.interp allocates: not in a step of port_newton)
+    for k in range(src_kind.size):
         src_values[k] = source_value(
             t + h, k, src_kind, src_par, src_dc, pwl_start, pwl_t, pwl_v
         )

@@ -9,6 +9,17 @@ in part (the MNA kernel, mna_steps.py). :func:`march` is written once; numba com
 for each kernel's state with that kernel's steps inlined (kernel_steps.py chooses them by the
 type of ``mid``: None for the ports kernel), so each kernel's loop is compiled as one
 function, called once per chunk by its entry point (:func:`run_ports`, :func:`run_mna`).
+
+:func:`march` is compiled without numba's reference counting (``_nrt=False``), and so is
+every step it inlines: an inlined function's tuple arguments (the plan and state, about 150
+arrays) are bound anew at each call, which numba counts as an atomic increment and decrement
+per array. With the counting, those were about a third of the CPU samples of a process
+running the ports kernel on the ideal wheelset (docs/solver.md, "One loop for both
+kernels"). So the loop allocates nothing: its entry points make the arrays of a call (the
+kernel's workspace, :func:`step_workspace`), and the few steps that allocate are calls
+compiled with the counting (``_nrt=True``: newton.factor_now, port_newton.configure_ports,
+source_kernel.pwl_value).
+
 The loop runs until ``t_until`` and returns, so that the caller can report progress, grow the
 output arrays or factor in Python; every scalar it keeps lives in ``st.fs`` / ``st.ints``
 between calls.
@@ -78,18 +89,28 @@ from circuitsim.solver.compiled.step_control import (  # noqa: F401 (the runner'
 def run_ports(plan, st, t_until):
     """The ports kernel's loop (plan.KernelPlan with dense parts, port_state.PortState) from
     st.fs[T] until t_until (s) or tstop; returns a status code (:func:`march`)."""
-    return march(plan, st, t_until, None, port_workspace(plan, st))
+    work = port_workspace(plan, st)
+    return march(plan, st, t_until, None, work, step_workspace(plan, work.q.size))
 
 
 @njit(cache=True)
 def run_mna(plan, st, t_until, mid):
     """The MNA kernel's loop (plan.KernelPlan, plan.LoopState, newton.MidStep) from st.fs[T]
     until t_until (s) or tstop; returns a status code (:func:`march`)."""
-    return march(plan, st, t_until, mid, mna_workspace(plan, st, mid))
+    work = mna_workspace(plan, st, mid)
+    return march(plan, st, t_until, mid, work, step_workspace(plan, work.q.size))
 
 
-@njit(cache=True)
-def march(plan, st, t_until, mid, work):
+@njit(cache=True, inline="always")
+def step_workspace(plan, n_charges):
+    """The step control's arrays for one call of :func:`march`: (judge_step's (4,) times,
+    the live charge slots, whether any slot is always zero: step_control.charge_slots)."""
+    live, zeros = charge_slots(n_charges, plan.jslot, plan.charged, plan.has_charge)
+    return np.empty(4), live, zeros
+
+
+@njit(cache=True, _nrt=False)
+def march(plan, st, t_until, mid, work, control):
     """Integrate from st.fs[T] until t_until (or tstop); returns a status code (PAUSED,
     FINISHED, FULL or a failure: step_control). ``mid`` None: the ports kernel, which may
     return newton.FACTOR (factor in Python at fs[FACTOR_A0], then re-enter where it stopped,
@@ -98,19 +119,19 @@ def march(plan, st, t_until, mid, work):
     attempted again on a new order) or newton.FACTOR (a pivot became too small: a new order
     at a0 = fs[FACTOR_A0], then re-entered where it stopped). ``work``: the kernel's arrays
     for this call (port_steps.PortWork, mna_steps.MnaWork; an argument, not made here: numba
-    0.68 inlined the kernel's steps wrongly reading a tuple made in this function). The
-    kernel's own steps: kernel_steps.py."""
+    0.68 inlined the kernel's steps wrongly reading a tuple made in this function);
+    ``control``: :func:`step_workspace`'s. The kernel's own steps: kernel_steps.py."""
     real, ints = plan.real, plan.ints
     method, max_order, max_steps = ints[METHOD], ints[MAXORD], ints[MAX_STEPS]
     fixed, max_step = real[FIXED_STEP], real[MAX_STEP]
     min_step, tstop = real[MIN_STEP], real[TSTOP]
     floats, counters, breaks = st.fs, st.ints, plan.breaks
-    x_prev_ext, switch_state, switch_accepted, out_t = st.x_prev_ext, st.state, st.accepted, st.out_t
+    x_prev_ext, out_t = st.x_prev_ext, st.out_t
+    switch_state, switch_accepted = st.state, st.accepted
     switches, hysteresis = plan.sw, plan.approach
     t_history, q_history, qdot_history, x_iterate = loop_views(st, work, mid)
     charges, charge_currents = work.q, work.qdot
-    judge_times = np.empty(4)
-    live, zeros = charge_slots(charges.size, plan.jslot, plan.charged, plan.has_charge)
+    judge_times, live, zeros = control
     resume = counters[RESUME_AT]  # back from a return to Python: where the step was
     counters[RESUME_AT] = NOT_RESUMING
     code, resume = loop_start(plan, st, mid, resume)
@@ -163,8 +184,8 @@ def march(plan, st, t_until, mid, work):
                 continue
             verdict, new_h, order = judge_step(
                 real, max_order, counters[FIRST], ints[UIC], t, h, order, n_history, t_history,
-                x_iterate, x_prev_ext, switches, switch_state, switch_accepted, hysteresis, charges, charge_currents, q_history,
-                qdot_history, judge_times, live, zeros,
+                x_iterate, x_prev_ext, switches, switch_state, switch_accepted, hysteresis,
+                charges, charge_currents, q_history, qdot_history, judge_times, live, zeros,
             )  # fmt: skip
             if verdict == GOOD_STEP:
                 break
@@ -178,7 +199,6 @@ def march(plan, st, t_until, mid, work):
 
         t = next_break if landing else t + h
         toggled = accept(plan, st, mid, work, t)
-        finish_step(
-            floats, counters, t, new_h, step_a0, order, landing, toggled, fixed, max_order, n_history
-        )
+        finish_step(floats, counters, t, new_h, step_a0, order, landing, toggled, fixed,
+                    max_order, n_history)  # fmt: skip
     return FINISHED
