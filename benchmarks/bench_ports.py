@@ -1,8 +1,8 @@
 """Where the ports kernel's time goes, by ablation (part of bench_profile).
 
 A compiled loop cannot be profiled by function, and its pieces are too small to time alone
-(a 4 x 4 solve is ~0.1 us): instead the kernel (solver/compiled/port_loop.py, its Newton
-steps in port_newton.py, the step control in step_control.py) is recompiled with one piece
+(a 4 x 4 solve is ~0.1 us): instead the kernel (solver/compiled/time_loop.py, its steps in
+port_steps.py and port_newton.py, the step control in step_control.py) is recompiled with one piece
 switched off at a time, from patched copies of their source, and run on the same circuit.
 The difference in time per step against the intact kernel is that piece's cost per step. A
 switched-off piece changes the numbers (and slightly the steps), so the ablated runs are
@@ -19,9 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
-import circuitsim.solver.compiled.port_loop as port_loop
 import circuitsim.solver.compiled.port_newton as port_newton
+import circuitsim.solver.compiled.port_steps as port_steps
 import circuitsim.solver.compiled.step_control as step_control
+import circuitsim.solver.compiled.time_loop as time_loop
 from circuitsim.netlist.reader import read_netlist
 from circuitsim.solver.compiled import newton as nw
 from circuitsim.solver.compiled.plan import build_plan
@@ -29,9 +30,11 @@ from circuitsim.solver.compiled.port_state import initial_port_state
 from circuitsim.solver.engine import build_system
 from circuitsim.solver.transient import start_transient
 
-# the modules a patch may change: the loop, its Newton steps, the shared step control
+# the modules a patch may change: the loop, the kernel's steps and its Newton steps, the step
+# control
 MODULES = {
-    "port_loop": port_loop,
+    "time_loop": time_loop,
+    "port_steps": port_steps,
     "port_newton": port_newton,
     "step_control": step_control,
 }
@@ -62,8 +65,9 @@ ABLATIONS = {
 
 
 def _load(folder: Path, name: str, patches) -> object:
-    """The loop recompiled from patched copies of its modules (``tag_port_loop`` importing
-    ``tag_port_newton`` and ``tag_step_control``), uncached; every patch must apply once."""
+    """The loop recompiled from patched copies of its modules (``tag_time_loop`` importing
+    ``tag_port_steps``, ``tag_port_newton`` and ``tag_step_control``), uncached; every patch
+    must apply once."""
     tag = f"ablated_{abs(hash(name)) % 10**8}"
     texts = {
         short: Path(module.__file__).read_text().replace("cache=True", "cache=False")
@@ -79,7 +83,7 @@ def _load(folder: Path, name: str, patches) -> object:
         for other in MODULES:
             text = text.replace(f"circuitsim.solver.compiled.{other} ", f"{tag}_{other} ")
         (folder / f"{tag}_{short}.py").write_text(text)
-    return importlib.import_module(f"{tag}_port_loop")
+    return importlib.import_module(f"{tag}_time_loop")
 
 
 def _timed(module, system, rows, repeat: int = 3) -> tuple[float, int, int]:
@@ -103,9 +107,9 @@ def _timed(module, system, rows, repeat: int = 3) -> tuple[float, int, int]:
         st.fs[nw.SAVED_H] = tran.tstop / 50
         nw.factor_now(plan, st, 2.0 / max_step)
         started = time.perf_counter()
-        status = module.run(plan, st, 2 * tran.tstop)
+        status = module.run_ports(plan, st, 2 * tran.tstop)
         elapsed = time.perf_counter() - started
-        if status != port_loop.FINISHED:  # e.g. without the solve Newton may not converge
+        if status != step_control.FINISHED:  # e.g. without the solve Newton may not converge
             return np.nan, int(st.ints[nw.ACCEPTED]), int(st.ints[nw.NEWTON])
         best = min(best, elapsed)
         steps, iterations = int(st.ints[nw.ACCEPTED]), int(st.ints[nw.NEWTON])

@@ -28,10 +28,10 @@ from circuitsim.mechanics import load_model
 from circuitsim.netlist.reader import read_netlist
 from circuitsim.netlist.writer import save_netlist
 from circuitsim.solver import SimulationOptions, simulate
+from circuitsim.solver.compiled import mna_steps as tr
 from circuitsim.solver.compiled import newton as nw
 from circuitsim.solver.compiled import plan as kp
 from circuitsim.solver.compiled import run_compiled
-from circuitsim.solver.compiled import transient as tr
 from circuitsim.solver.compiled.sparse_lu import assemble, lu_solve, refactor
 from circuitsim.solver.compiled.sparse_order import analyse
 from circuitsim.solver.dc import operating_point_solution
@@ -48,8 +48,9 @@ CALLS = 20_000
 @njit
 def _time_sources(plan, t, k):
     total = 0.0
+    rhs, values = np.empty(plan.rhs_const.size), np.empty(plan.src_kind.size)
     for i in range(k):
-        rhs, values = tr.source_rhs(
+        tr.source_rhs(
             t + i * 1e-6,
             plan.rhs_const,
             plan.src_kind,
@@ -60,6 +61,8 @@ def _time_sources(plan, t, k):
             plan.pwl_v,
             plan.src_rows,
             plan.src_signs,
+            rhs,
+            values,
         )
         total += rhs[0]
     return total
@@ -140,7 +143,8 @@ def kernel_breakdown(path: Path) -> dict:
                      np.concatenate([devices["gd"], g_sw]), a0)  # fmt: skip
         times["pivot order (SuperLU, Python)"] = time.perf_counter() - started
         st = kp.initial_state(plan, families, x, ctx.q.copy(), 1000, lu)
-        rhs0, values = tr.source_rhs(
+        rhs0, values = np.empty(plan.rhs_const.size), np.empty(plan.src_kind.size)
+        tr.source_rhs(
             0.0,
             plan.rhs_const,
             plan.src_kind,
@@ -151,6 +155,8 @@ def kernel_breakdown(path: Path) -> dict:
             plan.pwl_v,
             plan.src_rows,
             plan.src_signs,
+            rhs0,
+            values,
         )
         pieces = {
             "sources (per attempt)": _per_call(_time_sources, plan, 0.0),

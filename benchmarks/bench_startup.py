@@ -67,7 +67,7 @@ marks = [("interpreter", cpu())]
 import circuitsim.cli, circuitsim.cli.netlist_verbs
 from circuitsim.netlist.reader import read_netlist
 from circuitsim.solver import SimulationOptions, simulate
-import circuitsim.solver.compiled.runner, circuitsim.solver.compiled.port_loop
+import circuitsim.solver.compiled.runner, circuitsim.solver.compiled.time_loop
 import circuitsim.solver.float_text
 marks.append(("imports", cpu()))
 circuit = read_netlist(sys.argv[1])

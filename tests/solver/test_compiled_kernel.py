@@ -475,17 +475,20 @@ def test_singular_time_loop_names_the_branch(kernel):
 
 def test_stale_compiled_code_is_cleared_when_any_kernel_file_changes(tmp_path):
     # numba checks only the defining file of a cached function; a change in newton.py must
-    # also drop transient.py's cached machine code, which has the old newton compiled in.
+    # also drop time_loop.py's cached machine code, which has the old newton compiled in.
     from circuitsim.solver.compiled import clear_stale_cache
 
-    sources = [tmp_path / f"{name}.py" for name in ("newton", "transient")]
+    sources = [tmp_path / f"{name}.py" for name in ("newton", "time_loop")]
     for path in sources:
         path.write_text(f"# {path.stem} v1\n")
     cache = tmp_path / "cache"
     cache.mkdir()
     stamp = tmp_path / "stamp" / "sources.sha256"
     assert clear_stale_cache(sources, [cache], stamp) is False  # first sight: a stamp only
-    machine_code = [cache / "transient.run-120.py311.nbi", cache / "transient.run-120.py311.1.nbc"]
+    machine_code = [
+        cache / "time_loop.run_mna-99.py311.nbi",
+        cache / "time_loop.run_mna-99.py311.1.nbc",
+    ]
     other = cache / "notes.txt"
     for path in [*machine_code, other]:
         path.write_bytes(b"x")

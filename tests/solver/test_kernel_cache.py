@@ -36,15 +36,15 @@ def test_cache_directory_follows_the_environment(monkeypatch, tmp_path):
 
 def test_kernels_are_cached_outside_the_package():
     import circuitsim
-    from circuitsim.solver.compiled import port_loop
+    from circuitsim.solver.compiled import time_loop
     from circuitsim.solver.compiled.cache import cache_root, is_cold
 
     simulate(parse_netlist(RECTIFIER))
-    folder = Path(port_loop.run._cache._cache_path)
+    folder = Path(time_loop.run_ports._cache._cache_path)
     assert folder.is_relative_to(cache_root())
     assert not folder.is_relative_to(Path(circuitsim.__file__).parent)
-    assert list(folder.glob("port_loop.run-*.nbi"))
-    assert not is_cold(port_loop.run)
+    assert list(folder.glob("time_loop.run_ports-*.nbi"))
+    assert not is_cold(time_loop.run_ports)
 
 
 def test_a_cold_compile_is_announced_once(monkeypatch):
@@ -77,11 +77,11 @@ import sys
 import numpy as np
 from circuitsim.netlist.reader import parse_netlist
 from circuitsim.solver import simulate
-from circuitsim.solver.compiled import port_loop
+from circuitsim.solver.compiled import time_loop
 waves = simulate(parse_netlist(sys.argv[1]))
 from numba.core.imputils import builtin_registry
 from numba.core.registry import cpu_target
-hits = sum(port_loop.run.stats.cache_hits.values())
+hits = sum(time_loop.run_ports.stats.cache_hits.values())
 np.savez(sys.argv[2], time=waves.time, v=waves["v(b)"])
 print(hits, builtin_registry in cpu_target.target_context._registries)
 """

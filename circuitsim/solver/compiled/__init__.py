@@ -5,17 +5,19 @@ This package only re-exports. Where things are:
 - runner.py: kernel choice (``SimulationOptions.kernel``: ``auto``, ``compiled``, ``ports``,
   ``python``; auto_kernel, from measurements in docs/solver.md), the start of a run and its
   loop in chunks (progress, wall-time limit, a new pivot order when the loop asks);
-- transient.py + mna_newton.py + sparse_lu.py: the MNA kernel (``kernel="compiled"``: Newton
+- time_loop.py + step_control.py: the one time loop (breakpoints, orders, truncation error,
+  Newton failures, switch transitions), compiled once per kernel around its steps;
+- mna_steps.py + mna_newton.py + sparse_lu.py: the MNA kernel (``kernel="compiled"``: Newton
   on the whole matrix, refactored sparse at every iteration on a fixed pivot order);
-- port_loop.py + port_newton.py + ports.py + port_state.py + lowrank.py: the ports kernel
+- port_steps.py + port_newton.py + ports.py + port_state.py + lowrank.py: the ports kernel
   (Newton on the junction voltages in port_newton.py's named steps, one factorization updated
   at low rank);
 - newton.py (the ports kernel's factorization and refactor rule), slots.py (the named slots of
-  the run's constants and the loops' state), plan.py (the arrays they run on); the device
-  equations both loops inline are the families' kernel twins, solver/devices/*_kernel.py;
+  the run's constants and the loop's state), plan.py (the arrays it runs on); the device
+  equations both kernels inline are the families' kernel twins, solver/devices/*_kernel.py;
 - cache.py: where numba keeps the machine code (a user cache directory), stale-code removal,
   whether a run must compile first (announced by a KernelCompileWarning);
-- failures.py: the loops' return codes as the engine's typed errors;
+- failures.py: the loop's return codes as the engine's typed errors;
 - warmup.py: making the kernels ready before timed work.
 
 The reference engine stays the specification: tests run both on the same circuits

@@ -168,12 +168,12 @@ def check_cache() -> None:
     with _LOCK:
         if _PREPARED:
             return
-        from circuitsim.solver.compiled import port_loop, transient  # noqa: F401
+        from circuitsim.solver.compiled import time_loop  # noqa: F401
 
         kernel_modules = [n for n in sys.modules if n.startswith(KERNEL_PACKAGES)]
         caches = relocate_caches(kernel_modules)
         sources = {Path(sys.modules[c._py_func.__module__].__file__) for c in caches}
-        folder = Path(port_loop.__file__).resolve().parent
+        folder = Path(time_loop.__file__).resolve().parent
         sources |= {folder.parent / name for name in CONSTANT_SOURCES}
         cache_folders = [Path(c._cache_path) for c in caches]
         key = hashlib.sha1(str(folder).encode()).hexdigest()[:16]

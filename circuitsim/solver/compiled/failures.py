@@ -36,9 +36,9 @@ def singular_row(matrix: np.ndarray) -> int | None:
 
 
 def failure(system: MnaSystem, st, status: int, tstop: float) -> SolverError:
-    """The error of a loop that returned ``status`` (compiled/transient.py's codes)."""
+    """The error of a loop that returned ``status`` (step_control.py's codes)."""
     from circuitsim.solver.compiled import newton as nw
-    from circuitsim.solver.compiled import transient as tr
+    from circuitsim.solver.compiled import step_control as tr
 
     t, h = float(st.fs[nw.T]), float(st.fs[nw.H])
     if status == tr.TOO_MANY_STEPS:

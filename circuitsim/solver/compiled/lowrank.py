@@ -13,8 +13,8 @@ never refactors: each solve is a solve with B (kept as its inverse, one BLAS mat
 product) and a small dense system on the *active* columns (those whose update is not
 negligible). ``Z = B^-1 U`` and ``K = V^T Z`` are kept with the factorization.
 
-The ports kernel (ports.py, port_loop.py) solves with these in port space; the MNA kernel
-(transient.py) uses only the two sparse products below.
+The ports kernel (ports.py, port_steps.py) solves with these in port space; the MNA kernel
+(mna_steps.py) uses only the two sparse products below.
 """
 
 from __future__ import annotations

@@ -25,7 +25,7 @@ from circuitsim.solver.compiled.mna_terminals import (
     terminal_rhs,
     terminals_converged,
 )
-from circuitsim.solver.compiled.newton import FACTORIZATIONS, RESUME_NONCON
+from circuitsim.solver.compiled.newton import FACTORIZATIONS, RESUME_NONCON, copy_into
 from circuitsim.solver.compiled.slots import ABSTOL, CHORD, ITL4, PIVOT_ORDERS, RELTOL
 from circuitsim.solver.compiled.sparse_lu import (
     ALL_COLUMNS,
@@ -52,13 +52,18 @@ from circuitsim.solver.devices.switch_kernel import (
 CONVERGED, FAILED, REPIVOT, REORDER = 1, 0, 2, 3
 
 
-@njit(cache=True, inline="always")
-def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume):
+# compiled once, inlined by LLVM: inlined by numba three calls deep (time_loop's stub,
+# mna_attempt, this), it was typed at each level and the MNA kernel's compile took twice the
+# CPU (docs/solver.md, "One time loop")
+@njit(cache=True, _nrt=False, forceinline=True)
+def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume, x, x_ext):
     """Newton at one time point. Returns (outcome, iterations, x_previous); the last iterate
     is in ``x_new``.
 
     rhs0 : the x-independent right-hand side (sources, charge history), shape (n,);
     g_sw, b : scratch, shapes (ms,), (n,);
+    x, x_ext : scratch, shapes (n,), (n + 1,): the iterate (the last solution), and it
+        extended by ground (the returned x_previous is ``x``);
     resume : 0, or the iteration that returned REORDER (re-entered on the new pivot order,
         with its linearization, x_new, q and qdot as it left them).
     """
@@ -103,8 +108,10 @@ def mna_newton(plan, st, x0, a0, hist, rhs0, q, qdot, g_sw, x_new, b, resume):
     terminals = tp.kind.size > 0  # (each call with the tuples costs reference counts)
     linear = md == 0 and ms == 0 and not terminals
     n = x0.size
-    x = x_new.copy() if resume > 1 else x0.copy()  # the iterate (the last solution)
-    x_ext = np.empty(n + 1)
+    if resume > 1:  # the iterate (the last solution)
+        copy_into(x, x_new)
+    else:
+        copy_into(x, x0)
     for i in range(n):
         x_ext[i] = x[i]
     x_ext[n] = 0.0

@@ -5,7 +5,8 @@ here for both loops); ``factor_now``, the ports
 kernel's refactor at the present port values (dense, lowrank.rebuild; above SPARSE_FROM
 unknowns the loop returns FACTOR and the runner factors with SuperLU, then the loop goes on
 where it stopped); the rule that asks for a refactor when many junctions stay active. The MNA
-kernel's Newton is mna_newton.py, the ports kernel's is port_newton.py's steps, run by port_loop.py.
+kernel's Newton is mna_newton.py, the ports kernel's is port_newton.py's steps (run by
+port_steps.py).
 """
 
 from __future__ import annotations
@@ -42,7 +43,7 @@ from circuitsim.solver.compiled.slots import (  # noqa: F401 (importable from he
 from circuitsim.solver.devices.diode_kernel import linearize_junction
 
 # a junction current change that moves no unknown by more than this fraction of its absolute
-# tolerance (vntol, abstol) is not applied until it grows (port_loop.py, ports.all_unknowns)
+# tolerance (vntol, abstol) is not applied until it grows (port_steps.py, ports.all_unknowns)
 JUNCTION_NEGLIGIBLE = 1e-9
 
 # When to refactor at the present conductances because many junctions stay active (both
@@ -74,9 +75,18 @@ def rebase_wanted(active, after_refactor):
 
 
 @njit(cache=True, inline="always")
+def copy_into(target, source) -> None:
+    """target[:] = source, written out: numba's slice assignment of an array needs its
+    reference counting (it may copy an overlapping source first), which the time loop is
+    compiled without (time_loop.march)."""
+    for i in range(source.size):
+        target[i] = source[i]
+
+
+@njit(cache=True, inline="always")
 def extend(x, x_ext):
     """x_ext[:n] = x, x_ext[n] = 0 (ground, reached by node index -1)."""
-    x_ext[: x.size] = x
+    copy_into(x_ext, x)
     x_ext[x.size] = 0.0
 
 
@@ -131,7 +141,7 @@ class MidStep(NamedTuple):
     rows: np.ndarray  # (nrows,) int: the unknowns recorded at each accepted point (out_x)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=True)
 def factor_now(plan, st, a0):
     """Refactor at the present values and bump the factorization version (dense, in compiled
     code: lowrank.rebuild); False when the factorization is to be made in Python

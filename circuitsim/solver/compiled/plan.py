@@ -137,7 +137,7 @@ def empty_factors(n: int, r: int, md: int, nl: int, ns: int, dense: bool = True)
 
 
 class KernelState(NamedTuple):
-    """Everything the MNA loop (compiled/transient.py) changes, kept between calls."""
+    """Everything the MNA kernel's loop (time_loop.run_mna) changes, kept between calls."""
 
     fs: np.ndarray  # (FLOAT_SLOTS,) slots.T, H, SAVED_H, LAST_A0, REPIVOT_A0
     ints: np.ndarray  # (INT_SLOTS,) slots.ORDER, ...

@@ -1,4 +1,4 @@
-"""The ports kernel's Newton iteration in named steps (ports.py's algebra; port_loop.py runs them).
+"""The ports kernel's Newton iteration in named steps (ports.py's algebra; port_steps.py runs them).
 
 One iteration on the junction voltages: linearize the junctions and decide the switches
 (:func:`linearize_ports`); make the configuration if a0, the switch states or the
@@ -144,7 +144,7 @@ def configuration_stale(st, a0):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=True)
 def configure_ports(plan, st, a0):
     """Eliminate the switch and charge ports at a0 (1/s) and the switch states
     (ports.configure; then every column of H is to be formed anew); False when the

@@ -1,4 +1,4 @@
-"""The ports kernel's state (numpy only): what port_loop.run changes between calls."""
+"""The ports kernel's state (numpy only): what time_loop.run_ports changes between calls."""
 
 from __future__ import annotations
 

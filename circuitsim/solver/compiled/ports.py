@@ -26,7 +26,7 @@ Nothing of size n is touched inside Newton; the unknowns are formed only where t
 recorded (every accepted point, or only the probed rows of a sweep).
 
 The per-time-point and per-iteration formulas above are port_newton.py's steps, compiled
-without numba's reference counting and inlined into the loop (port_loop.py). Here remain what
+without numba's reference counting and inlined into the loop (port_steps.py). Here remain what
 runs rarely (configure, h_column), once per point (all_unknowns) or once per control node and
 probe (unknown).
 """

@@ -2,7 +2,7 @@
 
 :func:`run_compiled` and :func:`run_ports` have the signature and results of
 :func:`circuitsim.solver.transient.run_transient`. The operating point is still solved by the
-reference engine (dc.py); the time loop runs compiled (transient.py or port_loop.py here). The
+reference engine (dc.py); the time loop runs compiled (time_loop.py here). The
 loop returns to Python every tenth of the run (progress) and after a bounded number of steps
 (the wall-time limit, Ctrl-C), when its output arrays are full, and for a factorization it
 cannot make in compiled code (SuperLU: newton.FACTOR, then it goes on where it stopped).
@@ -198,7 +198,7 @@ def run_ports(
     fixed_pauses: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`run_compiled` with Newton confined to the junction voltages (the ports kernel,
-    port_loop.py), recording only the unknowns ``rows`` (default: all); ``fixed_pauses``:
+    port_steps.py), recording only the unknowns ``rows`` (default: all); ``fixed_pauses``:
     chunks of a fixed number of attempted steps (values independent of the machine's speed).
 
     Returns
@@ -328,14 +328,17 @@ def _loop_state(kind, start: PortsStart, plan, rows, capacity, constant=None, ea
 
 
 def _loop_module(kind: str):
-    """The module of the kernel's loop: port_loop (ports) or transient (MNA)."""
-    if kind == "ports":
-        from circuitsim.solver.compiled import port_loop
+    """The time loop's module (time_loop.py: its status codes and slots)."""
+    from circuitsim.solver.compiled import time_loop
 
-        return port_loop
-    from circuitsim.solver.compiled import transient
+    return time_loop
 
-    return transient
+
+def _loop_entry(kind: str):
+    """The kernel's entry into the time loop (a numba function): time_loop.run_ports (ports)
+    or run_mna (MNA)."""
+    loop = _loop_module(kind)
+    return loop.run_ports if kind == "ports" else loop.run_mna
 
 
 def _mid_step(kind, st, rows) -> tuple:
@@ -452,7 +455,8 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     cold_helpers = kind != "ports" and any(
         is_cold(f) for f in (*FILL_FUNCTIONS, *python_called(plan))
     )
-    compiling = _announce_compile(kind, _loop_module(kind).run, cold_helpers)
+    entry = _loop_entry(kind)
+    compiling = _announce_compile(kind, entry, cold_helpers)
     try:
         loop, st, mid = _loop_state(kind, start, plan, rows, capacity, constant, orders)
     except np.linalg.LinAlgError:  # the first pivot order: the start's matrix is singular
@@ -480,7 +484,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
         # that compiled has no rate (its own would make every later chunk 100 steps)
         chunk_began, attempts, compiled = time.perf_counter(), int(st.ints[nw.ATTEMPTS]), False
         while True:
-            status = loop.run(plan, st, t_until, *mid)
+            status = entry(plan, st, t_until, *mid)
             if compiling:
                 seconds = time.perf_counter() - began
                 record_compile_seconds(kind, seconds)

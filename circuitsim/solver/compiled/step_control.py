@@ -1,10 +1,11 @@
-"""Step control of both compiled loops (transient.py, port_loop.py): the reference engine's rules
+"""Step control of the compiled time loop (time_loop.py): the reference engine's rules
 (solver/transient.py) for one step, in numba.
 
 The integration coefficients, where a step starts (breakpoints, order 1 after them, TMAX), the
 truncation-error limit of the charges (ngspice's CKTterr), the judgement of a step whose Newton
-converged (switch transitions, truncation error) and the scalars of an accepted step. The loops
-call these once per attempted step; what each loop does per Newton iteration stays in it.
+converged (switch transitions, truncation error) and the scalars of an accepted step. The loop
+calls these once per attempted step; what each kernel does per Newton iteration is in its steps
+(port_steps.py, mna_steps.py).
 """
 
 from __future__ import annotations
@@ -46,6 +47,8 @@ from circuitsim.solver.devices.switch_kernel import (
 # the loops' return codes (compiled/failures.py turns the negative ones into errors)
 PAUSED, FINISHED, FULL, REPIVOT = 0, 1, 2, 3
 NEWTON_FAILED_FIXED, STEP_TOO_SMALL, STEP_TOO_SMALL_LTE, TOO_MANY_STEPS = -1, -2, -3, -4
+# an attempt's status when the loop goes on (never returned by a loop)
+CONTINUE = 9
 
 # judge_step's verdicts on a step whose Newton converged
 GOOD_STEP, CUT_AT_TRANSITION, TRUNCATION_REJECTED = 0, 1, 2

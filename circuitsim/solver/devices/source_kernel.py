@@ -51,5 +51,13 @@ def source_value(t, k, kind, par, dc, pwl_start, pwl_t, pwl_v) -> float:
         if tau < tr:
             return v1 + (v2 - v1) * tau / tr
         return v2 + (v1 - v2) * (tau - tr - pw) / tf
+    return pwl_value(t, k, pwl_start, pwl_t, pwl_v)
+
+
+@njit(cache=True, _nrt=True)
+def pwl_value(t, k, pwl_start, pwl_t, pwl_v) -> float:
+    """Value of PWL source k at time t (s). A call, compiled with numba's reference counting
+    whatever its caller's flags (np.interp allocates), so that the time loop, compiled
+    without it (solver/compiled/time_loop.march), may inline :func:`source_value`."""
     a, b = pwl_start[k], pwl_start[k + 1]
     return np.interp(t, pwl_t[a:b], pwl_v[a:b])
