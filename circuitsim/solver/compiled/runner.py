@@ -78,13 +78,14 @@ def kernel_unavailable(system: MnaSystem, kernel: str = "compiled") -> str | Non
 # and linear charges: the ports kernel's Gauss-Jordan on them is cubic in their number; a
 # TL074 macromodel brings two to three capacitors per op-amp), else the MNA kernel. Measured
 # with ngspice's iteration floor (docs/solver.md, "Choosing the kernel";
-# benchmarks/bench_kernels.py) at 381736a+: the ports kernel is 1.4-3.8x faster on the
-# wheelsets, the ideal chains of 1-4 masses and the TL074 chains of 1-2 (at most 16 charged
-# junctions, 24 eliminated ports), the MNA kernel 1.6x faster on the ideal chain of 8 masses
-# (32 charged) and the TL074 chain of 4 (48 eliminated ports); on TL074 bogies (44 and 48
-# eliminated ports, 8 charged junctions), not used to set the rule, the MNA kernel is 7-9 %
-# faster.
-AUTO_PORTS_MAX_SWITCHING = 16
+# benchmarks/bench_kernels.py) at 2ab5b0e, the one time loop: the ports kernel is 1.3-2.2x
+# faster on the wheelsets, the ideal chains of 1-2 masses, the TL074 chain of 1 and the
+# ideal lattices of 1-4 (at most 12 charged junctions), and as fast on the TL074 chain and
+# lattice of 2 (8 and 6; 24 and 27 eliminated ports); the MNA kernel 1.17x faster on the
+# ideal chain of 4 (16 charged: the ports kernel's side until the MNA loop lost its
+# reference counts), 2.4x on the chain of 8 (32) and 2.1x on the TL074 chain of 4 (48
+# eliminated ports).
+AUTO_PORTS_MAX_SWITCHING = 12
 AUTO_PORTS_MAX_ELIMINATED = 32
 
 
