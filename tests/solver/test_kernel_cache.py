@@ -64,6 +64,24 @@ def test_a_cold_compile_is_announced_once(monkeypatch):
     assert "cached in" in str(notices[0].message)
 
 
+def test_the_compile_notice_estimates_each_kernel(monkeypatch, tmp_path):
+    """Before a machine has timed a compile, each kernel's notice gives its own measured
+    estimate (the ports kernel compiles for minutes, not "about a minute"); after, the
+    machine's last time."""
+    from circuitsim.solver.compiled.cache import compile_notice, record_compile_seconds
+    from circuitsim.solver.float_text import COMPILE_KIND
+    from circuitsim.solver.options import KERNELS
+
+    monkeypatch.setenv("CIRCUITSIM_CACHE_DIR", str(tmp_path))
+    kinds = [k for k in KERNELS if k not in ("auto", "python")] + [COMPILE_KIND]
+    assert "about 3 minutes" in compile_notice("ports")
+    assert "about a minute and a half" in compile_notice("compiled")
+    assert "about 10 seconds" in compile_notice(COMPILE_KIND)
+    for kind in kinds:
+        record_compile_seconds(kind, 123.4)
+        assert "the last compile on this machine took 123 s" in compile_notice(kind)
+
+
 def test_falling_back_to_the_numpy_loop_says_why():
     circuit = parse_netlist(RECTIFIER)
     options = SimulationOptions.from_circuit(circuit, bypass=1)  # no compiled bypass

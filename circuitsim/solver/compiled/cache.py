@@ -196,6 +196,16 @@ def is_cold(dispatcher) -> bool:
         return True
 
 
+# the estimate of a kernel's first compile on a machine, before it has timed one: cold
+# compiles measured on the 2-core VM (docs/performance.md): the ports kernel 155-195 s, the
+# MNA kernel ("compiled") about 90 s of CPU; the CSV writer 8 s
+FIRST_COMPILE = {
+    "ports": "about 3 minutes",
+    "compiled": "about a minute and a half",
+    "CSV writer": "about 10 seconds",
+}
+
+
 def _timings_path() -> Path:
     return cache_root() / "compile-seconds.json"
 
@@ -231,7 +241,7 @@ def compile_notice(kind: str) -> str:
     estimate = (
         f"the last compile on this machine took {seconds:.0f} s"
         if seconds is not None
-        else "about a minute, longer on a loaded machine"
+        else FIRST_COMPILE.get(kind, "up to a minute") + ", longer on a loaded machine"
     )
     return (
         f"compiling the {kind} kernel (its first use since it was installed or changed; "
