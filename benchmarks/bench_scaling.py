@@ -50,7 +50,7 @@ from circuitsim.synthesis.options import SynthesisOptions
 
 CHAIN_SIZES = (1, 2, 4, 8, 16, 32, 64)
 QUICK_SIZES = (1, 4, 8)
-TL074_SIZES = (1, 2, 4, 8)  # the macromodel's chains (about 4 junctions per op-amp)
+TL074_SIZES = (1, 2, 4, 8, 16)  # the macromodel's chains (about 4 junctions per op-amp)
 T_STOP = 5.0
 WHEELSET = {"V": 55.0, "f": 3.0, "a": 0.040}
 FIT_FROM = 4  # growth exponents over N >= this

@@ -1,8 +1,14 @@
 """Shared test fixtures: the ngspice referee and temporary output folders."""
 
+import os
 import shutil
 
 import pytest
+
+# the start-up library (solver/jit.py) is neither used nor built by the tests' processes: each
+# runs numba's kernels, as a process without a library does (the same in CI and on a machine
+# with a library); tests/solver/test_startup_library.py builds one and runs processes on it
+os.environ.setdefault("CIRCUITSIM_NO_STARTUP_LIBRARY", "1")
 
 NGSPICE = shutil.which("ngspice")
 

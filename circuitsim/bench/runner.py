@@ -19,6 +19,7 @@ import time
 
 from circuitsim.bench.errors import BenchError
 from circuitsim.bench.session import BenchSession
+from circuitsim.solver.jit import use_numba
 
 
 class BenchRunner:
@@ -52,6 +53,7 @@ class BenchRunner:
 
     def start(self) -> BenchRunner:
         """Start the thread; returns self."""
+        use_numba()  # the start-up library's kernels hold the GIL; numba's release it
         self._thread.start()
         return self
 

@@ -179,6 +179,10 @@ def transient(
             system, tstep, tstop, tstart, tmax, uic, progress=progress, stats=stats, **extra
         )
     stats["wall_time_s"] = _time.perf_counter() - started
+    if stats.get("kernel") in ("ports", "compiled"):  # after the run and its timing
+        from circuitsim.solver.compiled.startup_library import build_when_missing
+
+        build_when_missing(stats["kernel"])
     if not extra:
         columns = None
     return _waveforms(system, times, solutions, stats, names, columns)

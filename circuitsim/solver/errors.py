@@ -92,6 +92,11 @@ class KernelCompileWarning(SolverWarning):
     starts after a delay, said with an estimate."""
 
 
+class StartupLibraryWarning(SolverWarning):
+    """The start-up library (compiled/startup_library.py) could not be built: processes load
+    numba's machine code instead; the message says why."""
+
+
 class KernelFallbackWarning(SolverWarning):
     """``kernel="auto"`` runs the slower numpy reference loop: the compiled kernels cannot run
     this circuit (or numba is missing); the message says why."""

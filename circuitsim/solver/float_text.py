@@ -18,7 +18,8 @@ import warnings
 from collections.abc import Iterator, Sequence
 
 import numpy as np
-from numba import njit
+
+from circuitsim.solver.jit import library_in_use, njit
 
 LOW_EXPONENT, HIGH_EXPONENT = -270, 290  # decimal exponents formed here; outside: repr
 POWER_OFFSET = 16 - HIGH_EXPONENT  # POWERS[k - POWER_OFFSET] is 10**k
@@ -256,6 +257,14 @@ def _compiled_chunks(chunks: Iterator[np.ndarray]) -> Iterator[bytes]:
             record_compile_seconds(COMPILE_KIND, time.perf_counter() - compiling)
             compiling = None
         yield text
+    _build_startup_library()
+
+
+def _build_startup_library() -> None:
+    """After the writer ran from numba: its module of the start-up library, when missing."""
+    from circuitsim.solver.compiled.startup_library import build_when_missing
+
+    build_when_missing(COMPILE_KIND)
 
 
 def _chunk_text(chunk: np.ndarray) -> bytes:
@@ -284,4 +293,6 @@ def _use_user_cache() -> None:
     relocate_caches([__name__])
 
 
-_use_user_cache()
+_on_numba = _use_user_cache  # run by jit.use_numba when the library was in use
+if not library_in_use():
+    _use_user_cache()

@@ -26,6 +26,7 @@ from circuitsim.netlist.circuit import Circuit, Resistor
 from circuitsim.netlist.names import fold
 from circuitsim.solver.engine import build_system
 from circuitsim.solver.errors import CircuitInputError
+from circuitsim.solver.jit import use_numba
 from circuitsim.solver.threads import single_threaded_blas
 from circuitsim.solver.waveforms import Waveforms
 
@@ -90,6 +91,8 @@ def simulate_variants(
     probes = [fold(p) for p in probes]
     total = len(circuits)
     workers = max(1, min(int(workers or os.cpu_count() or 1), max(total, 1)))
+    if workers > 1:  # the start-up library's functions hold the GIL; numba's release it
+        use_numba()
     check_cache()  # once, here, before threads would race for it
     reference = base if base is not None else (circuits[0] if total else None)
     changes = [resistor_changes(reference, c) for c in circuits] if total else []

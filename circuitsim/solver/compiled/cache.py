@@ -17,14 +17,13 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import sys
 import threading
 from pathlib import Path
 
 from circuitsim.atomic import write_text_atomic
+from circuitsim.solver.cache_dir import CACHE_ENV, cache_root  # noqa: F401 (re-exported)
 
-CACHE_ENV = "CIRCUITSIM_CACHE_DIR"
 # reference-engine files whose constants the kernels compile in (numba freezes globals)
 CONSTANT_SOURCES = ("port_solver.py", "transient.py")
 PACKAGE = "circuitsim."
@@ -34,22 +33,6 @@ KERNEL_PACKAGES = ("circuitsim.solver.compiled", "circuitsim.solver.devices")
 _LOCK = threading.Lock()
 _WRITABLE: set[str] = set()  # cache folders found writable in this process
 _PREPARED: list[bool] = []
-
-
-def cache_root() -> Path:
-    """The user cache directory of circuitsim (not created here)."""
-    override = os.environ.get(CACHE_ENV)
-    if override:
-        return Path(override).expanduser()
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    if xdg and os.path.isabs(xdg):
-        return Path(xdg) / "circuitsim"
-    try:
-        return Path.home() / ".cache" / "circuitsim"
-    except RuntimeError:  # no home directory to be found (a bare service account)
-        import tempfile
-
-        return Path(tempfile.gettempdir()) / "circuitsim-cache"
 
 
 def numba_folder() -> Path:
@@ -165,6 +148,10 @@ def check_cache() -> None:
     """Once per process, before the first kernel call: the kernels' numba functions use the
     user cache directory, and machine code older than any kernel source is dropped. Imports
     the kernel modules (and numba)."""
+    from circuitsim.solver.jit import library_in_use
+
+    if library_in_use():  # the start-up library's machine code: built for these sources
+        return
     with _LOCK:
         if _PREPARED:
             return
@@ -181,9 +168,21 @@ def check_cache() -> None:
         _PREPARED.append(True)
 
 
+def _on_numba() -> None:
+    """When a process leaves the start-up library for numba (solver/jit.py): numba's kernels
+    use the user cache directory, as in any other process."""
+    check_cache()
+
+
 def is_cold(dispatcher) -> bool:
     """Whether calling ``dispatcher`` (a numba function) must compile: nothing compiled in
-    this process and nothing usable in its disk cache."""
+    this process and nothing usable in its disk cache, nor in the start-up library."""
+    from circuitsim.solver.jit import LazyKernel
+
+    if isinstance(dispatcher, LazyKernel):
+        if dispatcher.compiled is not None and dispatcher.dispatcher is None:
+            return False
+        dispatcher = dispatcher.numba_function()
     if dispatcher.overloads:
         return False
     cache = getattr(dispatcher, "_cache", None)

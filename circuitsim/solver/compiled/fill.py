@@ -14,9 +14,9 @@ pattern, the columns a partial refactor redoes when given columns change.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from circuitsim.solver.compiled.sparse_lu import WORD
+from circuitsim.solver.jit import njit
 
 
 @njit(cache=True)

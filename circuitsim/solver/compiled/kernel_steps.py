@@ -10,9 +10,6 @@ does nothing: it only names the step.
 
 from __future__ import annotations
 
-from numba import types
-from numba.extending import overload
-
 from circuitsim.solver.compiled.mna_steps import (
     mna_accept,
     mna_attempt,
@@ -26,12 +23,14 @@ from circuitsim.solver.compiled.port_steps import (
     port_fixed_point,
 )
 from circuitsim.solver.compiled.step_control import CONTINUE
+from circuitsim.solver.jit import library_in_use
 
 
 def _ports(mid) -> bool:
     """Whether the loop is compiled for the ports kernel (``mid`` typed None)."""
-    return isinstance(mid, types.NoneType)
+    from numba import types
 
+    return isinstance(mid, types.NoneType)
 
 
 def loop_views(st, work, mid):
@@ -136,36 +135,46 @@ def _mna_accept(plan, st, mid, work, t):
     return mna_accept(plan, st, mid, work, t)
 
 
-@overload(loop_views, inline="always")
 def _loop_views(st, work, mid):
     return _ports_views if _ports(mid) else _mna_views
 
 
-@overload(loop_start, inline="always")
 def _loop_start(plan, st, mid, resume):
     return _ports_start if _ports(mid) else _mna_start
 
 
-@overload(at_pause, inline="always")
 def _at_pause(counters, mid):
     return _ports_pause if _ports(mid) else _mna_pause
 
 
-@overload(step_begins, inline="always")
 def _step_begins(st, mid, work, resume):
     return _ports_step_begins if _ports(mid) else _mna_step_begins
 
 
-@overload(attempt, inline="always")
 def _attempt(plan, st, mid, work, t, h, order, landing, coefficients, ratio, n_history, resume):
     return _ports_attempt if _ports(mid) else _mna_attempt
 
 
-@overload(truncation_failure, inline="always")
 def _truncation_failure(st, mid, x_before):
     return _ports_truncation_failure if _ports(mid) else _mna_truncation_failure
 
 
-@overload(accept, inline="always")
 def _accept(plan, st, mid, work, t):
     return _ports_accept if _ports(mid) else _mna_accept
+
+
+def _on_numba():
+    """Register the stubs' overloads with numba (at import, or when numba is first imported)."""
+    from numba.extending import overload
+
+    overload(loop_views, inline="always")(_loop_views)
+    overload(loop_start, inline="always")(_loop_start)
+    overload(at_pause, inline="always")(_at_pause)
+    overload(step_begins, inline="always")(_step_begins)
+    overload(attempt, inline="always")(_attempt)
+    overload(truncation_failure, inline="always")(_truncation_failure)
+    overload(accept, inline="always")(_accept)
+
+
+if not library_in_use():
+    _on_numba()

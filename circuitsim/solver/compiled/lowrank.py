@@ -20,7 +20,8 @@ The ports kernel (ports.py, port_steps.py) solves with these in port space; the 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from circuitsim.solver.jit import njit
 
 # A column whose update changes the solution by less than this relative amount is left out
 # of the small system (|d_i K_ii| below it: below double-precision round-off of the result).

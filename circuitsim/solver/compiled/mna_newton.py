@@ -17,7 +17,6 @@ refinement step.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from circuitsim.solver.compiled.mna_terminals import (
     load_terminals,
@@ -45,6 +44,7 @@ from circuitsim.solver.devices.switch_kernel import (
     ON_ABOVE,
     next_state,
 )
+from circuitsim.solver.jit import njit
 
 # mna_newton's outcomes besides converged (True) / not converged (False): the pivot order no
 # longer suits the matrix (the loop returns to Python, which analyses it again); a pivot

@@ -13,7 +13,6 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from circuitsim.solver.compiled.lowrank import add_u_columns, csr_matvec
 from circuitsim.solver.compiled.mna_newton import CONVERGED, REORDER, mna_newton
@@ -34,6 +33,7 @@ from circuitsim.solver.compiled.newton import (
 from circuitsim.solver.compiled.slots import REPIVOT_A0
 from circuitsim.solver.compiled.step_control import CONTINUE, REPIVOT
 from circuitsim.solver.devices.source_kernel import source_value
+from circuitsim.solver.jit import njit
 
 
 @njit(cache=True, inline="always")

@@ -15,10 +15,9 @@ doubled the kernel's first compile); the twins' ``load`` are inlined here.
 
 from __future__ import annotations
 
-from numba import njit
-
 from circuitsim.solver.compiled.terminal_plan import BJT, JFET
 from circuitsim.solver.devices import bjt_kernel, jfet_kernel, poly_kernel
+from circuitsim.solver.jit import njit
 
 
 @njit(cache=True)

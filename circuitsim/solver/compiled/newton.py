@@ -14,7 +14,6 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from circuitsim.solver.compiled.lowrank import rebuild
 from circuitsim.solver.compiled.slots import (  # noqa: F401 (importable from here too)
@@ -41,6 +40,7 @@ from circuitsim.solver.compiled.slots import (  # noqa: F401 (importable from he
     T,
 )
 from circuitsim.solver.devices.diode_kernel import linearize_junction
+from circuitsim.solver.jit import njit
 
 # a junction current change that moves no unknown by more than this fraction of its absolute
 # tolerance (vntol, abstol) is not applied until it grows (port_steps.py, ports.all_unknowns)

@@ -19,7 +19,6 @@ in V, currents in A, conductances in S, a0 in 1/s.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from circuitsim.solver.compiled.lowrank import NEGLIGIBLE
 from circuitsim.solver.compiled.newton import (
@@ -52,6 +51,7 @@ from circuitsim.solver.devices.switch_kernel import (
     ON_ABOVE,
     next_state,
 )
+from circuitsim.solver.jit import njit
 
 STEP = dict(cache=True, _nrt=False, forceinline=True)
 

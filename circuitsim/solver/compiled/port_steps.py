@@ -14,7 +14,6 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from circuitsim.solver.compiled.newton import (
     AT_REFACTOR_TEST,
@@ -66,6 +65,7 @@ from circuitsim.solver.devices.switch_kernel import (
     CONTROL_NEGATIVE,
     CONTROL_POSITIVE,
 )
+from circuitsim.solver.jit import njit
 
 
 @njit(**STEP)

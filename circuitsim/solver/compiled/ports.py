@@ -34,9 +34,9 @@ probe (unknown).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from circuitsim.solver.compiled.newton import JUNCTION_NEGLIGIBLE
+from circuitsim.solver.jit import njit
 
 
 @njit(cache=True)

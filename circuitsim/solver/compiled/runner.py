@@ -64,9 +64,9 @@ _ANNOUNCED: set[str] = set()
 def kernel_unavailable(system: MnaSystem, kernel: str = "compiled") -> str | None:
     """Why the compiled ``kernel`` (``"compiled"``, the MNA kernel, or ``"ports"``) cannot
     run ``system`` (numba missing, unsupported device), or None."""
-    try:
-        import numba  # noqa: F401
-    except ImportError:
+    from importlib.util import find_spec
+
+    if find_spec("numba") is None:  # looked up, not imported (the start-up library needs none)
         return "numba is not installed"
     return unsupported(system, kernel)
 

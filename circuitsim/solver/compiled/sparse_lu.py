@@ -31,8 +31,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
-from numba.cpython.unsafe.numbers import trailing_zeros
+
+from circuitsim.solver.jit import library_in_use, njit
 
 # a pivot below this fraction of its column's largest entry asks for a new pivot order (the
 # relative threshold of ngspice's spOrderAndFactor, PivRelThreshold 1e-3)
@@ -235,3 +235,13 @@ def lu_solve(l_ptr, l_row, l_val, u_ptr, u_row, u_val, row_to, col_of, b, work, 
     for j in range(n):
         x[col_of[j]] = work[j]
         work[j] = 0.0
+
+
+def _on_numba():
+    global trailing_zeros
+    from numba.cpython.unsafe.numbers import trailing_zeros
+
+
+trailing_zeros = None
+if not library_in_use():
+    _on_numba()

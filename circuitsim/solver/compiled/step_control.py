@@ -13,7 +13,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from circuitsim.solver.compiled.slots import (
     ABSTOL,
@@ -43,6 +42,7 @@ from circuitsim.solver.devices.switch_kernel import (
     switch_truncate,
     transition_retry,
 )
+from circuitsim.solver.jit import njit
 
 # the loops' return codes (compiled/failures.py turns the negative ones into errors)
 PAUSED, FINISHED, FULL, REPIVOT = 0, 1, 2, 3

@@ -28,7 +28,6 @@ between calls.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from circuitsim.solver.compiled.kernel_steps import (
     accept,
@@ -83,6 +82,7 @@ from circuitsim.solver.compiled.step_control import (  # noqa: F401 (the runner'
     judge_step,
     step_start,
 )
+from circuitsim.solver.jit import njit
 
 
 @njit(cache=True, nogil=True)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
+
 # A circuit with every device kind the kernels compile for: a junction with charge, a
 # switch, a capacitor and a sine source (numba compiles one machine code for all circuits).
 WARM_UP_NETLIST = """* kernel warm-up
@@ -21,10 +23,11 @@ S1 b 0 in 0 SW1
 
 def warm_up(kernels: tuple[str, ...] = ("ports",)) -> float | None:
     """Make the compiled ``kernels`` ready in this process: built on their first use after
-    an install (tens of seconds, announced by a KernelCompileWarning, then kept in the user
-    cache directory: compiled/cache.py), loaded from the cache after that (about half a
-    second). Call it before timing runs, so that their times do not include it. Returns
-    the seconds it took; None without numba (nothing to make ready: ``kernel="auto"`` then
+    an install (minutes, announced by a KernelCompileWarning, then kept in the user cache
+    directory: compiled/cache.py, with the start-up library's module of each kernel:
+    compiled/startup_library.py), loaded from the cache after that (about half a second).
+    Call it before timing runs, so that their times do not include it. Returns the seconds
+    it took; None without numba (nothing to make ready: ``kernel="auto"`` then
     runs the numpy loop).
 
     Raises
@@ -32,14 +35,16 @@ def warm_up(kernels: tuple[str, ...] = ("ports",)) -> float | None:
     CircuitInputError
         An unknown kernel.
     """
-    try:
-        import numba  # noqa: F401
-    except ImportError:
+    from importlib.util import find_spec
+
+    if find_spec("numba") is None:  # looked up, not imported (the start-up library needs none)
         return None
 
     from circuitsim.netlist.reader import parse_netlist
     from circuitsim.solver.compiled.runner import run_compiled, run_ports
+    from circuitsim.solver.compiled.startup_library import build_when_missing
     from circuitsim.solver.errors import CircuitInputError
+    from circuitsim.solver.float_text import table_text
     from circuitsim.solver.options import SimulationOptions
     from circuitsim.solver.system import MnaSystem
 
@@ -54,4 +59,7 @@ def warm_up(kernels: tuple[str, ...] = ("ports",)) -> float | None:
             )
         system = MnaSystem(circuit, SimulationOptions.from_circuit(circuit, kernel=kernel))
         runners[kernel](system, tran.tstep, tran.tstop, tran.tstart, tran.tmax, tran.uic)
+        build_when_missing(kernel)  # the start-up library's module too (once; announced)
+    if kernels:  # the CSV writer (with its start-up library module), as a simulate process uses it
+        table_text(np.zeros((1, 1)))
     return time.perf_counter() - started

@@ -14,10 +14,9 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
 from circuitsim.solver.devices.diode_kernel import pnjlim
 from circuitsim.solver.devices.junction_kernel import depletion_charge, junction_current
+from circuitsim.solver.jit import njit
 
 # columns of the terminal plan's ``par`` for a BJT (BjtFamily.kernel_data's order)
 PARAMS = ("polarity", "vt", "vcrit", "isat", "vtf", "isat_bc", "vtr", "ise", "vte", "isc",

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from circuitsim.solver.jit import njit
 
 # columns of the junction parameters (KernelPlan.jp): saturation current IS area (A), N Vt (V),
 # 1 / (N Vt), IS / (N Vt) (S), -3 N Vt (the cubic reverse branch's knee, V), 3 N Vt / e (V),

@@ -10,10 +10,9 @@ frame, as the family's ``lin``.
 
 from __future__ import annotations
 
-from numba import njit
-
 from circuitsim.solver.devices.diode_kernel import pnjlim
 from circuitsim.solver.devices.junction_kernel import depletion_charge, fetlim, junction_current
+from circuitsim.solver.jit import njit
 
 # columns of the terminal plan's ``par`` for a JFET (JfetFamily.kernel_data's order)
 PARAMS = ("polarity", "isat", "vt", "vcrit", "gmin", "vto", "beta", "lambda", "b", "b_factor",

@@ -9,7 +9,7 @@ the controlling voltages or branch currents; a current output (G, F) drives P fr
 
 from __future__ import annotations
 
-from numba import njit
+from circuitsim.solver.jit import njit
 
 # terminal plan kinds of the two outputs (compiled/terminal_plan.py)
 CURRENT_OUTPUT, VOLTAGE_OUTPUT = 0, 1

@@ -13,7 +13,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from circuitsim.solver.jit import njit
 
 # source kinds (SourceValues.kernel_arrays, KernelPlan.src_kind)
 DC, SIN, PULSE, PWL = range(4)

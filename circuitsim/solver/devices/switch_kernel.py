@@ -12,9 +12,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from circuitsim.solver.devices import switch as switch_rules
+from circuitsim.solver.jit import njit
 
 # columns of the switch nodes (KernelPlan.sw; -1 = ground, the last entry of x_ext): the
 # switched terminals, the control voltage's + and - nodes
