@@ -166,6 +166,11 @@ def export_name(py_func) -> str:
     return f"{py_func.__module__.replace('.', '_')}__{py_func.__name__}"
 
 
+def signature_name(name: str, k: int) -> str:
+    """The library's name of signature ``k`` of the function exported as ``name``."""
+    return name if k == 0 else f"{name}__{k}"
+
+
 def library_in_use() -> bool:
     """Whether this process runs kernels from the start-up library (numba not yet needed)."""
     with _LOCK:
@@ -189,9 +194,13 @@ class LazyKernel:
         self.options = options
         self.dispatcher = None
         name = export_name(py_func)
-        module = next((m for m in _library_modules() if hasattr(m, name)), None)
-        self.compiled = getattr(module, name) if module is not None else None
-        self.arguments = module.ARGUMENTS.get(name) if module is not None else None
+        # (machine code, argument types) of each signature the library has of it
+        self.library_code = [
+            (getattr(m, signature_name(name, k)), m.ARGUMENTS[signature_name(name, k)])
+            for m in _library_modules()
+            for k in range(len(m.ARGUMENTS))
+            if signature_name(name, k) in m.ARGUMENTS and hasattr(m, signature_name(name, k))
+        ]
         self.__name__ = py_func.__name__
         self.__qualname__ = py_func.__qualname__
         self.__module__ = py_func.__module__
@@ -204,18 +213,17 @@ class LazyKernel:
             use_numba()
         return self.dispatcher
 
-    def __call__(self, *args):
-        if self.compiled is not None and self.dispatcher is None and self.takes(args):
-            return self.compiled(*args)
-        return self.numba_function()(*args)
+    @property
+    def compiled(self) -> bool:
+        """Whether the library has machine code of this kernel (for some argument types)."""
+        return bool(self.library_code)
 
-    def takes(self, args: tuple) -> bool:
-        """Whether the library's machine code was built for these arguments' types."""
-        keys = self.arguments
-        return (
-            keys is not None and len(keys) == len(args)
-            and all(takes(k, a) for k, a in zip(keys, args, strict=True))
-        )  # fmt: skip
+    def __call__(self, *args):
+        if self.dispatcher is None:
+            for function, keys in self.library_code:
+                if len(keys) == len(args) and all(map(takes, keys, args)):
+                    return function(*args)
+        return self.numba_function()(*args)
 
     def __getattr__(self, name: str):
         if name.startswith("__"):

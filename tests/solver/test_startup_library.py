@@ -72,12 +72,20 @@ def test_a_process_with_the_library_does_not_import_numba_and_writes_the_same_cs
     assert with_library.count(b"\n") > 18_000  # the wheelset's 18,581 time points
 
 
-def test_a_call_the_library_was_not_built_for_runs_numbas_kernel(built_library, tmp_path):
-    """Another kernel than the library's (the MNA kernel): numba's, with its results."""
-    with_library, said = _simulate_process(tmp_path, "library", True, "--kernel", "compiled")
-    assert "NUMBA-IMPORTED" in said
+def test_a_kernel_the_library_lacks_runs_on_numba_then_joins_it(built_library, tmp_path):
+    """Another kernel than the library's (the MNA kernel): numba's, with its results; that
+    process builds its module, and the next one runs it without numba (its helpers, called
+    from Python at new pivot orders, included)."""
+    for path in jit.library_folder().glob(startup_library.module_name("compiled") + ".*"):
+        path.unlink()  # built by an earlier run of this test
     without, _ = _simulate_process(tmp_path, "numba", False, "--kernel", "compiled")
-    assert with_library == without
+    first, said = _simulate_process(tmp_path, "first", True, "--kernel", "compiled")
+    assert "NUMBA-IMPORTED" in said
+    assert first == without
+    assert startup_library.is_built("compiled")
+    second, said = _simulate_process(tmp_path, "second", True, "--kernel", "compiled")
+    assert "NUMBA-NOT-IMPORTED" in said
+    assert second == without
 
 
 def test_the_library_is_keyed_by_the_sources(monkeypatch, tmp_path):

@@ -180,7 +180,7 @@ def is_cold(dispatcher) -> bool:
     from circuitsim.solver.jit import LazyKernel
 
     if isinstance(dispatcher, LazyKernel):
-        if dispatcher.compiled is not None and dispatcher.dispatcher is None:
+        if dispatcher.compiled and dispatcher.dispatcher is None:
             return False
         dispatcher = dispatcher.numba_function()
     if dispatcher.overloads:

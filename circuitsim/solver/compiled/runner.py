@@ -18,6 +18,7 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
+from circuitsim.solver.compiled import startup_library
 from circuitsim.solver.compiled.cache import (
     check_cache,
     compile_notice,
@@ -566,6 +567,8 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
         counted.append(int(st.ints[nw.FACTORIZATIONS]))
     if status != loop.FINISHED:
         raise failure(system, st, status, tstop)
+    if kind != "ports" and startup_library.wanted(kind):
+        compile_trial(plan, st)  # its helpers in this process, for the start-up library's build
     count = int(st.ints[nw.COUNT])
     out_t, out_x = st.out_t[:count], st.out_x[:count]
     keep = recorded(out_t, start.tstart, start.min_step, start.uic)

@@ -113,9 +113,9 @@ def build(kind: str) -> Path | None:
     path; None when there was nothing to build (no function called yet, or called with more
     than one set of types) or the build failed (said by a StartupLibraryWarning)."""
     _TRIED.add(kind)
-    functions = [f for f in python_called(kind) if len(getattr(f, "signatures", ())) == 1]
-    if not any(f in functions for f in python_called(kind)[:1]):
-        return None  # the entry itself is not compiled (or has several signatures)
+    functions = [f for f in python_called(kind) if getattr(f, "signatures", ())]
+    if python_called(kind)[0] not in functions:
+        return None  # the entry itself is not compiled in this process
     folder = jit.library_folder()
     log = ""
     try:
@@ -153,8 +153,8 @@ def build(kind: str) -> Path | None:
 
 
 def _compile(kind: str, functions: list, work: Path) -> Path:
-    """numba.pycc's build of ``functions`` in ``work`` (its output kept in build.log there,
-    not printed): the module's file."""
+    """numba.pycc's build of ``functions``, each of their signatures, in ``work`` (its output
+    kept in build.log there, not printed): the module's file."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # its pending deprecation (numba 0.57 on; still here)
         from numba.pycc import CC
@@ -164,9 +164,14 @@ def _compile(kind: str, functions: list, work: Path) -> Path:
     cc.target_cpu = "host"  # the stamp holds the CPU's flags
     arguments = {}
     for function in functions:
-        name, signature = jit.export_name(function.py_func), function.nopython_signatures[0]
-        cc.export(name, signature)(function.py_func)
-        arguments[name] = [type_key(t) for t in signature.args]
+        name = jit.export_name(function.py_func)
+        for k, signature in enumerate(function.nopython_signatures):
+            try:
+                keys = [type_key(t) for t in signature.args]
+            except TypeError:  # a type only numba's callers pass: no export for it
+                continue
+            cc.export(jit.signature_name(name, k), signature)(function.py_func)
+            arguments[jit.signature_name(name, k)] = keys
     (work / (module_name(kind) + ".json")).write_text(json.dumps(arguments))
     with _captured_output(work / "build.log"), warnings.catch_warnings():
         warnings.simplefilter("ignore")  # numba's pending deprecation of pycc, distutils'
