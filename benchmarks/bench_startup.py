@@ -16,7 +16,8 @@ includes waiting for a core):
 3. the floor any process of this design pays before it does work: the interpreter, numpy (and
    the submodules of numpy that scipy.sparse's array-API layer imports),
    scipy.sparse and scipy.linalg (MnaSystem's matrices, LAPACK), numba, and loading one small
-   cached kernel (numba's runtime);
+   cached kernel (numba's runtime); then the same kernel from the start-up library instead
+   (solver/jit.py: no numba);
 4. peak memory (``ru_maxrss``) of a 50 s TL074 run, every signal against ``--probe``.
 
 Every process runs this checkout (PYTHONPATH) with Python's bytecode cache on, in a folder of
@@ -96,10 +97,19 @@ FLOOR = {
     ),  # what scipy.sparse's array-API layer imports (it getattr's every name of numpy)
     "+ scipy.sparse, scipy.linalg": "import numpy, scipy.sparse, scipy.linalg",
     "+ numba": "import numpy, scipy.sparse, scipy.linalg, numba",
-    "+ one small cached kernel loaded (float_text)": (
-        "import numpy, scipy.sparse, scipy.linalg\n"
+    "+ one small cached kernel loaded by numba (float_text)": (
+        "import os, numpy, scipy.sparse, scipy.linalg\n"
+        "os.environ['CIRCUITSIM_NO_STARTUP_LIBRARY'] = '1'\n"
         "from circuitsim.solver.float_text import table_text\n"
         "table_text(numpy.zeros((1, 1)))"
+    ),
+    "numpy, scipy.sparse, scipy.linalg, the same kernel from the start-up library (no numba)": (
+        "import os, numpy, scipy.sparse, scipy.linalg\n"
+        "os.environ['CIRCUITSIM_NO_STARTUP_LIBRARY'] = '0'\n"
+        "from circuitsim.solver.float_text import table_text\n"
+        "table_text(numpy.zeros((1, 1)))\n"
+        "import sys\n"
+        "assert 'numba' not in sys.modules, 'no start-up library: run a simulate first'"
     ),
 }
 
