@@ -75,6 +75,7 @@ def test_the_compile_notice_estimates_each_kernel(monkeypatch, tmp_path):
     monkeypatch.setenv("CIRCUITSIM_CACHE_DIR", str(tmp_path))
     kinds = [k for k in KERNELS if k not in ("auto", "python")] + [COMPILE_KIND]
     assert "about 3 minutes" in compile_notice("ports")
+    assert "compiling the MNA kernel" in compile_notice("compiled")  # not "compiled kernel"
     assert "about a minute and a half" in compile_notice("compiled")
     assert "about 10 seconds" in compile_notice(COMPILE_KIND)
     for kind in kinds:

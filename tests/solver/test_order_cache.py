@@ -103,7 +103,7 @@ def test_the_trials_compiled_code_is_compiled_at_the_start_announced_with_the_ke
         def on_end(self, ev):
             pass
 
-    with pytest.warns(KernelCompileWarning, match="compiling the compiled kernel"):
+    with pytest.warns(KernelCompileWarning, match="compiling the MNA kernel"):
         with event.install_listener("numba:compile", Compiles()):
             waves = simulate(circuit, options)
     assert waves.stats["kernel"] == "compiled"

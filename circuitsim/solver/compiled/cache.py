@@ -234,6 +234,11 @@ def record_compile_seconds(kind: str, seconds: float) -> None:
         pass
 
 
+def kernel_label(kind: str) -> str:
+    """A kernel's name in messages: "MNA" for ``kernel="compiled"`` (the option's value)."""
+    return "MNA" if kind == "compiled" else kind
+
+
 def compile_notice(kind: str) -> str:
     """The one-line announcement of a cold compile of kernel ``kind``, with an estimate."""
     seconds = last_compile_seconds(kind)
@@ -243,6 +248,6 @@ def compile_notice(kind: str) -> str:
         else FIRST_COMPILE.get(kind, "up to a minute") + ", longer on a loaded machine"
     )
     return (
-        f"compiling the {kind} kernel (its first use since it was installed or changed; "
-        f"{estimate}); the machine code is then cached in {numba_folder()}"
+        f"compiling the {kernel_label(kind)} kernel (its first use since it was installed or "
+        f"changed; {estimate}); the machine code is then cached in {numba_folder()}"
     )

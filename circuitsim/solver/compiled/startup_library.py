@@ -26,7 +26,11 @@ from pathlib import Path
 
 from circuitsim.atomic import write_text_atomic
 from circuitsim.solver import jit
-from circuitsim.solver.compiled.cache import last_compile_seconds, record_compile_seconds
+from circuitsim.solver.compiled.cache import (
+    kernel_label,
+    last_compile_seconds,
+    record_compile_seconds,
+)
 from circuitsim.solver.errors import KernelCompileWarning, StartupLibraryWarning
 
 FIRST_BUILD = "about 20 s"  # the ports kernel's build after its compile, measured: 17-20 s
@@ -84,8 +88,8 @@ def notice(kind: str) -> str:
     seconds = last_compile_seconds(timing_key(kind))
     estimate = f"about {seconds:.0f} s" if seconds is not None else FIRST_BUILD
     return (
-        f"building the start-up library of the {kind} kernel (once; {estimate}): later "
-        "processes run its machine code without loading numba"
+        f"building the start-up library of the {kernel_label(kind)} kernel (once; {estimate}): "
+        "later processes run its machine code without loading numba"
     )
 
 
@@ -141,7 +145,8 @@ def build(kind: str) -> Path | None:
             retry = "tried again by the next process"
         warnings.warn(
             StartupLibraryWarning(
-                f"the start-up library of the {kind} kernel could not be built ({reason}); "
+                f"the start-up library of the {kernel_label(kind)} kernel could not be built "
+                f"({reason}); "
                 f"processes load numba's machine code instead (about 0.5 s more at "
                 f"start-up); {retry}"
             ),
