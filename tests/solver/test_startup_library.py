@@ -156,3 +156,27 @@ print(json.dumps([before, jit.library_in_use(), "numba" in sys.modules, same]))
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout.strip().splitlines()[-1]) == [True, False, True, True]
+
+
+def test_the_library_takes_only_the_types_it_was_built_for():
+    """pycc's machine code reads an argument's memory unchecked (a float32 table in place of
+    a float64 one crashed the process): each call's arguments are checked first."""
+    import numpy as np
+
+    table = np.zeros((3, 2))
+    key = jit.argument_key(table)
+    assert key == ["array", "<f8", 2, "C", True]
+    assert jit.takes(key, np.ones((5, 2)))  # other sizes: the same type
+    assert not jit.takes(key, table.astype(np.float32))
+    assert not jit.takes(key, np.zeros(3))  # other dimensions
+    assert not jit.takes(key, np.asfortranarray(np.zeros((3, 2))))
+    frozen = np.zeros((3, 2))
+    frozen.flags.writeable = False
+    assert not jit.takes(key, frozen)  # the code may write into it
+    assert jit.takes(["array", "<f8", 2, "A", False], np.asfortranarray(frozen))
+    pair = (table, 1.5)
+    assert jit.takes(jit.argument_key(pair), (np.ones((1, 2)), 2.0))
+    assert not jit.takes(jit.argument_key(pair), (np.ones((1, 2)), 2))  # an int for a float
+    assert not jit.takes(jit.argument_key(pair), (np.ones((1, 2)),))
+    assert not jit.takes(jit.argument_key(pair), [np.ones((1, 2)), 2.0])  # not a tuple
+    assert jit.takes(["bool"], True) and not jit.takes(["int64"], True)
