@@ -171,6 +171,11 @@ def signature_name(name: str, k: int) -> str:
     return name if k == 0 else f"{name}__{k}"
 
 
+def numba_installed() -> bool:
+    """Whether numba can be imported (looked up, not imported: the library needs none)."""
+    return importlib.util.find_spec("numba") is not None
+
+
 def library_in_use() -> bool:
     """Whether this process runs kernels from the start-up library (numba not yet needed)."""
     with _LOCK:

@@ -48,6 +48,7 @@ from circuitsim.solver.errors import (
     RunLimitError,
     SingularMatrixError,
 )
+from circuitsim.solver.jit import numba_installed
 from circuitsim.solver.system import MnaSystem
 from circuitsim.solver.transient import recorded, run_transient, start_transient, wall_deadline
 
@@ -65,9 +66,7 @@ _ANNOUNCED: set[str] = set()
 def kernel_unavailable(system: MnaSystem, kernel: str = "compiled") -> str | None:
     """Why the compiled ``kernel`` (``"compiled"``, the MNA kernel, or ``"ports"``) cannot
     run ``system`` (numba missing, unsupported device), or None."""
-    from importlib.util import find_spec
-
-    if find_spec("numba") is None:  # looked up, not imported (the start-up library needs none)
+    if not numba_installed():
         return "numba is not installed"
     return unsupported(system, kernel)
 

@@ -77,9 +77,12 @@ def wanted(kind: str) -> bool:
     if jit.disabled() or kind in _TRIED or jit.library_in_use():
         return False
     try:
-        return not is_built(kind)
+        built = is_built(kind)
     except OSError:
-        return False
+        built = True
+    if built:
+        _TRIED.add(kind)  # not looked up again in this process (the stamp hashes the sources)
+    return not built
 
 
 def notice(kind: str) -> str:

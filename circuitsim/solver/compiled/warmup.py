@@ -35,9 +35,9 @@ def warm_up(kernels: tuple[str, ...] = ("ports",)) -> float | None:
     CircuitInputError
         An unknown kernel.
     """
-    from importlib.util import find_spec
+    from circuitsim.solver.jit import numba_installed
 
-    if find_spec("numba") is None:  # looked up, not imported (the start-up library needs none)
+    if not numba_installed():
         return None
 
     from circuitsim.netlist.reader import parse_netlist
