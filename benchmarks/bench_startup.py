@@ -17,7 +17,8 @@ includes waiting for a core):
    the submodules of numpy that scipy.sparse's array-API layer imports),
    scipy.sparse and scipy.linalg (MnaSystem's matrices, LAPACK), numba, and loading one small
    cached kernel (numba's runtime); then the same kernel from the start-up library instead
-   (solver/jit.py: no numba);
+   (solver/jit.py: no numba). The processes of tables 2 and 3 start OpenBLAS on one thread,
+   as ``circuitsim.cli.run`` starts a process (``cli.blas_threads``);
 4. peak memory (``ru_maxrss``) of a 50 s TL074 run, every signal against ``--probe``.
 
 Every process runs this checkout (PYTHONPATH) with Python's bytecode cache on, in a folder of
@@ -153,6 +154,13 @@ def environment(pycache: Path | None, checkout: Path = REPO) -> dict:
     return env
 
 
+def as_cli(env: dict) -> dict:
+    """``env`` as ``circuitsim.cli.run`` sets it for its process: OpenBLAS on one thread
+    unless the environment says otherwise (cli.blas_threads), for the processes that
+    measure parts of a simulate process without its entry point."""
+    return {"OPENBLAS_NUM_THREADS": "1", **env}
+
+
 def median_of(runs: list[dict], key: str) -> float:
     return statistics.median(r[key] for r in runs)
 
@@ -203,7 +211,7 @@ def phases(folder: Path, env: dict, log) -> dict:
         command = [sys.executable, "-c", PHASES, str(netlist), str(folder / f"phases-{name}.csv")]
         samples = []
         for _ in range(max(1, REPEAT[0]) + 1):
-            done = run_process(command, env)
+            done = run_process(command, as_cli(env))
             if done["code"] != 0:
                 raise RuntimeError(f"phases {name} failed: {done['output'].strip()[-400:]}")
             marks = json.loads(done["output"].strip().splitlines()[-1])
@@ -235,7 +243,7 @@ def floor(env: dict, log) -> dict:
     ``circuitsim.cli.run`` ends one: ``gc.freeze()``, then the interpreter's shutdown)."""
     log("  floor")
     return {
-        label: repeated([sys.executable, "-c", f"{code}\n{END}"], env, label)
+        label: repeated([sys.executable, "-c", f"{code}\n{END}"], as_cli(env), label)
         for label, code in FLOOR.items()
     }
 

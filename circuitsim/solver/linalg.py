@@ -9,12 +9,23 @@ behind ``SimulationOptions.dense_limit``.
 
 from __future__ import annotations
 
-import numpy as np
-import scipy.sparse as sp
-from scipy.linalg import get_lapack_funcs
-from scipy.sparse.linalg import splu
+from functools import cache
+from typing import TYPE_CHECKING
 
-_GETRF, _GETRS = get_lapack_funcs(("getrf", "getrs"), dtype=np.float64)
+import numpy as np
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+
+
+@cache
+def lapack_lu() -> tuple:
+    """scipy's LAPACK ``dgetrf`` and ``dgetrs``, looked up at the first factorization (not at
+    import: a ports-kernel run of a uic circuit factors nothing here, and its process then
+    does not load scipy)."""
+    from scipy.linalg import get_lapack_funcs
+
+    return tuple(get_lapack_funcs(("getrf", "getrs"), dtype=np.float64))
 
 
 class SingularPivot(Exception):
@@ -29,7 +40,8 @@ class DenseLU:
     """LU factors of a dense (n, n) matrix (the matrix is left untouched)."""
 
     def __init__(self, matrix: np.ndarray):
-        lu, piv, info = _GETRF(matrix, overwrite_a=False)
+        getrf, self._getrs = lapack_lu()
+        lu, piv, info = getrf(matrix, overwrite_a=False)
         if info > 0:
             raise SingularPivot(info - 1)
         if info < 0:
@@ -38,7 +50,7 @@ class DenseLU:
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """x with A x = rhs, shape (n,)."""
-        x, _ = _GETRS(self._lu, self._piv, rhs)
+        x, _ = self._getrs(self._lu, self._piv, rhs)
         return x
 
 
@@ -46,6 +58,9 @@ class SparseLU:
     """SuperLU factors of a sparse (n, n) matrix."""
 
     def __init__(self, matrix: sp.spmatrix):
+        import scipy.sparse as sp
+        from scipy.sparse.linalg import splu
+
         try:
             self._lu = splu(sp.csc_matrix(matrix))
         except RuntimeError:
@@ -58,6 +73,8 @@ class SparseLU:
 
 def _empty_line(matrix: sp.spmatrix) -> int | None:
     """An all-zero column (or row) of ``matrix``, the likeliest floating unknown, or None."""
+    import scipy.sparse as sp
+
     csc = sp.csc_matrix(matrix)
     csc.eliminate_zeros()
     for counts in (np.diff(csc.indptr), np.diff(sp.csr_matrix(csc).indptr)):

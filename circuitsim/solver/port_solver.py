@@ -27,12 +27,8 @@ the cost of one factorization, what a direct solve costs anyway.
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.linalg import get_lapack_funcs
 
-from circuitsim.solver.linalg import factor
-
-_GETRF, _GETRS = get_lapack_funcs(("getrf", "getrs"), dtype=np.float64)
+from circuitsim.solver.linalg import factor, lapack_lu
 
 # An updated solution is accepted when its error estimate (one refinement step) is below this
 # fraction of Newton's tolerance in every unknown.
@@ -67,6 +63,8 @@ class Ports:
         """``base + W diag(g) W^T`` (dense ndarray or CSC matrix)."""
         if isinstance(base, np.ndarray):
             return base + (self.w * g) @ self.wt
+        import scipy.sparse as sp
+
         values = np.tile(g, 4)[self._keep] * self._signs
         shape = (self.size, self.size)
         return (base + sp.csc_matrix((values, (self._rows, self._cols)), shape=shape)).tocsc()
@@ -126,11 +124,12 @@ class PortSolver:
             return y0 - self.z @ ieq, True
         kernel = self.k * dg
         kernel.flat[:: kernel.shape[0] + 1] += 1.0
-        lu, piv, info = _GETRF(kernel, overwrite_a=True)
+        getrf, getrs = lapack_lu()
+        lu, piv, info = getrf(kernel, overwrite_a=True)
         if info != 0:
             return np.full_like(y0, np.nan), False
         self._kernel = (lu, piv)
-        v, _ = _GETRS(lu, piv, v0 - self.k @ ieq)
+        v, _ = getrs(lu, piv, v0 - self.k @ ieq)
         return y0 - self.z @ (ieq + dg * v), False
 
     def refine(
@@ -150,7 +149,7 @@ class PortSolver:
         residual = rhs0 - self.shifted @ x - ports.w @ port
         correction = self.lu.solve(residual)
         if self._kernel is not None:
-            v, _ = _GETRS(*self._kernel, ports.wt @ correction)
+            v, _ = lapack_lu()[1](*self._kernel, ports.wt @ correction)
             correction = correction - self.z @ (dg * v)
         if np.count_nonzero(np.abs(correction) > REFINE_FRACTION * tol):
             return None

@@ -12,9 +12,12 @@ position) and then the aligned copies are rebuilt.
 from __future__ import annotations
 
 from collections import OrderedDict
+from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
 
 
 class SparseAssembler:
@@ -81,4 +84,6 @@ class SparseAssembler:
             pos = self._positions(keys)
         data = data.copy()
         np.add.at(data, pos, values)
+        import scipy.sparse as sp  # here: a dense system never gets an assembler
+
         return sp.csc_matrix((data, self.indices, self.indptr), shape=(self.size, self.size))

@@ -4,6 +4,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from circuitsim.cli import main
 from circuitsim.solver.waveforms import Waveforms
@@ -139,6 +140,40 @@ def test_process_entry_point_freezes_the_collector_before_exit(tmp_path):
     assert code == 0 and frozen > 10_000  # the loaded modules' objects, numpy's and ours
     project = tomllib.loads((Path(__file__).parents[2] / "pyproject.toml").read_text())
     assert project["project"]["scripts"]["circuitsim"] == "circuitsim.cli:run"
+
+
+@pytest.mark.parametrize("setting, expected", [(None, 1), ("2", 2)])
+def test_process_entry_point_starts_openblas_on_one_thread(tmp_path, setting, expected):
+    """``cli.run`` starts every OpenBLAS of the process (numpy's, scipy's) on one thread, so
+    that no pool of idle threads spins beside the run (0.2 s of CPU in a wheelset process:
+    docs/performance.md section 6); a user's OPENBLAS_NUM_THREADS is kept."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    if setting is None and (os.cpu_count() or 1) < 2:
+        pytest.skip("one CPU: OpenBLAS starts one thread whatever the entry point does")
+    netlist = tmp_path / "rc.cir"
+    netlist.write_text("* rc\nV1 a 0 DC 1\nR1 a b 1k\nC1 b 0 1u\n.tran 10u 1m\n.end\n")
+    script = (
+        "import json, runpy, sys\n"
+        f"sys.argv = ['circuitsim', 'simulate', {str(netlist)!r}]\n"
+        "try:\n"
+        "    runpy.run_module('circuitsim', run_name='__main__')\n"
+        "except SystemExit:\n"
+        "    import scipy.linalg\n"
+        "    from circuitsim.solver.threads import _scan\n"
+        "    print(json.dumps([get() for get, _ in _scan()]))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    if setting is not None:
+        env["OPENBLAS_NUM_THREADS"] = setting
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          env=env)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    counts = json.loads(done.stdout.strip().splitlines()[-1])
+    assert len(counts) >= 1 and set(counts) == {expected}
 
 
 def test_summary_names_the_kernel_and_why_the_python_loop_ran(tmp_path, capsys):

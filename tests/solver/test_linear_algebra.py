@@ -61,3 +61,30 @@ def test_sparse_path_matches_dense_on_the_precision_rectifier():
     sparse = simulate(circuit, SimulationOptions(reltol=1e-6, dense_limit=0, kernel="python"))
     assert len(dense.time) == len(sparse.time)
     assert np.max(np.abs(dense["out"] - sparse["out"])) < 1e-6
+
+
+def test_ports_kernel_inverse_and_products_match_lapack_and_blas():
+    """lowrank.invert / multiply / matvec (the ports kernel's own loops, so that it never
+    loads scipy's LAPACK) against numpy's LAPACK and BLAS, on an MNA-like matrix that needs
+    row swaps (zero diagonal entries)."""
+    from circuitsim.solver.compiled.lowrank import invert, matvec, multiply
+
+    rng = np.random.default_rng(7)
+    n = 40
+    B = np.where(rng.random((n, n)) < 0.15, rng.normal(size=(n, n)), 0.0) + 3 * np.eye(n)
+    B[[0, 5, 9], [0, 5, 9]] = 0.0  # op-amp rows: no diagonal entry
+    B[0, 1] = B[5, 2] = B[9, 3] = 2.0
+    inverse = invert(B, np.empty((n, n)))
+    assert np.allclose(inverse, np.linalg.inv(B), rtol=1e-12, atol=1e-12)
+    assert np.allclose(inverse @ B, np.eye(n), atol=1e-12)
+    U, x = rng.normal(size=(n, 7)), rng.normal(size=n)
+    assert np.allclose(multiply(inverse, U, np.empty((n, 7))), inverse @ U, atol=1e-12)
+    assert np.allclose(matvec(inverse, x, np.empty(n)), inverse @ x, atol=1e-12)
+
+
+def test_ports_kernel_inverse_refuses_a_singular_matrix():
+    from circuitsim.solver.compiled.lowrank import invert
+
+    B = np.array([[1.0, 2.0, 0.0], [2.0, 4.0, 0.0], [0.0, 0.0, 1.0]])
+    with pytest.raises(np.linalg.LinAlgError):
+        invert(B, np.empty((3, 3)))

@@ -20,12 +20,19 @@ The ports kernel (ports.py, port_steps.py) solves with these in port space; the 
 from __future__ import annotations
 
 import numpy as np
+from numpy.linalg import LinAlgError
 
 from circuitsim.solver.jit import njit
 
 # A column whose update changes the solution by less than this relative amount is left out
 # of the small system (|d_i K_ii| below it: below double-precision round-off of the result).
 NEGLIGIBLE = 1e-15
+
+# B is inverted and multiplied by loops of our own (invert, multiply, matvec), not by numpy's
+# linalg: numba's LAPACK and BLAS are scipy's (scipy.linalg.cython_lapack, imported at the
+# first call), and importing scipy with the numpy submodules its array-API layer loads was
+# 0.1 s of the 0.35 s of a whole simulate process of the ideal wheelset (54 unknowns). The
+# loops invert B only below sparse_factors.SPARSE_FROM = 100 unknowns (SuperLU above).
 
 
 @njit(cache=True)
@@ -46,10 +53,10 @@ def rebuild(fac, plan, a0, values):
         if p >= 0 and q >= 0:
             B[p, q] -= g
             B[q, p] -= g
-    fac.Binv[:, :] = np.linalg.inv(B)
-    fac.Z[:, :] = np.dot(fac.Binv, plan.U)
+    invert(B, fac.Binv)
+    multiply(fac.Binv, plan.U, fac.Z)
     fac.ZT[:, :] = fac.Z.T
-    fac.K[:, :] = np.dot(plan.VT, fac.Z)
+    multiply(plan.VT, fac.Z, fac.K)
     count = 0
     for i in range(B.shape[0]):
         fac.b_ptr[i] = count
@@ -66,13 +73,78 @@ def rebuild(fac, plan, a0, values):
         fac.zrel[j] = np.max(np.abs(fac.ZdT[j]) / plan.abs_tol)
     fac.Zq[:, :] = fac.Z[:, nports:]
     fac.Kq[:, :] = fac.K[:, nports:]
-    fac.yc[:] = np.dot(fac.Binv, plan.rhs_const)
-    fac.cc[:] = np.dot(plan.VT, fac.yc)
+    matvec(fac.Binv, plan.rhs_const, fac.yc)
+    matvec(plan.VT, fac.yc, fac.cc)
     if plan.src_unit.shape[1]:
-        fac.Yb[:, :] = np.dot(fac.Binv, plan.src_unit)
-        fac.Cb[:, :] = np.dot(plan.VT, fac.Yb)
+        multiply(fac.Binv, plan.src_unit, fac.Yb)
+        multiply(plan.VT, fac.Yb, fac.Cb)
     fac.ref[:] = values
     fac.ref[nports:] = a0
+
+
+@njit(cache=True)
+def invert(B, out):
+    """out = B^-1, shapes (n, n), by Gauss-Jordan elimination with partial pivoting (rows
+    swapped to the largest remaining entry of each column; B is left untouched).
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        A column has no nonzero pivot left: B is singular (as numpy.linalg.inv raises).
+    """
+    n = B.shape[0]
+    a = B.copy()
+    out[:, :] = 0.0
+    for i in range(n):
+        out[i, i] = 1.0
+    for k in range(n):
+        row, big = k, abs(a[k, k])
+        for i in range(k + 1, n):
+            if abs(a[i, k]) > big:
+                row, big = i, abs(a[i, k])
+        if big == 0.0:
+            raise LinAlgError("Matrix is singular to machine precision.")
+        if row != k:
+            for j in range(n):
+                a[k, j], a[row, j] = a[row, j], a[k, j]
+                out[k, j], out[row, j] = out[row, j], out[k, j]
+        pivot = a[k, k]
+        for j in range(k, n):
+            a[k, j] /= pivot
+        for j in range(n):
+            out[k, j] /= pivot
+        for i in range(n):
+            factor = a[i, k]
+            if i != k and factor != 0.0:
+                for j in range(k, n):
+                    a[i, j] -= factor * a[k, j]
+                for j in range(n):
+                    out[i, j] -= factor * out[k, j]
+    return out
+
+
+@njit(cache=True)
+def multiply(A, X, out):
+    """out = A X, shapes (m, k) (k, p) -> (m, p), skipping A's zero entries."""
+    out[:, :] = 0.0
+    for i in range(A.shape[0]):
+        for k in range(A.shape[1]):
+            a = A[i, k]
+            if a != 0.0:
+                for j in range(X.shape[1]):
+                    out[i, j] += a * X[k, j]
+    return out
+
+
+@njit(cache=True)
+def matvec(A, x, out):
+    """out = A x, shapes (m, k) (k,) -> (m,)."""
+    for i in range(A.shape[0]):
+        acc = 0.0
+        for k in range(A.shape[1]):
+            acc += A[i, k] * x[k]
+        out[i] = acc
+    return out
 
 
 @njit(cache=True)

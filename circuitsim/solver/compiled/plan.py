@@ -12,7 +12,6 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-import scipy.sparse as sp
 
 from circuitsim.solver.compiled import slots
 from circuitsim.solver.compiled.terminal_plan import (
@@ -187,12 +186,14 @@ def unsupported(system: MnaSystem, kernel: str = "compiled") -> str | None:
 
 
 def _csr(name: str, matrix: np.ndarray) -> dict:
-    csr = sp.csr_matrix(matrix)
-    csr.sort_indices()
+    """The dense ``matrix``'s nonzero entries in compressed rows, column indices sorted."""
+    rows, cols = np.nonzero(matrix)  # row by row, columns ascending
+    ptr = np.zeros(matrix.shape[0] + 1, dtype=np.int64)
+    np.cumsum(np.bincount(rows, minlength=matrix.shape[0]), out=ptr[1:])
     return {
-        f"{name}_ptr": csr.indptr.astype(np.int64),
-        f"{name}_idx": csr.indices.astype(np.int64),
-        f"{name}_val": csr.data.astype(float),
+        f"{name}_ptr": ptr,
+        f"{name}_idx": cols.astype(np.int64),
+        f"{name}_val": matrix[rows, cols].astype(float),
     }
 
 

@@ -16,7 +16,6 @@ from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
-import scipy.sparse as sp
 
 from circuitsim.solver.compiled import startup_library
 from circuitsim.solver.compiled.cache import (
@@ -27,6 +26,12 @@ from circuitsim.solver.compiled.cache import (
 )
 from circuitsim.solver.compiled.failures import failure, singular_row
 from circuitsim.solver.compiled.fill import FILL_FUNCTIONS
+from circuitsim.solver.compiled.mna_orders import (
+    constant_parts,
+    pivot_order,
+    reorder,
+    singular_message,
+)
 from circuitsim.solver.compiled.order_cache import EarlierOrders, compile_trial, python_called
 from circuitsim.solver.compiled.plan import (
     KernelPlan,
@@ -36,10 +41,7 @@ from circuitsim.solver.compiled.plan import (
     unsupported,
 )
 from circuitsim.solver.compiled.slots import CFG_COUNT, MAX_STEP, PIVOT_ORDERS, TSTOP
-from circuitsim.solver.compiled.sparse_factors import factor_sparse
-from circuitsim.solver.compiled.sparse_lu import SparseLU
-from circuitsim.solver.compiled.sparse_order import pivot_orders, present_matrix, repivot
-from circuitsim.solver.compiled.terminal_plan import entry_pattern, entry_values, terminal_state
+from circuitsim.solver.compiled.terminal_plan import terminal_state
 from circuitsim.solver.devices.diode_kernel import CJO, TT
 from circuitsim.solver.errors import (
     CircuitInputError,
@@ -296,7 +298,7 @@ def _run(kind, system, tstep, tstop, tstart, tmax, uic, progress, stats, rows, f
 def _loop_state(kind, start: PortsStart, plan, rows, capacity, constant=None, earlier=None):
     """The kernel module and its state at t = 0 (with the rows it records, and the slots of
     a return to Python in the middle of a step: newton.RESUME_*); for the MNA kernel,
-    ``constant``: its (G, M), sparse (:func:`_constant_parts`), and ``earlier``: the
+    ``constant``: its (G, M), sparse (:func:`constant_parts`), and ``earlier``: the
     EarlierOrders that gets the pivot orders not chosen."""
     loop = _loop_module(kind)
     if kind == "ports":
@@ -308,7 +310,7 @@ def _loop_state(kind, start: PortsStart, plan, rows, capacity, constant=None, ea
         devices = device_states(start.families)
         terms = terminal_state(start.families["terminals"], plan.terms)
         a0 = _a0_start(start)
-        lu, *others = _pivot_order(plan, devices["gd"], devices["state"], a0, terms, constant)
+        lu, *others = pivot_order(plan, devices["gd"], devices["state"], a0, terms, constant)
         for other in others:  # the other column orders' (tried when a pivot gets small)
             earlier.keep(other)
         state = initial_state(plan, start.families, start.x, start.q0.copy(), capacity, lu)
@@ -355,18 +357,6 @@ def _mid_step(kind, st, rows) -> tuple:
     return (nw.MidStep(*kept, rows),)
 
 
-def _reorder(plan, st, a0: float) -> int:
-    """A new pivot order (SuperLU) at the present matrix, in place in st.lu, as the MNA loop
-    asks (newton.FACTOR); 0, or nonzero when it has no room for the fill or is singular."""
-    g_switch = np.where(np.asarray(st.state, dtype=bool), plan.g_switch[:, 0], plan.g_switch[:, 1])
-    values = np.concatenate((st.gd, g_switch))
-    extra = entry_values(plan.terms, st.terms)
-    try:
-        return repivot(st.lu, plan.port_p, plan.port_n, values, a0, extra, _changing(plan))
-    except np.linalg.LinAlgError:  # singular
-        return 2
-
-
 def factors_in_python(state) -> bool:
     """Whether the ports kernel's factorizations are made in Python (SuperLU, for a state
     without room for the dense matrices: above sparse_factors.SPARSE_FROM unknowns)."""
@@ -381,6 +371,8 @@ def _factor(plan, st, a0: float) -> None:
     if st.fac.Binv.shape[0] == st.fac.yc.size:
         nw.dense_factor(plan, st, a0)
     else:
+        from circuitsim.solver.compiled.sparse_factors import factor_sparse
+
         factor_sparse(plan, st, a0)
 
 
@@ -389,51 +381,6 @@ def _a0_start(start: PortsStart) -> float:
     options = start.system.options
     step = options.fixed_step or float(start.plan.real[MAX_STEP])
     return (2.0 if options.method == "trap" else 1.5) / step
-
-
-def _pivot_order(plan, gd, state, a0, terms, constant, spare: float = 1.5) -> list[SparseLU]:
-    """sparse_order.pivot_orders at the junction conductances ``gd``, switch states
-    ``state``, a0 and the multi-terminal elements' state ``terms`` (with room for ``spare``
-    times the fill in L and U, for later orders): the chosen order first; ``constant``:
-    (G, M), sparse (:func:`_constant_parts`)."""
-    values, extra = _present(plan, gd, state, terms)
-    G, M = constant
-    return pivot_orders(G, M, plan.port_p, plan.port_n, values, a0, spare, extra,
-                        _changing(plan))  # fmt: skip
-
-
-def _changing(plan) -> np.ndarray:
-    """(nports,) bool: the ports whose conductance changes at every Newton iteration, the
-    charged junctions (the switches' change at their toggles)."""
-    return np.concatenate([plan.charged, np.zeros(plan.sw.shape[0], dtype=bool)])
-
-
-def _constant_parts(system: MnaSystem) -> tuple[sp.csc_matrix, sp.csc_matrix]:
-    """The system's G and M in compressed columns, as the plan's dense copies give them
-    (duplicates summed, no stored zeros) without scanning those (n^2 entries: 2 x 6.6
-    million at the 64-mass chain's 2562 unknowns)."""
-    parts = []
-    for matrix in (system.G, system.M):
-        part = sp.csc_matrix(matrix, dtype=float, copy=True)
-        part.sum_duplicates()
-        part.eliminate_zeros()
-        parts.append(part)
-    return parts[0], parts[1]
-
-
-def _present(plan, gd, state, terms):
-    """The ports' conductances and the extra entries (rows, cols, values) at these states."""
-    g_switch = np.where(np.asarray(state, dtype=bool), plan.g_switch[:, 0], plan.g_switch[:, 1])
-    values = np.concatenate([np.asarray(gd, dtype=float), g_switch])
-    return values, (*entry_pattern(plan.terms), entry_values(plan.terms, terms))
-
-
-def _singular(system, plan, gd, state, a0, terms) -> str:
-    """describe_singular for the whole matrix at these device states (dense: an error path)."""
-    values, extra = _present(plan, gd, state, terms)
-    G, M = _constant_parts(system)
-    matrix = present_matrix(G, M, plan.port_p, plan.port_n, values, a0, extra)
-    return system.describe_singular(singular_row(matrix.toarray()))
 
 
 def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fixed_pauses=False):
@@ -448,7 +395,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     fixed = options.fixed_step
     tstop, max_step = float(plan.real[TSTOP]), float(plan.real[MAX_STEP])
     capacity = int(min(max(2 * (tstop / (fixed or max_step)) + 100, 1000), 5_000_000))
-    constant = _constant_parts(system) if kind != "ports" else None
+    constant = constant_parts(system) if kind != "ports" else None
     orders = EarlierOrders()  # the MNA kernel's earlier pivot orders
     # the compiled functions the runner calls from Python (the MNA kernel's pivot orders'
     # fill, its trials of earlier pivot orders): compiled with the kernel, announced with it,
@@ -464,7 +411,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
         devices = device_states(start.families)
         terms = terminal_state(start.families["terminals"], plan.terms)
         raise SingularMatrixError(
-            _singular(system, plan, devices["gd"], devices["state"], _a0_start(start), terms)
+            singular_message(system, plan, devices["gd"], devices["state"], _a0_start(start), terms)
         ) from None
     st.fs[nw.H] = fixed if fixed else min(tstop / 100, tstep) / 10
     st.fs[nw.SAVED_H] = tstop / 50
@@ -503,7 +450,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
                 if earlier is not None:
                     st = st._replace(lu=earlier)
                     continue
-                if _reorder(plan, st, a0) == 0:
+                if reorder(plan, st, a0) == 0:
                     continue
                 # no room for its fill, or singular: the step is undone, as the loop's REPIVOT
                 st.fs[:] = mid[0].fs_start
@@ -520,7 +467,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
                     raise np.linalg.LinAlgError("no pivot order suits the matrix")
                 repivoted_at = int(st.ints[nw.ATTEMPTS])
                 a0 = float(st.fs[loop.REPIVOT_A0])
-                lu = _pivot_order(plan, st.gd, st.state, a0, st.terms, constant, 2.0)[0]
+                lu = pivot_order(plan, st.gd, st.state, a0, st.terms, constant, 2.0)[0]
                 st = st._replace(lu=lu)
                 made += 1
             elif status == loop.PAUSED:
@@ -549,7 +496,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
         if kind == "ports":
             raise SingularMatrixError(system.describe_singular(singular_row(st.fac.B))) from None
         raise SingularMatrixError(
-            _singular(system, plan, st.gd, st.state, float(st.fs[loop.REPIVOT_A0]), st.terms)
+            singular_message(system, plan, st.gd, st.state, float(st.fs[loop.REPIVOT_A0]), st.terms)
         ) from None
     finally:
         stats["accepted"] = int(st.ints[nw.ACCEPTED])

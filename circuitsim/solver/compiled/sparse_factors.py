@@ -12,8 +12,6 @@ for those columns; numba cannot call SuperLU, so the loop returns to Python for 
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.linalg import splu
 
 from circuitsim.solver.compiled.newton import FACTORIZATIONS, VERSION
 
@@ -30,6 +28,9 @@ def sparse_port_factors(
     fill the factorization's arrays in place (:class:`~circuitsim.solver.compiled.plan.Factors`
     without B and its inverse). Returns 0, or 1 when B is singular (nothing filled).
     """
+    import scipy.sparse as sp  # here: a small circuit's process never loads scipy
+    from scipy.sparse.linalg import splu
+
     n = G.shape[0]
     nports = port_p.size
     g = values[:nports]
