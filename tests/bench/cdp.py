@@ -6,7 +6,9 @@ import asyncio
 import base64
 import itertools
 import json
+import os
 import shutil
+import signal
 import subprocess
 import tempfile
 import time
@@ -44,6 +46,7 @@ class Chromium:
             [binary, *FLAGS, f"--user-data-dir={self.profile.name}", "about:blank"],
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
+            start_new_session=True,  # its helper processes in one group, stopped together
         )
         port_file = Path(self.profile.name) / "DevToolsActivePort"
         deadline = time.monotonic() + timeout
@@ -100,4 +103,22 @@ class Chromium:
         if getattr(self, "loop", None) is not None:
             self.loop.close()
         stop_process(self.process)
-        self.profile.cleanup()
+        # Chromium's helpers (renderer, utility, crash handler) can outlive the browser for
+        # a moment and write into the profile while it is removed ("Directory not empty:
+        # 'Default'", seen in CI): stop the whole group, then remove the profile, retrying
+        # briefly while a helper's last write lands.
+        try:
+            os.killpg(self.process.pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+        for attempt in range(10):
+            try:
+                shutil.rmtree(self.profile.name)
+                break
+            except FileNotFoundError:
+                break
+            except OSError:
+                if attempt == 9:
+                    raise
+                time.sleep(0.2)
+        self.profile.cleanup()  # nothing left: marks the folder done
