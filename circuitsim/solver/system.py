@@ -150,15 +150,7 @@ class MnaSystem:
 
     def _matrix(self, stamps: Stamps):
         r, c, v = stamps.triplets()
-        n = self.size
-        if self.dense:
-            # float even without a stamp (bincount of no weights is int64: a circuit without
-            # conductances then made numba compile the kernels anew, silently)
-            flat = np.bincount(r * n + c, weights=v, minlength=n * n).astype(float, copy=False)
-            return flat.reshape(n, n)
-        import scipy.sparse as sp
-
-        return sp.csc_matrix((v, (r, c)), shape=(n, n))
+        return _summed(r, c, v, (self.size, self.size), self.dense, "csc")
 
     def _initial_conditions(self) -> tuple[np.ndarray, np.ndarray]:
         nodes, values = [], []
@@ -356,18 +348,20 @@ class MnaSystem:
             ctx.qdot[self.linear_slots] = ctx.a0 * q + ctx.hist[self.linear_slots]
 
 
-def _summed(rows, cols, values, shape: tuple[int, int], dense: bool):
-    """The matrix of ``shape`` whose entries are the sums of the triplets' values: an
-    ndarray when ``dense``, else scipy CSR. scipy is imported only for the sparse form: a
-    process whose circuit is small (below SimulationOptions.dense_limit) and runs on the
-    ports kernel does not load it (0.1 s of a 0.35 s simulate of the ideal wheelset)."""
+def _summed(rows, cols, values, shape: tuple[int, int], dense: bool, form: str = "csr"):
+    """The matrix of ``shape`` whose entries are the sums of the triplets' values: a float
+    ndarray when ``dense`` (float even without a triplet: an int64 G once made numba compile
+    the kernels anew, silently), else scipy's ``form`` ("csr" or "csc"). scipy is imported
+    only for the sparse form: a process whose circuit is small (below
+    SimulationOptions.dense_limit) and runs on the ports kernel does not load it (0.14 of
+    0.37 s of CPU of a simulate of the ideal wheelset, docs/performance.md section 6)."""
     if dense:
         out = np.zeros(shape)
         np.add.at(out, (rows, cols), values)
         return out
     import scipy.sparse as sp
 
-    return sp.csr_matrix((values, (rows, cols)), shape=shape)
+    return getattr(sp, f"{form}_matrix")((values, (rows, cols)), shape=shape)
 
 
 def _topology_findings(circuit: Circuit) -> list[str]:

@@ -30,9 +30,9 @@ NEGLIGIBLE = 1e-15
 
 # B is inverted and multiplied by loops of our own (invert, multiply, matvec), not by numpy's
 # linalg: numba's LAPACK and BLAS are scipy's (scipy.linalg.cython_lapack, imported at the
-# first call), and importing scipy with the numpy submodules its array-API layer loads was
-# 0.1 s of the 0.35 s (wall) of a whole simulate process of the ideal wheelset. The
-# loops invert B only below sparse_factors.SPARSE_FROM = 100 unknowns (SuperLU above).
+# first call); without scipy a whole simulate process of the ideal wheelset took 0.23
+# against 0.37 s of CPU (docs/performance.md section 6). The loops invert B only below
+# sparse_factors.SPARSE_FROM = 100 unknowns (SuperLU above).
 
 
 @njit(cache=True)
