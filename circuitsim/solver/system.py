@@ -15,6 +15,7 @@ import numpy as np
 
 from circuitsim.netlist.circuit import Circuit
 from circuitsim.netlist.names import fold
+from circuitsim.solver.compressed import Compressed, product
 from circuitsim.solver.context import Stamps, StepContext
 from circuitsim.solver.devices import FAMILIES, DeviceFamily
 from circuitsim.solver.errors import CircuitInputError, SingularMatrixError
@@ -77,29 +78,42 @@ class MnaSystem:
         stamps = Stamps()
         for family in self.families:
             family.stamp_linear(stamps)
-        self.G = self._matrix(stamps)
         charges, incidence = Stamps(), Stamps()
         for family in self.families:
             family.stamp_charges(charges, incidence)
         nq = self.n_charges = layout.n_charges
-        r, c, v = charges.triplets()
-        self.Q = _summed(r, c, v, (nq, n), self.dense)
-        self.linear_slots = np.unique(r)
-        self.Q_linear = self.Q[self.linear_slots]
-        r, c, v = incidence.triplets()
-        self.E = _summed(r, c, v, (n, nq), self.dense)
-        # dense when the matrices are small (a sparse matvec costs several microseconds of
-        # overhead, a 50 x 10 dense one under one)
-        self._E_step = self.E
-        self._Q_step = self.Q_linear
-        self.M = self.E @ self.Q if self.dense else (self.E @ self.Q).tocsr()
+        q_rows = charges.triplets()[0]
+        self.linear_slots = np.unique(q_rows)
+        if self.dense:
+            self.G = self._matrix(stamps)
+            self.Q = _summed(*charges.triplets(), (nq, n), True)
+            self.E = _summed(*incidence.triplets(), (n, nq), True)
+            self.M = self.E @ self.Q
+            self.Q_linear = self.Q[self.linear_slots]
+            # dense when the matrices are small (a sparse matvec costs several microseconds
+            # of overhead, a 50 x 10 dense one under one)
+            self._E_step = self.E
+            self._Q_step = self.Q_linear
+            self._assembler = None
+        else:
+            # numpy's compressed form; scipy's (G, Q, E, M, ...) at their first use
+            # (__getattr__): the MNA kernel's run takes these and does not load scipy
+            E = Compressed.from_triplets(*incidence.triplets(), (n, nq))
+            Q = Compressed.from_triplets(*charges.triplets(), (nq, n))
+            self._parts = {
+                "G": Compressed.from_triplets(*stamps.triplets(), (n, n)),
+                "Q": Q,
+                "E": E,
+                "M": product(E, Q),
+            }
+            self._E_step = E
+            self._Q_step = Q.take_rows(self.linear_slots)
         self.node_index = np.flatnonzero(self.voltage)
         self.ic_nodes, self.ic_values = self._initial_conditions()
         # (unknowns, charges or None) of a uic start when set (solver/continuation.py: a run
         # that carries on from where another ended); None: the .ic and IC= values
         self.start: tuple[np.ndarray, np.ndarray | None] | None = None
         self._bases: OrderedDict = OrderedDict()
-        self._assembler = None if self.dense else SparseAssembler(n, CACHE_SIZE)
         self._factors: OrderedDict = OrderedDict()
         # Newton confined to the junction ports (port_solver.py) when every nonlinear family
         # is a set of two-terminal junctions; subclasses that solve differently opt out.
@@ -120,6 +134,26 @@ class MnaSystem:
         self.signals = {f"v({fold(name)})": layout.node(name) for name in layout.external_nodes}
         for family in self.families:
             self.signals.update(family.output_signals())
+
+    def __getattr__(self, name: str):
+        """scipy's sparse forms of a sparse system, built at their first use."""
+        parts = self.__dict__.get("_parts")
+        if name not in _SCIPY_FORMS or parts is None:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        G, Q, E, M = (parts[key].scipy("csr") for key in "GQEM")
+        self.G = parts["G"].scipy("csc")
+        self.Q, self.E, self.M = Q, E, M
+        self.Q_linear = Q[self.linear_slots]
+        self._assembler = SparseAssembler(self.size, CACHE_SIZE)
+        return getattr(self, name)
+
+    def compressed(self, name: str) -> Compressed:
+        """Matrix ``name`` ("G", "Q", "E" or "M") in numpy's compressed form (no stored
+        zeros), without loading scipy."""
+        parts = self.__dict__.get("_parts")
+        if parts is not None:
+            return parts[name]
+        return Compressed.from_dense(getattr(self, name))
 
     # --- assembly -------------------------------------------------------------------------
 
@@ -346,6 +380,10 @@ class MnaSystem:
             q = self._Q_step @ x
             ctx.q[self.linear_slots] = q
             ctx.qdot[self.linear_slots] = ctx.a0 * q + ctx.hist[self.linear_slots]
+
+
+# the attributes of a sparse system built with scipy at their first use
+_SCIPY_FORMS = frozenset({"G", "Q", "E", "M", "Q_linear", "_assembler"})
 
 
 def _summed(rows, cols, values, shape: tuple[int, int], dense: bool, form: str = "csr"):

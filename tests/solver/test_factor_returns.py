@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from circuitsim.solver import SimulationOptions
+from circuitsim.solver.compiled import sparse_order
 from circuitsim.solver.engine import build_system
 from tests.solver.test_compiled_chain import chain_circuit
 
@@ -69,6 +70,7 @@ import sys
 from pathlib import Path
 from numba.core import event
 from circuitsim.solver import SimulationOptions, simulate
+from circuitsim.solver.compiled import sparse_order
 from tests.solver.test_compiled_chain import chain_circuit
 
 
@@ -86,9 +88,12 @@ class Compiles(event.Listener):
 compiles = Compiles()
 event.register("numba:compile", compiles)
 circuit = chain_circuit(Path(sys.argv[1]), 4, 0.5)
+simulate(circuit, SimulationOptions.from_circuit(circuit, kernel="compiled"))  # our orders
+# SuperLU's COLAMD orders need new ones in this run: the loop returns for them
+sparse_order.OWN_ORDER_LIMIT, sparse_order.SUPERLU_ORDERS = 0, ("COLAMD",)
 for kernel in ("ports", "compiled"):
     waves = simulate(circuit, SimulationOptions.from_circuit(circuit, kernel=kernel))
-    # pivot orders the MNA loop returned for: made by SuperLU, or kept ones taken again
+    # pivot orders the MNA loop returned for: made anew, or kept ones taken again
     orders = waves.stats.get("pivot_orders", 0) + waves.stats.get("orders_reused", 0)
     print(kernel, waves.stats.get("factor_returns"), orders)
 print("compiled:", compiles.names)
@@ -105,6 +110,10 @@ def test_a_warm_process_compiles_nothing_for_its_factorizations(tmp_path):
     circuit = chain_circuit(tmp_path, 4, 0.5)
     for kernel in ("ports", "compiled"):  # the kernels cached (compiled here if they were not)
         simulate(circuit, SimulationOptions.from_circuit(circuit, kernel=kernel))
+    with pytest.MonkeyPatch.context() as patch:  # and the SuperLU path the script takes
+        patch.setattr(sparse_order, "OWN_ORDER_LIMIT", 0)
+        patch.setattr(sparse_order, "SUPERLU_ORDERS", ("COLAMD",))
+        simulate(circuit, SimulationOptions.from_circuit(circuit, kernel="compiled"))
     root = Path(__file__).resolve().parents[2]
     done = subprocess.run(
         [sys.executable, "-c", NO_COMPILE_SCRIPT, str(tmp_path)],

@@ -68,9 +68,11 @@ def test_the_trials_compiled_code_is_compiled_at_the_start_announced_with_the_ke
     the announcement and before the first trial."""
     from circuitsim.solver.compiled import order_cache, runner
 
-    # COLAMD's orders, as measured (SuperLU's minimum degree on A + A^T, which the runner
-    # takes for this circuit, needs no new order before 1.3 s)
-    monkeypatch.setattr(sparse_order, "COLUMN_ORDERS", ("COLAMD",))
+    # SuperLU's COLAMD orders, as measured (our own order, which the runner takes for this
+    # circuit's 266 unknowns, and SuperLU's minimum degree on A + A^T need no new order
+    # before 1.3 s)
+    monkeypatch.setattr(sparse_order, "OWN_ORDER_LIMIT", 0)
+    monkeypatch.setattr(sparse_order, "SUPERLU_ORDERS", ("COLAMD",))
     circuit = read_netlist(TL074_WHEELSET)
     # the first trial of an earlier order: at 1.19 s (measured with the MNA kernel's chord;
     # 0.63 s before it)

@@ -4,12 +4,11 @@ magnitude, and a new pivot order when a pivot becomes too small."""
 
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
+from circuitsim.solver.compiled import sparse_order
 from circuitsim.solver.compiled.fill import reach_sets
 from circuitsim.solver.compiled.sparse_lu import (
     ALL_COLUMNS,
@@ -20,8 +19,8 @@ from circuitsim.solver.compiled.sparse_lu import (
     refactor_marked,
 )
 from circuitsim.solver.compiled.sparse_order import (
-    COLUMN_ORDERS,
     ORDER_MARGIN,
+    SUPERLU_ORDERS,
     _on_order,
     analyse,
     iteration_cost,
@@ -29,6 +28,7 @@ from circuitsim.solver.compiled.sparse_order import (
     present_matrix,
     repivot,
 )
+from circuitsim.solver.compressed import Compressed
 
 
 def mna_like(n: int, seed: int):
@@ -153,12 +153,12 @@ def test_iteration_cost_counts_the_reached_columns_and_the_solves():
     # diagonal and (0, 1), (1, 2), (2, 3); column j is computed from column j - 1
     n = 4
     G = sp.diags([np.full(n - 1, -1.0), np.full(n, 3.0), np.full(n - 1, -1.0)], [-1, 0, 1])
-    G = sp.csc_matrix(G)
-    pattern = G.tocoo()
-    natural = SimpleNamespace(perm_r=np.arange(n), perm_c=np.arange(n))
+    G = Compressed.of(G)
+    natural = np.arange(n, dtype=np.int64)
     port_p, port_n = np.array([0, 3]), np.array([-1, -1])
-    lu = _on_order(G, sp.csc_matrix((n, n)), port_p, port_n, np.zeros(0, dtype=np.int64),
-                   np.zeros(0, dtype=np.int64), pattern, natural, 1.0)  # fmt: skip
+    lu = _on_order(G, Compressed.of(np.zeros((n, n))), port_p, port_n,
+                   np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), G, natural,
+                   natural, 1.0)  # fmt: skip
     solves = 3 + 7  # L's and U's entries
     assert iteration_cost(lu, np.array([False, False])) == solves
     # a port at node 3: column 3 alone, one L column (2's: 1 entry) and its own (none)
@@ -182,11 +182,14 @@ def test_the_reach_sets_hold_the_columns_a_refactor_redoes():
     assert first.tolist() == [0, 1, 0, 2]  # the empty set: none (the number of words)
 
 
-def test_the_pivot_order_of_fewer_operations_is_chosen_and_the_other_kept():
+@pytest.mark.parametrize("search", ["ours", "SuperLU"])
+def test_the_pivot_order_of_fewer_operations_is_chosen_and_the_other_kept(search, monkeypatch):
     n, (G, M, port_p, port_n), values = 60, mna_like(60, 1), PORT_VALUES
+    if search == "SuperLU":  # above the limit: SuperLU's column orders
+        monkeypatch.setattr(sparse_order, "OWN_ORDER_LIMIT", n - 1)
     changing = np.array([True, True, False, False])
     orders = pivot_orders(G, M, port_p, port_n, values, 1e5, changing=changing)
-    assert len(orders) == len(COLUMN_ORDERS)
+    assert len(orders) == (1 if search == "ours" else len(SUPERLU_ORDERS))
     costs = [iteration_cost(lu, changing) for lu in orders]
     assert all(costs[0] <= cost / ORDER_MARGIN for cost in costs[1:])
     for lu in orders:  # each one solves the matrix

@@ -87,27 +87,6 @@ def lu_pattern(a_ptr, a_row):
 
 
 @njit(cache=True)
-def upper_by_rows(u_ptr, u_row):
-    """U's strictly upper pattern by rows (ut_ptr, ut_col; columns ascending in each row)
-    from its columns (``u_ptr``, ``u_row``: the diagonal last in each column)."""
-    n = u_ptr.size - 1
-    ut_ptr = np.zeros(n + 1, dtype=np.int64)
-    for j in range(n):
-        for e in range(u_ptr[j], u_ptr[j + 1] - 1):
-            ut_ptr[u_row[e] + 1] += 1
-    for k in range(n):
-        ut_ptr[k + 1] += ut_ptr[k]
-    ut_col = np.empty(ut_ptr[n], dtype=np.int64)
-    filled = ut_ptr[:n].copy()
-    for j in range(n):
-        for e in range(u_ptr[j], u_ptr[j + 1] - 1):
-            k = u_row[e]
-            ut_col[filled[k]] = j
-            filled[k] += 1
-    return ut_ptr, ut_col
-
-
-@njit(cache=True)
 def reach_sets(u_ptr, u_row, seed_ptr, seed_col):
     """For each set s of columns (``seed_col[seed_ptr[s]:seed_ptr[s + 1]]``), the columns a
     change of their entries makes sparse_lu.refactor_marked redo: those columns, and column j
@@ -136,4 +115,4 @@ def reach_sets(u_ptr, u_row, seed_ptr, seed_col):
     return reach, first
 
 
-FILL_FUNCTIONS = (lu_pattern, upper_by_rows, reach_sets)  # called from Python at a run's start
+FILL_FUNCTIONS = (lu_pattern, reach_sets)  # called from Python at a run's start

@@ -1,7 +1,7 @@
-"""The MNA kernel's pivot orders, found in Python (SuperLU, sparse_order.py) for the compiled
-loop: at its start, when it asks for a new one (newton.FACTOR), and the message of a
-singular matrix. scipy is imported here, not by the runner: a small circuit's run on the
-ports kernel does not load it."""
+"""The MNA kernel's pivot orders, found by sparse_order.py (our minimum degree and threshold
+pivoting, compiled/pivot_search.py) for the compiled loop: at its start, when it asks for a
+new one (newton.FACTOR), and the message of a singular matrix. No scipy: the MNA kernel's
+process does not load it."""
 
 from __future__ import annotations
 
@@ -14,8 +14,9 @@ from circuitsim.solver.system import MnaSystem
 
 
 def reorder(plan, st, a0: float) -> int:
-    """A new pivot order (SuperLU) at the present matrix, in place in st.lu, as the MNA loop
-    asks (newton.FACTOR); 0, or nonzero when it has no room for the fill or is singular."""
+    """A new pivot order (sparse_order.repivot) at the present matrix, in place in st.lu, as
+    the MNA loop asks (newton.FACTOR); 0, or nonzero when it has no room for the fill or is
+    singular."""
     g_switch = np.where(np.asarray(st.state, dtype=bool), plan.g_switch[:, 0], plan.g_switch[:, 1])
     values = np.concatenate((st.gd, g_switch))
     extra = entry_values(plan.terms, st.terms)
@@ -47,18 +48,10 @@ def changing_ports(plan) -> np.ndarray:
 
 
 def constant_parts(system: MnaSystem) -> tuple:
-    """The system's G and M in compressed columns, as the plan's dense copies give them
-    (duplicates summed, no stored zeros) without scanning those (n^2 entries: 2 x 6.6
-    million at the 64-mass chain's 2562 unknowns)."""
-    import scipy.sparse as sp
-
-    parts = []
-    for matrix in (system.G, system.M):
-        part = sp.csc_matrix(matrix, dtype=float, copy=True)
-        part.sum_duplicates()
-        part.eliminate_zeros()
-        parts.append(part)
-    return parts[0], parts[1]
+    """The system's G and M in numpy's compressed columns (duplicates summed, no stored
+    zeros), without a dense scan (n^2 entries: 2 x 6.6 million at the 64-mass chain's 2562
+    unknowns) or scipy."""
+    return system.compressed("G"), system.compressed("M")
 
 
 def present_values(plan, gd, state, terms):

@@ -1,12 +1,12 @@
-"""Earlier pivot orders of the MNA kernel, tried before SuperLU orders anew.
+"""Earlier pivot orders of the MNA kernel, tried before a new order is searched for.
 
 A circuit whose junctions switch back and forth (the |x| blocks of a generated circuit at
 each zero crossing) makes a pivot too small at each switch, in the same few places: a new
 order suits the matrix until the next crossing, where the order before it suits again. The
 runner keeps the last few orders (copies of sparse_lu.SparseLU) and, when the kernel asks
 for a new one (newton.FACTOR), first refactors the present matrix on each kept order; one
-whose pivots all pass the threshold is taken, at the cost of a refactor instead of
-SuperLU's two passes (tens of milliseconds in Python).
+whose pivots all pass the threshold is taken, at the cost of a refactor instead of a new
+search (sparse_order.py: milliseconds to tens of milliseconds, in Python and compiled code).
 
 The trial calls compiled functions from Python. One of them (assemble) is inlined into the
 kernel, so the kernel's compile leaves no machine code for a call from Python: the first

@@ -209,8 +209,10 @@ def _unit_columns(n: int, rows: list[np.ndarray], signs: list[np.ndarray]) -> np
     return np.ascontiguousarray(unit[:n])
 
 
-def _dense(matrix) -> np.ndarray:
-    dense = matrix if isinstance(matrix, np.ndarray) else matrix.toarray()
+def _dense(system: MnaSystem, name: str) -> np.ndarray:
+    """The system's matrix ``name`` as a dense array (a sparse system's from its compressed
+    form: no scipy)."""
+    dense = getattr(system, name) if system.dense else system.compressed(name).toarray()
     return np.ascontiguousarray(dense, dtype=float)  # one dtype: one compiled kernel
 
 
@@ -259,8 +261,8 @@ def build_plan(
     port_n = np.concatenate([cat(junctions, "n", (0,), np.int64), sw[:, 1]])
 
     lin = np.asarray(system.linear_slots, dtype=np.int64)
-    E = _dense(system.E)[:, lin]
-    Q = _dense(system.Q)[lin]
+    E = _dense(system, "E")[:, lin]
+    Q = _dense(system, "Q")[lin]
     W = np.zeros((n + 1, md + ms))
     columns = np.arange(md + ms)
     np.add.at(W, (port_p, columns), 1.0)
@@ -307,8 +309,8 @@ def build_plan(
     ints[slots.MAX_STEPS] = options.max_steps
     ints[slots.UIC] = int(uic)
     plan = KernelPlan(
-        G=_dense(system.G) if dense else np.zeros((0, 0)),
-        M=_dense(system.M) if dense else np.zeros((0, 0)),
+        G=_dense(system, "G") if dense else np.zeros((0, 0)),
+        M=_dense(system, "M") if dense else np.zeros((0, 0)),
         U=U,
         VT=VT,
         **_csr("VT", VT),

@@ -5,7 +5,8 @@
 reference engine (dc.py); the time loop runs compiled (time_loop.py here). The
 loop returns to Python every tenth of the run (progress) and after a bounded number of steps
 (the wall-time limit, Ctrl-C), when its output arrays are full, and for a factorization it
-cannot make in compiled code (SuperLU: newton.FACTOR, then it goes on where it stopped).
+cannot make in compiled code (a new pivot order, or the ports kernel's SuperLU: newton.FACTOR,
+then it goes on where it stopped).
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from circuitsim.solver.compiled.mna_orders import (
     singular_message,
 )
 from circuitsim.solver.compiled.order_cache import EarlierOrders, compile_trial, python_called
+from circuitsim.solver.compiled.pivot_search import SEARCH_FUNCTIONS
 from circuitsim.solver.compiled.plan import (
     KernelPlan,
     build_plan,
@@ -401,7 +403,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     # fill, its trials of earlier pivot orders): compiled with the kernel, announced with it,
     # not in the middle of the run
     cold_helpers = kind != "ports" and any(
-        is_cold(f) for f in (*FILL_FUNCTIONS, *python_called(plan))
+        is_cold(f) for f in (*FILL_FUNCTIONS, *SEARCH_FUNCTIONS, *python_called(plan))
     )
     entry = _loop_entry(kind)
     compiling = _announce_compile(kind, entry, cold_helpers)
@@ -422,7 +424,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     t_until = report_every
     st.ints[nw.PAUSE_ATTEMPTS] = FIRST_PAUSE
     began = time.perf_counter()
-    made, repivoted_at, same_step = 1, -1, 0  # pivot orders made by SuperLU
+    made, repivoted_at, same_step = 1, -1, 0  # pivot orders made (sparse_order.py)
     factored_in_python = 0  # FACTOR returns
     try:
         if kind == "ports":  # the first factorization: by the loop (newton.FIRST_FACTOR)
@@ -507,7 +509,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
             stats["configurations"] = int(st.ints[CFG_COUNT])
             stats["factor_returns"] = factored_in_python
         else:
-            # orders made by SuperLU; "orders_reused": an earlier one taken again instead
+            # orders made (sparse_order.py); "orders_reused": an earlier one taken again instead
             stats["pivot_orders"] = made + int(st.ints[PIVOT_ORDERS]) - orders.reused
             stats["orders_reused"] = orders.reused
         counted.append(int(st.ints[nw.FACTORIZATIONS]))

@@ -1,33 +1,45 @@
-"""The MNA kernel's pivot order and fill pattern, found in Python (compiled/sparse_lu.py factors
-and solves on them in compiled code).
+"""The MNA kernel's pivot order and fill pattern, found in Python and our compiled search
+(compiled/sparse_lu.py factors and solves on them in compiled code).
 
 - :func:`analyse` (once per run, and again by :func:`repivot` only when a pivot has become
-  too small): SuperLU (``scipy.sparse.linalg.splu``, threshold partial pivoting 0.1, no
-  equilibration) on the present matrix gives the row and column permutations, once for each
-  column order of ``COLUMN_ORDERS``; the pattern of L and U without pivoting follows from
-  each (compiled/fill.py), and the order whose Newton iteration costs fewest operations
-  (:func:`iteration_cost`) is kept.
+  too small): for each column order of ``COLUMN_ORDERS``, a minimum-degree column order and
+  threshold partial pivoting (0.1, the matched row preferred) on the present matrix
+  (compiled/pivot_search.py) give the row and column permutations; the pattern of L and U
+  without pivoting follows from each (compiled/fill.py), and the order whose Newton
+  iteration costs fewest operations (:func:`iteration_cost`) is kept.
 
 The matrix is ``A = G + a0 M + sum_k g_k w_k w_k^T + T`` (w_k = e_p - e_n: junction and
 switch ports; T: the entries of multi-terminal devices, ``extra`` below, at fixed (row,
 column) positions); its pattern is that of every matrix of the run, whatever the values.
+G and M are :class:`~circuitsim.solver.compressed.Compressed`: no scipy here.
 """
 
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import breadth_first_order
-from scipy.sparse.linalg import splu
 
-from circuitsim.solver.compiled.fill import lu_pattern, reach_sets, upper_by_rows
+from circuitsim.solver.compiled.fill import lu_pattern, reach_sets
+from circuitsim.solver.compiled.pivot_search import (
+    maximum_matching,
+    minimum_degree,
+    threshold_pivots,
+)
 from circuitsim.solver.compiled.sparse_lu import SparseLU
+from circuitsim.solver.compressed import Compressed
 
-# SuperLU's column orders (permc_spec) tried for each pivot order; the first is kept unless
-# another's iteration costs less than ORDER_MARGIN of its own (docs/solver.md, "The MNA
-# kernel": what the choice changes on the golden netlists and the chains)
-COLUMN_ORDERS = ("COLAMD", "MMD_AT_PLUS_A")
+# up to this many unknowns, our own pivot order (compiled/pivot_search.py: minimum degree
+# on A + A^T with a matching by size on the diagonal); above it, SuperLU's column orders
+# (COLAMD, MMD_AT_PLUS_A), whose Newton iterations cost 10-40 % less on the TL074 chains
+# and lattices, where scipy's import (0.2 s) is a small part of the run (docs/solver.md,
+# "Pivot orders")
+OWN_ORDER_LIMIT = 1000
+SUPERLU_ORDERS = ("COLAMD", "MMD_AT_PLUS_A")
+# SuperLU's orders: the first is kept unless another's iteration costs less than
+# ORDER_MARGIN of its own
 ORDER_MARGIN = 0.8
+# a column takes its matched row while that is at least this fraction of the largest
+# candidate, else the largest (SuperLU's diag_pivot_thresh, as the kernel used it)
+PIVOT_PREFERENCE = 0.1
 
 
 def port_stamps(n: int, port_p: np.ndarray, port_n: np.ndarray):
@@ -49,16 +61,26 @@ def _no_extra():
     return empty, empty, np.zeros(0)
 
 
-def present_matrix(G, M, port_p, port_n, values, a0, extra=None) -> sp.csc_matrix:
-    """A = G + a0 M + W diag(values) W^T + T as a sparse matrix (values: port conductances;
-    ``extra`` = (rows, cols, values) of T, ground entries (-1) left out)."""
+def present_matrix(G, M, port_p, port_n, values, a0,
+                   extra=None) -> Compressed:  # fmt: skip
+    """A = G + a0 M + W diag(values) W^T + T (values: port conductances; ``extra`` =
+    (rows, cols, values) of T, ground entries (-1) left out); stored zeros kept. G and M:
+    anything :meth:`Compressed.of` takes."""
+    G, M = Compressed.of(G), Compressed.of(M)
     n = G.shape[0]
     rows, cols, signs, which = port_stamps(n, port_p, port_n)
-    ports = sp.coo_matrix((signs * values[which], (rows, cols)), shape=(n, n))
     e_row, e_col, e_val = _no_extra() if extra is None else extra
+    e_row, e_col = np.asarray(e_row, dtype=np.int64), np.asarray(e_col, dtype=np.int64)
     inside = (e_row >= 0) & (e_col >= 0)
-    terminals = sp.coo_matrix((e_val[inside], (e_row[inside], e_col[inside])), shape=(n, n))
-    return sp.csc_matrix(sp.csc_matrix(G) + a0 * sp.csc_matrix(M) + ports + terminals)
+    g_row, g_col, g_val = G.triplets()
+    m_row, m_col, m_val = M.triplets()
+    return Compressed.from_triplets(
+        np.concatenate([g_row, m_row, rows, e_row[inside]]),
+        np.concatenate([g_col, m_col, cols, e_col[inside]]),
+        np.concatenate([g_val, a0 * m_val, signs * np.asarray(values)[which],
+                        np.asarray(extra[2] if extra is not None else e_val)[inside]]),
+        (n, n), drop_zeros=False,
+    )  # fmt: skip
 
 
 def analyse(G, M, port_p, port_n, values, a0, spare: float = 1.0, extra=None,
@@ -80,37 +102,33 @@ def analyse(G, M, port_p, port_n, values, a0, spare: float = 1.0, extra=None,
 
 def pivot_orders(G, M, port_p, port_n, values, a0, spare: float = 1.0, extra=None,
                  changing=None) -> list[SparseLU]:  # fmt: skip
-    """:func:`analyse`'s pivot order, then the other column orders' (one per column order
-    of ``COLUMN_ORDERS`` on which the matrix is not singular), for a later matrix that the
-    chosen one does not suit (compiled/order_cache.py).
+    """:func:`analyse`'s pivot order, then the others (above OWN_ORDER_LIMIT unknowns: one
+    per column order of ``SUPERLU_ORDERS`` on which the matrix is not singular), for a later
+    matrix that the chosen one does not suit (compiled/order_cache.py).
 
     Raises
     ------
     np.linalg.LinAlgError
         The present matrix is singular.
     """
+    G, M = Compressed.of(G), Compressed.of(M)
     n = G.shape[0]
-    # sparse once: a dense G or M scanned at each use cost 13 ms a scan at 1282 unknowns
-    G, M = sp.csc_matrix(G), sp.csc_matrix(M)
     extra = _no_extra() if extra is None else extra
     e_row, e_col = (np.asarray(e, dtype=np.int64) for e in extra[:2])
     A = present_matrix(G, M, port_p, port_n, values, a0, (e_row, e_col, extra[2]))
     # the pattern of every matrix of the run: G, M and all port stamps, whatever the values
     rows, cols, _, _ = port_stamps(n, port_p, port_n)
     inside = (e_row >= 0) & (e_col >= 0)
-    rows, cols = np.concatenate([rows, e_row[inside]]), np.concatenate([cols, e_col[inside]])
-    ones = np.ones(rows.size)
-    pattern = (abs(G) + abs(M) + sp.csc_matrix((ones, (rows, cols)), shape=(n, n))).tocoo()
+    (g_row, g_col, _), (m_row, m_col, _) = G.triplets(), M.triplets()
+    pattern = Compressed.from_triplets(
+        np.concatenate([g_row, m_row, rows, e_row[inside]]),
+        np.concatenate([g_col, m_col, cols, e_col[inside]]), 1.0, (n, n),
+    )  # fmt: skip
     changing = np.zeros(len(port_p), dtype=bool) if changing is None else changing
     orders, best_cost = [], np.inf
-    for column_order in COLUMN_ORDERS:
-        try:
-            # no equilibration: refactor's pivot test is on the unscaled columns
-            lu = splu(A, permc_spec=column_order, diag_pivot_thresh=0.1,
-                      options={"Equil": False})  # fmt: skip
-        except RuntimeError:  # "Factor is exactly singular"
-            continue
-        candidate = _on_order(G, M, port_p, port_n, e_row, e_col, pattern, lu, spare)
+    for row_to, col_rank in _permutations(A, pattern):
+        candidate = _on_order(G, M, port_p, port_n, e_row, e_col, pattern, row_to, col_rank,
+                              spare)  # fmt: skip
         cost = iteration_cost(candidate, changing)
         if not orders or cost < ORDER_MARGIN * best_cost:
             orders.insert(0, candidate)
@@ -122,31 +140,78 @@ def pivot_orders(G, M, port_p, port_n, values, a0, spare: float = 1.0, extra=Non
     return orders
 
 
-def _on_order(G, M, port_p, port_n, e_row, e_col, pattern, lu, spare: float) -> SparseLU:
-    """The SparseLU of the pivot order SuperLU's ``lu`` chose, on the run's ``pattern``."""
+def _permutations(A: Compressed, pattern: Compressed):
+    """(row_to, col_rank) of each pivot order of the present matrix ``A`` (row i of A to
+    row ``row_to[i]``, column j to column ``col_rank[j]``): ours up to OWN_ORDER_LIMIT
+    unknowns, else SuperLU's, one per column order on which A is not singular."""
+    n = A.shape[0]
+    if n > OWN_ORDER_LIMIT:
+        yield from _superlu_permutations(A)
+        return
+    row_of = maximum_matching(pattern.ptr, pattern.row, _by_size(A, pattern))
+    if np.any(row_of < 0):  # structurally singular
+        return
+    place = np.empty(n, dtype=np.int64)
+    place[row_of] = np.arange(n, dtype=np.int64)
+    col_order = minimum_degree(n, pattern.ptr, place[pattern.row])
+    row_to, failed = threshold_pivots(A.ptr, A.row, A.val, col_order, row_of,
+                                      PIVOT_PREFERENCE)  # fmt: skip
+    if failed < 0:  # else no pivot for a column: singular at these values
+        col_rank = np.empty(n, dtype=np.int64)
+        col_rank[col_order] = np.arange(n, dtype=np.int64)
+        yield row_to, col_rank
+
+
+def _superlu_permutations(A: Compressed):
+    from scipy.sparse.linalg import splu
+
+    for column_order in SUPERLU_ORDERS:
+        try:
+            # no equilibration: refactor's pivot test is on the unscaled columns
+            lu = splu(A.scipy(), permc_spec=column_order, diag_pivot_thresh=PIVOT_PREFERENCE,
+                      options={"Equil": False})  # fmt: skip
+        except RuntimeError:  # "Factor is exactly singular"
+            continue
+        yield np.asarray(lu.perm_r, dtype=np.int64), np.asarray(lu.perm_c, dtype=np.int64)
+
+
+def _by_size(A: Compressed, pattern: Compressed) -> np.ndarray:
+    """The entries of ``pattern`` (positions) by the magnitude of A's value relative to the
+    largest of its column, largest first (entries that A lacks last): the matching then
+    pairs each column with a row that stays large whatever the devices do (an ideal
+    op-amp's gain entry, a node's own conductances)."""
+    scale = np.zeros(A.shape[1])
+    np.maximum.at(scale, A.columns(), np.abs(A.val))
+    n = A.shape[0]
+    p_row, _, _ = pattern.triplets()
+    size = np.zeros(pattern.nnz)
+    where = np.searchsorted(pattern.columns() * n + p_row, A.columns() * n + A.row)
+    np.add.at(size, where, np.abs(A.val) / np.where(scale > 0, scale, 1.0)[A.columns()])
+    return np.argsort(-size, kind="stable").astype(np.int64)
+
+
+def _on_order(G, M, port_p, port_n, e_row, e_col, pattern, row_to, col_rank,
+              spare: float) -> SparseLU:  # fmt: skip
+    """The SparseLU of the pivot order (row i of A to row ``row_to[i]``, column j to column
+    ``col_rank[j]``), on the run's ``pattern``."""
     n = G.shape[0]
-    row_to = np.asarray(lu.perm_r, dtype=np.int64)
-    col_rank = np.asarray(lu.perm_c, dtype=np.int64)  # column j of A is column col_rank[j]
     col_of = np.argsort(col_rank)
-    permuted = sp.csc_matrix(
-        (np.ones(pattern.nnz), (row_to[pattern.row], col_rank[pattern.col])), shape=(n, n)
-    )
-    permuted.sum_duplicates()
-    permuted.sort_indices()
-    l_ptr, l_row, u_ptr, u_row = lu_pattern(permuted.indptr.astype(np.int64),
-                                            permuted.indices.astype(np.int64))  # fmt: skip
+    p_row, p_col, _ = pattern.triplets()
+    permuted = Compressed.from_triplets(row_to[p_row], col_rank[p_col], 1.0, (n, n))
+    a_ptr, a_row = permuted.ptr, permuted.row
+    l_ptr, l_row, u_ptr, u_row = lu_pattern(a_ptr, a_row)
     # every stored entry of P, with its positions for G, M and the ports: entries are
     # sorted by (column, row), so the key column * n + row finds them by bisection
-    a_ptr, a_row = permuted.indptr.astype(np.int64), permuted.indices.astype(np.int64)
-    keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(a_ptr)) * n + a_row
+    entry_col = permuted.columns()
+    keys = entry_col * n + a_row
 
     def positions(i, j) -> np.ndarray:
         return np.searchsorted(keys, col_rank[j] * n + row_to[i])
 
-    def scatter(matrix) -> np.ndarray:
-        coo = sp.coo_matrix(matrix)
+    def scatter(matrix: Compressed) -> np.ndarray:
+        rows, cols, values = matrix.triplets()
         out = np.zeros(a_row.size)
-        np.add.at(out, positions(coo.row, coo.col), coo.data)
+        np.add.at(out, positions(rows, cols), values)
         return out
 
     port_pos = -np.ones((len(port_p), 4), dtype=np.int64)
@@ -160,7 +225,6 @@ def _on_order(G, M, port_p, port_n, e_row, e_col, pattern, lu, spare: float) -> 
     extra_pos[inside] = positions(e_row[inside], e_col[inside])
     flops = float(np.sum(np.diff(l_ptr) * np.diff(u_ptr)) + l_row.size)
     m_val = scatter(M)
-    entry_col = np.repeat(np.arange(n, dtype=np.int64), np.diff(a_ptr))
     m_cols = np.unique(entry_col[m_val != 0])
     extra_cols = np.unique(entry_col[extra_pos[extra_pos >= 0]])
     port_reach, port_from, m_reach, extra_reach = _reach(u_ptr, u_row, entry_col, port_pos,
@@ -218,15 +282,11 @@ def iteration_cost(lu: SparseLU, changing: np.ndarray) -> float:
     l_count = np.diff(lu.l_ptr)
     stamped = lu.port_pos[np.asarray(changing, dtype=bool)]
     changed = np.unique(np.concatenate([lu.entry_col[stamped[stamped >= 0]], lu.extra_cols]))
-    # the graph k -> j of U[k, j] != 0 (column j is computed from column k), and a node n
-    # that leads to every changed column
-    ut_ptr, ut_col = upper_by_rows(lu.u_ptr, lu.u_row[: lu.u_ptr[-1]])
-    sources = np.concatenate([np.repeat(np.arange(n), np.diff(ut_ptr)),
-                              np.full(changed.size, n)])  # fmt: skip
-    targets = np.concatenate([ut_col, changed])
-    graph = sp.csr_matrix((np.ones(sources.size), (sources, targets)), shape=(n + 1, n + 1))
-    reached = breadth_first_order(graph, n, directed=True, return_predecessors=False)
-    reached = reached[reached < n]
+    # the columns a refactor redoes: the changed ones and those their U rows reach
+    reach, _ = reach_sets(lu.u_ptr, lu.u_row, np.array([0, changed.size], dtype=np.int64),
+                          changed.astype(np.int64))  # fmt: skip
+    bits = np.unpackbits(reach[0].astype("<u8").view(np.uint8), bitorder="little")
+    reached = np.flatnonzero(bits[:n])
     # column j: its U column's k < j each subtract L column k, then L column j is scaled
     u_used = lu.u_ptr[-1]
     u_col = np.repeat(np.arange(n), np.diff(lu.u_ptr))
@@ -257,8 +317,8 @@ def repivot(lu: SparseLU, port_p, port_n, values, a0, extra_val=None, changing=N
     n = lu.row_to.size
     rows = np.argsort(lu.row_to)[lu.a_row]  # the present P's entries back in A's numbering
     cols = lu.col_of[np.repeat(np.arange(n), np.diff(lu.a_ptr))]
-    G = sp.csc_matrix((lu.g_val, (rows, cols)), shape=(n, n))
-    M = sp.csc_matrix((lu.m_val, (rows, cols)), shape=(n, n))
+    G = Compressed.from_triplets(rows, cols, lu.g_val, (n, n))
+    M = Compressed.from_triplets(rows, cols, lu.m_val, (n, n))
     extra_val = np.zeros(lu.extra_row.size) if extra_val is None else extra_val
     # G's and M's stored zeros drop out here: the extra entries put their positions back
     new = analyse(G, M, port_p, port_n, values, a0,

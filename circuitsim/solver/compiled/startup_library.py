@@ -45,12 +45,12 @@ def python_called(kind: str) -> tuple:
         from circuitsim.solver import float_text
 
         return (float_text._write_rows,)
-    from circuitsim.solver.compiled import fill, newton, order_cache, time_loop
+    from circuitsim.solver.compiled import fill, newton, order_cache, pivot_search, time_loop
 
     if kind == "ports":
         return (time_loop.run_ports, newton.dense_factor)
     helpers = (order_cache.assemble, order_cache.refactor, order_cache.stamp_terminals)
-    return (time_loop.run_mna, *fill.FILL_FUNCTIONS, *helpers)
+    return (time_loop.run_mna, *fill.FILL_FUNCTIONS, *pivot_search.SEARCH_FUNCTIONS, *helpers)
 
 
 def module_name(kind: str) -> str:
