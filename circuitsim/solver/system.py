@@ -15,7 +15,7 @@ import numpy as np
 
 from circuitsim.netlist.circuit import Circuit
 from circuitsim.netlist.names import fold
-from circuitsim.solver.compressed import Compressed, product
+from circuitsim.solver.compressed import Compressed, product, unique
 from circuitsim.solver.context import Stamps, StepContext
 from circuitsim.solver.devices import FAMILIES, DeviceFamily
 from circuitsim.solver.errors import CircuitInputError, SingularMatrixError
@@ -83,7 +83,7 @@ class MnaSystem:
             family.stamp_charges(charges, incidence)
         nq = self.n_charges = layout.n_charges
         q_rows = charges.triplets()[0]
-        self.linear_slots = np.unique(q_rows)
+        self.linear_slots = unique(q_rows)
         if self.dense:
             self.G = self._matrix(stamps)
             self.Q = _summed(*charges.triplets(), (nq, n), True)

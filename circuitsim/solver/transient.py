@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from circuitsim.solver.compressed import unique
 from circuitsim.solver.context import StepContext
 from circuitsim.solver.dc import initial_condition_solution, operating_point_solution
 from circuitsim.solver.devices.base import DeviceFamily
@@ -79,7 +80,7 @@ def start_transient(
     for family in system.families:
         family.set_timing(tstep, tstop)
     corners = [family.breakpoints(tstop) for family in system.families]
-    breaks = np.unique(np.concatenate([*corners, [tstop]]))
+    breaks = unique(np.concatenate([*corners, [tstop]]))
     breaks = breaks[breaks > min_step]
     if uic:
         x, ctx0 = initial_condition_solution(system)

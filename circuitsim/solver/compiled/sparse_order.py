@@ -25,7 +25,7 @@ from circuitsim.solver.compiled.pivot_search import (
     threshold_pivots,
 )
 from circuitsim.solver.compiled.sparse_lu import SparseLU
-from circuitsim.solver.compressed import Compressed
+from circuitsim.solver.compressed import Compressed, unique
 
 # up to this many unknowns, our own pivot order (compiled/pivot_search.py: minimum degree
 # on A + A^T with a matching by size on the diagonal); above it, SuperLU's column orders
@@ -225,8 +225,8 @@ def _on_order(G, M, port_p, port_n, e_row, e_col, pattern, row_to, col_rank,
     extra_pos[inside] = positions(e_row[inside], e_col[inside])
     flops = float(np.sum(np.diff(l_ptr) * np.diff(u_ptr)) + l_row.size)
     m_val = scatter(M)
-    m_cols = np.unique(entry_col[m_val != 0])
-    extra_cols = np.unique(entry_col[extra_pos[extra_pos >= 0]])
+    m_cols = unique(entry_col[m_val != 0])
+    extra_cols = unique(entry_col[extra_pos[extra_pos >= 0]])
     port_reach, port_from, m_reach, extra_reach = _reach(u_ptr, u_row, entry_col, port_pos,
                                                          m_cols, extra_cols)  # fmt: skip
     l_room, u_room = _room(l_row, spare), _room(u_row, spare)
@@ -266,7 +266,7 @@ def _reach(u_ptr, u_row, entry_col, port_pos, m_cols, extra_cols):
     """The reach sets of SparseLU (port_reach, port_from, m_reach, extra_reach): the columns
     each port's stamps are in, M's and the extra entries', and the columns they reach."""
     stamped = np.where(port_pos >= 0, entry_col[np.maximum(port_pos, 0)], -1)
-    sets = [np.unique(row[row >= 0]) for row in stamped] + [m_cols, extra_cols]
+    sets = [unique(row[row >= 0]) for row in stamped] + [m_cols, extra_cols]
     seed_ptr = np.concatenate([[0], np.cumsum([c.size for c in sets])]).astype(np.int64)
     seed_col = np.concatenate(sets).astype(np.int64)
     reach, first = reach_sets(u_ptr, u_row, seed_ptr, seed_col)
@@ -281,7 +281,7 @@ def iteration_cost(lu: SparseLU, changing: np.ndarray) -> float:
     n = lu.row_to.size
     l_count = np.diff(lu.l_ptr)
     stamped = lu.port_pos[np.asarray(changing, dtype=bool)]
-    changed = np.unique(np.concatenate([lu.entry_col[stamped[stamped >= 0]], lu.extra_cols]))
+    changed = unique(np.concatenate([lu.entry_col[stamped[stamped >= 0]], lu.extra_cols]))
     # the columns a refactor redoes: the changed ones and those their U rows reach
     reach, _ = reach_sets(lu.u_ptr, lu.u_row, np.array([0, changed.size], dtype=np.int64),
                           changed.astype(np.int64))  # fmt: skip
