@@ -194,3 +194,18 @@ def test_our_order_and_superlus_give_the_same_run(tmp_path, monkeypatch):
     for name in ("v(x1)", "v(x4)"):
         a, b = ours.signals[name], theirs.signals[name]
         assert np.max(np.abs(a - b)) <= 1e-6 * np.max(np.abs(b))
+
+
+def test_the_search_trial_compiles_the_search_for_the_types_of_a_run(tmp_path):
+    """A process that builds the start-up library after a run above OWN_ORDER_LIMIT never
+    called the search; the trial does, with the argument types a run's call has (a build
+    exports only the signatures compiled in its process)."""
+    from circuitsim.solver.compiled import pivot_search
+
+    sparse_order.search_trial()
+    for function in pivot_search.SEARCH_FUNCTIONS:
+        assert function.signatures, function
+    circuit = chain_circuit(tmp_path, 4, 0.05)  # a run's calls: no new signature
+    before = {f: list(f.signatures) for f in pivot_search.SEARCH_FUNCTIONS}
+    simulate(circuit, SimulationOptions.from_circuit(circuit, kernel="compiled"))
+    assert {f: list(f.signatures) for f in pivot_search.SEARCH_FUNCTIONS} == before

@@ -73,5 +73,8 @@ def python_called(plan) -> tuple:
 
 def compile_trial(plan, st) -> None:
     """Compile :func:`python_called` for the types of this run, by a trial on a copy of the
-    state's order (``st`` is left as it was)."""
+    state's order (``st`` is left as it was); and our pivot search's (sparse_order.py)."""
+    from circuitsim.solver.compiled.sparse_order import search_trial
+
     _refactors(plan, st, copy_order(st.lu), 1.0)
+    search_trial()

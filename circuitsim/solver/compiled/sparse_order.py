@@ -148,6 +148,20 @@ def _permutations(A: Compressed, pattern: Compressed):
     if n > OWN_ORDER_LIMIT:
         yield from _superlu_permutations(A)
         return
+    yield from _own_permutation(A, pattern)
+
+
+def search_trial() -> None:
+    """Our search on a 2 x 2 matrix: its compiled functions compiled (or loaded) for the types
+    of a run, so that a process that builds the start-up library has them whatever the size
+    of its circuit (a run above OWN_ORDER_LIMIT never calls them)."""
+    A = Compressed.from_triplets([0, 1, 1], [0, 0, 1], [1.0, 2.0, 3.0], (2, 2))
+    for _ in _own_permutation(A, A):
+        pass
+
+
+def _own_permutation(A: Compressed, pattern: Compressed):
+    n = A.shape[0]
     row_of = maximum_matching(pattern.ptr, pattern.row, _by_size(A, pattern))
     if np.any(row_of < 0):  # structurally singular
         return
