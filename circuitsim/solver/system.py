@@ -140,7 +140,7 @@ class MnaSystem:
         parts = self.__dict__.get("_parts")
         if name not in _SCIPY_FORMS or parts is None:
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-        G, Q, E, M = (parts[key].scipy("csr") for key in "GQEM")
+        Q, E, M = (parts[key].scipy("csr") for key in "QEM")
         self.G = parts["G"].scipy("csc")
         self.Q, self.E, self.M = Q, E, M
         self.Q_linear = Q[self.linear_slots]

@@ -2,11 +2,12 @@
 (compiled/sparse_lu.py factors and solves on them in compiled code).
 
 - :func:`analyse` (once per run, and again by :func:`repivot` only when a pivot has become
-  too small): for each column order of ``COLUMN_ORDERS``, a minimum-degree column order and
-  threshold partial pivoting (0.1, the matched row preferred) on the present matrix
-  (compiled/pivot_search.py) give the row and column permutations; the pattern of L and U
-  without pivoting follows from each (compiled/fill.py), and the order whose Newton
-  iteration costs fewest operations (:func:`iteration_cost`) is kept.
+  too small): up to ``OWN_ORDER_LIMIT`` unknowns our search (compiled/pivot_search.py: a
+  matching by size, minimum degree, threshold partial pivoting 0.1 preferring the matched
+  row) on the present matrix gives the row and column permutations; above it SuperLU does,
+  once for each column order of ``SUPERLU_ORDERS``. The pattern of L and U without pivoting
+  follows from each (compiled/fill.py), and the order whose Newton iteration costs fewest
+  operations (:func:`iteration_cost`) is kept.
 
 The matrix is ``A = G + a0 M + sum_k g_k w_k w_k^T + T`` (w_k = e_p - e_n: junction and
 switch ports; T: the entries of multi-terminal devices, ``extra`` below, at fixed (row,
@@ -29,9 +30,9 @@ from circuitsim.solver.compressed import Compressed, unique
 
 # up to this many unknowns, our own pivot order (compiled/pivot_search.py: minimum degree
 # on A + A^T with a matching by size on the diagonal); above it, SuperLU's column orders
-# (COLAMD, MMD_AT_PLUS_A), whose Newton iterations cost 10-40 % less on the TL074 chains
-# and lattices, where scipy's import (0.2 s) is a small part of the run (docs/solver.md,
-# "Pivot orders")
+# (COLAMD, MMD_AT_PLUS_A): ours took 21 % more CPU in-process on the TL074 chain of 8
+# (1478 unknowns), and scipy's import (0.3 s of CPU) is a small part of such runs
+# (docs/solver.md, "Our pivot order")
 OWN_ORDER_LIMIT = 1000
 SUPERLU_ORDERS = ("COLAMD", "MMD_AT_PLUS_A")
 # SuperLU's orders: the first is kept unless another's iteration costs less than
@@ -78,7 +79,7 @@ def present_matrix(G, M, port_p, port_n, values, a0,
         np.concatenate([g_row, m_row, rows, e_row[inside]]),
         np.concatenate([g_col, m_col, cols, e_col[inside]]),
         np.concatenate([g_val, a0 * m_val, signs * np.asarray(values)[which],
-                        np.asarray(extra[2] if extra is not None else e_val)[inside]]),
+                        np.asarray(e_val)[inside]]),
         (n, n), drop_zeros=False,
     )  # fmt: skip
 
@@ -116,18 +117,12 @@ def pivot_orders(G, M, port_p, port_n, values, a0, spare: float = 1.0, extra=Non
     extra = _no_extra() if extra is None else extra
     e_row, e_col = (np.asarray(e, dtype=np.int64) for e in extra[:2])
     A = present_matrix(G, M, port_p, port_n, values, a0, (e_row, e_col, extra[2]))
-    # the pattern of every matrix of the run: G, M and all port stamps, whatever the values
-    rows, cols, _, _ = port_stamps(n, port_p, port_n)
-    inside = (e_row >= 0) & (e_col >= 0)
-    (g_row, g_col, _), (m_row, m_col, _) = G.triplets(), M.triplets()
-    pattern = Compressed.from_triplets(
-        np.concatenate([g_row, m_row, rows, e_row[inside]]),
-        np.concatenate([g_col, m_col, cols, e_col[inside]]), 1.0, (n, n),
-    )  # fmt: skip
     changing = np.zeros(len(port_p), dtype=bool) if changing is None else changing
     orders, best_cost = [], np.inf
-    for row_to, col_rank in _permutations(A, pattern):
-        candidate = _on_order(G, M, port_p, port_n, e_row, e_col, pattern, row_to, col_rank,
+    # A keeps its stored zeros: its pattern is that of every matrix of the run (G, M, all
+    # port stamps and the extra entries, whatever the values)
+    for row_to, col_rank in _permutations(A):
+        candidate = _on_order(G, M, port_p, port_n, e_row, e_col, A, row_to, col_rank,
                               spare)  # fmt: skip
         cost = iteration_cost(candidate, changing)
         if not orders or cost < ORDER_MARGIN * best_cost:
@@ -140,7 +135,7 @@ def pivot_orders(G, M, port_p, port_n, values, a0, spare: float = 1.0, extra=Non
     return orders
 
 
-def _permutations(A: Compressed, pattern: Compressed):
+def _permutations(A: Compressed):
     """(row_to, col_rank) of each pivot order of the present matrix ``A`` (row i of A to
     row ``row_to[i]``, column j to column ``col_rank[j]``): ours up to OWN_ORDER_LIMIT
     unknowns, else SuperLU's, one per column order on which A is not singular."""
@@ -148,7 +143,7 @@ def _permutations(A: Compressed, pattern: Compressed):
     if n > OWN_ORDER_LIMIT:
         yield from _superlu_permutations(A)
         return
-    yield from _own_permutation(A, pattern)
+    yield from _own_permutation(A)
 
 
 def search_trial() -> None:
@@ -156,18 +151,18 @@ def search_trial() -> None:
     of a run, so that a process that builds the start-up library has them whatever the size
     of its circuit (a run above OWN_ORDER_LIMIT never calls them)."""
     A = Compressed.from_triplets([0, 1, 1], [0, 0, 1], [1.0, 2.0, 3.0], (2, 2))
-    for _ in _own_permutation(A, A):
+    for _ in _own_permutation(A):
         pass
 
 
-def _own_permutation(A: Compressed, pattern: Compressed):
+def _own_permutation(A: Compressed):
     n = A.shape[0]
-    row_of = maximum_matching(pattern.ptr, pattern.row, _by_size(A, pattern))
+    row_of = maximum_matching(A.ptr, A.row, _by_size(A))
     if np.any(row_of < 0):  # structurally singular
         return
     place = np.empty(n, dtype=np.int64)
     place[row_of] = np.arange(n, dtype=np.int64)
-    col_order = minimum_degree(n, pattern.ptr, place[pattern.row])
+    col_order = minimum_degree(n, A.ptr, place[A.row])
     row_to, failed = threshold_pivots(A.ptr, A.row, A.val, col_order, row_of,
                                       PIVOT_PREFERENCE)  # fmt: skip
     if failed < 0:  # else no pivot for a column: singular at these values
@@ -189,25 +184,21 @@ def _superlu_permutations(A: Compressed):
         yield np.asarray(lu.perm_r, dtype=np.int64), np.asarray(lu.perm_c, dtype=np.int64)
 
 
-def _by_size(A: Compressed, pattern: Compressed) -> np.ndarray:
-    """The entries of ``pattern`` (positions) by the magnitude of A's value relative to the
-    largest of its column, largest first (entries that A lacks last): the matching then
-    pairs each column with a row that stays large whatever the devices do (an ideal
-    op-amp's gain entry, a node's own conductances)."""
+def _by_size(A: Compressed) -> np.ndarray:
+    """A's entries (positions) by their magnitude relative to the largest of their column,
+    largest first: the matching then pairs each column with a row that stays large whatever
+    the devices do (an ideal op-amp's gain entry, a node's own conductances)."""
+    columns = A.columns()
     scale = np.zeros(A.shape[1])
-    np.maximum.at(scale, A.columns(), np.abs(A.val))
-    n = A.shape[0]
-    p_row, _, _ = pattern.triplets()
-    size = np.zeros(pattern.nnz)
-    where = np.searchsorted(pattern.columns() * n + p_row, A.columns() * n + A.row)
-    np.add.at(size, where, np.abs(A.val) / np.where(scale > 0, scale, 1.0)[A.columns()])
+    np.maximum.at(scale, columns, np.abs(A.val))
+    size = np.abs(A.val) / np.where(scale > 0, scale, 1.0)[columns]
     return np.argsort(-size, kind="stable").astype(np.int64)
 
 
 def _on_order(G, M, port_p, port_n, e_row, e_col, pattern, row_to, col_rank,
               spare: float) -> SparseLU:  # fmt: skip
     """The SparseLU of the pivot order (row i of A to row ``row_to[i]``, column j to column
-    ``col_rank[j]``), on the run's ``pattern``."""
+    ``col_rank[j]``), on the run's ``pattern`` (its entries' places; values unused)."""
     n = G.shape[0]
     col_of = np.argsort(col_rank)
     p_row, p_col, _ = pattern.triplets()
