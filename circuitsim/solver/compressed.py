@@ -1,7 +1,7 @@
 """Sparse matrices in compressed columns with numpy alone.
 
 The MNA kernel needs a circuit's constant matrices, its charge matrices and its pivot orders
-in sparse form, and no more than that form: building, summing, multiplying and transposing.
+in sparse form, and no more than that form: building, summing and multiplying.
 scipy.sparse costs a process 0.1-0.2 s of CPU to import (docs/performance.md, section 6),
 more than a small circuit's whole run; the numpy reference loop still takes scipy's forms
 (:meth:`Compressed.scipy`), built from these.
@@ -84,11 +84,6 @@ class Compressed:
     def triplets(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(rows, cols, values) of the entries, by column."""
         return self.row, self.columns(), self.val
-
-    def transpose(self) -> Compressed:
-        """The transpose (so also this matrix by rows)."""
-        rows, cols, values = self.triplets()
-        return Compressed.from_triplets(cols, rows, values, self.shape[::-1], drop_zeros=False)
 
     def toarray(self) -> np.ndarray:
         out = np.zeros(self.shape)
