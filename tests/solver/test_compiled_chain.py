@@ -35,7 +35,7 @@ def chain_circuit(tmp_path, masses: int, t_stop: float, opamp: str = "ideal"):
 
 @pytest.mark.parametrize("kernel", ["ports", "compiled"])
 def test_sparse_factorization_agrees_with_the_reference_loop(tmp_path, kernel):
-    """Four masses: 162 unknowns (the ports kernel factors with SuperLU: above SPARSE_FROM;
+    """Four masses: 162 unknowns (the ports kernel factors sparse: above SPARSE_FROM;
     the MNA kernel refactors sparse at every iteration), 16 junctions."""
     circuit = chain_circuit(tmp_path, 4, 0.5)
     ports = simulate(circuit, SimulationOptions.from_circuit(circuit, kernel=kernel))

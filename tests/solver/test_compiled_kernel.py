@@ -391,7 +391,7 @@ def test_a_step_below_the_resolution_of_time_is_refused(kernel):
 
 
 def test_large_circuit_runs_on_the_sparse_factorization():
-    """651 unknowns: the ports kernel factors with SuperLU (sparse_factors.py) instead of
+    """651 unknowns: the ports kernel factors sparse (sparse_factors.py) instead of
     stopping at a dense size limit; the RC ladder's signals match the reference loop."""
     c = Circuit(elements=[VoltageSource("V1", "n0", "0", waveform=Sin(0.0, 1.0, 1e5))])
     for i in range(1, 650):

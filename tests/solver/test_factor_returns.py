@@ -1,5 +1,6 @@
 """The ports kernel's return to Python for a factorization (newton.FACTOR): above SPARSE_FROM
-unknowns SuperLU factors in Python and the loop goes on where it stopped, bit for bit.
+unknowns the factorization is made sparse from Python (compiled/sparse_factors.py) and the
+loop goes on where it stopped, bit for bit.
 
 Forced on a circuit small enough for the compiled dense factorization (the same arithmetic
 either way), a run that returns for every refactor must give exactly the steps and values of
@@ -103,14 +104,15 @@ print("compiled:", compiles.names)
 def test_a_warm_process_compiles_nothing_for_its_factorizations(tmp_path):
     """numba compiles an objmode block in every process at its first call (the ports
     kernel's SuperLU call measured 0.46 s of CPU): the loops return to Python instead. A
-    four-mass chain returns for SuperLU on the ports kernel and for a new pivot order on the
-    MNA kernel; once the kernels are cached, a new process compiles nothing."""
+    four-mass chain returns for its sparse factorizations on the ports kernel and for a new
+    pivot order on the MNA kernel; once the kernels are cached, a new process compiles
+    nothing."""
     from circuitsim.solver import simulate
 
     circuit = chain_circuit(tmp_path, 4, 0.5)
     for kernel in ("ports", "compiled"):  # the kernels cached (compiled here if they were not)
         simulate(circuit, SimulationOptions.from_circuit(circuit, kernel=kernel))
-    with pytest.MonkeyPatch.context() as patch:  # and the SuperLU path the script takes
+    with pytest.MonkeyPatch.context() as patch:  # and the SuperLU orders the script takes
         patch.setattr(sparse_order, "OWN_ORDER_LIMIT", 0)
         patch.setattr(sparse_order, "SUPERLU_ORDERS", ("COLAMD",))
         simulate(circuit, SimulationOptions.from_circuit(circuit, kernel="compiled"))
@@ -125,7 +127,7 @@ def test_a_warm_process_compiles_nothing_for_its_factorizations(tmp_path):
     assert done.returncode == 0, done.stderr
     lines = done.stdout.splitlines()
     ports, returns, _ = lines[0].split()
-    assert ports == "ports" and int(returns) >= 1  # it did return for SuperLU
+    assert ports == "ports" and int(returns) >= 1  # it did return for its factorizations
     compiled, _, orders = lines[1].split()
     assert compiled == "compiled" and int(orders) >= 2  # and for a new pivot order (an
     # earlier one tried from Python, sparse_order.pivot_orders' other order, or SuperLU's)

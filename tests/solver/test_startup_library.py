@@ -19,6 +19,7 @@ from circuitsim.solver.errors import StartupLibraryWarning
 REPO = Path(__file__).resolve().parents[2]
 NO_COMPILER = "no C compiler (numba.pycc builds the start-up library with one; apt-get install gcc)"
 WHEELSET = REPO / "netlists" / "wheelset_flange_ideal_ngspice.cir"
+TL074_WHEELSET = REPO / "netlists" / "wheelset_flange_tl074_ngspice.cir"
 
 # a process that runs the CLI's simulate, then says whether it imported numba
 CLI = """
@@ -37,10 +38,11 @@ def _environment(library: bool) -> dict:
     return env
 
 
-def _simulate_process(tmp_path: Path, name: str, library: bool, *extra: str):
+def _simulate_process(tmp_path: Path, name: str, library: bool, *extra: str,
+                      netlist: Path = WHEELSET):  # fmt: skip
     out = tmp_path / f"{name}.csv"
     done = subprocess.run(
-        [sys.executable, "-c", CLI, "simulate", str(WHEELSET), "--csv", str(out), *extra],
+        [sys.executable, "-c", CLI, "simulate", str(netlist), "--csv", str(out), *extra],
         capture_output=True, text=True, env=_environment(library), timeout=900,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
@@ -74,6 +76,22 @@ def test_a_process_with_the_library_does_not_import_numba_and_writes_the_same_cs
     assert "NUMBA-IMPORTED" in said_without
     assert with_library == without  # byte for byte: the same machine code's results
     assert with_library.count(b"\n") > 18_000  # the wheelset's 18,581 time points
+
+
+def test_a_large_circuit_runs_on_a_library_built_after_a_small_one(built_library, tmp_path):
+    """The TL074 wheelset (266 unknowns, above sparse_factors.SPARSE_FROM) on the ports
+    module built after the ideal wheelset's dense run: its sparse factorizations' helpers are
+    in the module (the build's trial), so the process imports neither numba nor scipy, and
+    writes what numba's kernels write."""
+    probe = ("--probe", "v(y)")
+    with_library, said = _simulate_process(tmp_path, "library", True, *probe,
+                                           netlist=TL074_WHEELSET)  # fmt: skip
+    assert "NUMBA-NOT-IMPORTED" in said and "SCIPY-NOT-IMPORTED" in said
+    without, said_without = _simulate_process(tmp_path, "numba", False, *probe,
+                                              netlist=TL074_WHEELSET)  # fmt: skip
+    assert "NUMBA-IMPORTED" in said_without
+    assert with_library == without
+    assert with_library.count(b"\n") > 18_000
 
 
 def test_a_kernel_the_library_lacks_runs_on_numba_then_joins_it(built_library, tmp_path):

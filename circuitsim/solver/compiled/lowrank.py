@@ -32,7 +32,7 @@ NEGLIGIBLE = 1e-15
 # linalg: numba's LAPACK and BLAS are scipy's (scipy.linalg.cython_lapack, imported at the
 # first call); without scipy a whole simulate process of the ideal wheelset took 0.23
 # against 0.37 s of CPU (docs/performance.md section 6). The loops invert B only below
-# sparse_factors.SPARSE_FROM = 100 unknowns (SuperLU above).
+# sparse_factors.SPARSE_FROM = 100 unknowns (a sparse LU above).
 
 
 @njit(cache=True)

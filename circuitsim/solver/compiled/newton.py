@@ -3,7 +3,7 @@
 The state slots (``fs`` floats, ``ints`` counters) both loops use (named in slots.py, imported
 here for both loops); ``factor_now``, the ports
 kernel's refactor at the present port values (dense, lowrank.rebuild; above SPARSE_FROM
-unknowns the loop returns FACTOR and the runner factors with SuperLU, then the loop goes on
+unknowns the loop returns FACTOR and the runner factors sparse, then the loop goes on
 where it stopped); the rule that asks for a refactor when many junctions stay active. The MNA
 kernel's Newton is mna_newton.py, the ports kernel's is port_newton.py's steps (run by
 port_steps.py).
@@ -103,8 +103,8 @@ def port_values(gd, g_switch, state, r, a0):
 
 
 # The loops' return to Python in the middle of a step, for a factorization made there (the
-# ports kernel above SPARSE_FROM unknowns: SuperLU; the MNA kernel: a new pivot order, also
-# SuperLU, when a pivot became too small). numba
+# ports kernel above SPARSE_FROM unknowns: sparse_factors.py; the MNA kernel: a new pivot
+# order, when a pivot became too small). numba
 # compiles a block of Python inside a compiled function (objmode) again in every process, at
 # its first call; a return costs microseconds against the factorization's milliseconds. The
 # loop keeps what it needs to go on in the slots below and goes on bit for bit where it
@@ -145,7 +145,7 @@ class MidStep(NamedTuple):
 def factor_now(plan, st, a0):
     """Refactor at the present values and bump the factorization version (dense, in compiled
     code: lowrank.rebuild); False when the factorization is to be made in Python
-    (ints[FACTOR_IN_PYTHON]: SuperLU for a state without dense matrices, sparse_factors.py):
+    (ints[FACTOR_IN_PYTHON]: sparse, for a state without dense matrices, sparse_factors.py):
     then ``fs[FACTOR_A0] = a0`` and the loop returns FACTOR (:func:`wait_for_factor`)."""
     if st.ints[FACTOR_IN_PYTHON]:
         st.fs[FACTOR_A0] = a0

@@ -110,7 +110,7 @@ class Factors(NamedTuple):
 
 def empty_factors(n: int, r: int, md: int, nl: int, ns: int, dense: bool = True) -> Factors:
     """Zero arrays of the right shapes, for :func:`rebuild` to fill; without ``dense``, B, its
-    inverse and its CSR form are empty (factor_now then factors with SuperLU)."""
+    inverse and its CSR form are empty (the runner then factors sparse, sparse_factors.py)."""
     z = np.zeros
     nd = n if dense else 0
     return Factors(

@@ -5,8 +5,8 @@
 reference engine (dc.py); the time loop runs compiled (time_loop.py here). The
 loop returns to Python every tenth of the run (progress) and after a bounded number of steps
 (the wall-time limit, Ctrl-C), when its output arrays are full, and for a factorization it
-cannot make in compiled code (a new pivot order, or the ports kernel's SuperLU: newton.FACTOR,
-then it goes on where it stopped).
+cannot make in compiled code (a new pivot order, or the ports kernel's sparse factorization:
+newton.FACTOR, then it goes on where it stopped).
 """
 
 from __future__ import annotations
@@ -43,6 +43,12 @@ from circuitsim.solver.compiled.plan import (
     unsupported,
 )
 from circuitsim.solver.compiled.slots import CFG_COUNT, MAX_STEP, PIVOT_ORDERS, TSTOP
+from circuitsim.solver.compiled.sparse_factors import (
+    SPARSE_FROM,
+    SPARSE_FUNCTIONS,
+    factor_sparse,
+    factor_trial,
+)
 from circuitsim.solver.compiled.terminal_plan import terminal_state
 from circuitsim.solver.devices.diode_kernel import CJO, TT
 from circuitsim.solver.errors import (
@@ -360,22 +366,28 @@ def _mid_step(kind, st, rows) -> tuple:
 
 
 def factors_in_python(state) -> bool:
-    """Whether the ports kernel's factorizations are made in Python (SuperLU, for a state
+    """Whether the ports kernel's factorizations are made in Python (sparse, for a state
     without room for the dense matrices: above sparse_factors.SPARSE_FROM unknowns)."""
     return state.fac.Binv.shape[0] != state.fac.yc.size
 
 
 def _factor(plan, st, a0: float) -> None:
     """The ports kernel's factorization at the present port values and a0 (1/s), as the loop
-    asks (newton.factor_now): compiled (dense), or SuperLU in Python (sparse_factors.py)."""
+    asks (newton.factor_now): compiled (dense), or sparse from Python (sparse_factors.py)."""
     from circuitsim.solver.compiled import newton as nw
 
     if st.fac.Binv.shape[0] == st.fac.yc.size:
         nw.dense_factor(plan, st, a0)
     else:
-        from circuitsim.solver.compiled.sparse_factors import factor_sparse
-
         factor_sparse(plan, st, a0)
+
+
+def _helpers(kind: str, plan, n: int) -> tuple:
+    """The compiled functions the runner calls from Python on ``kind``'s run of ``plan`` (n
+    unknowns)."""
+    if kind == "ports":
+        return SPARSE_FUNCTIONS if n >= SPARSE_FROM else ()
+    return (*FILL_FUNCTIONS, *SEARCH_FUNCTIONS, *python_called(plan))
 
 
 def _a0_start(start: PortsStart) -> float:
@@ -399,12 +411,10 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     capacity = int(min(max(2 * (tstop / (fixed or max_step)) + 100, 1000), 5_000_000))
     constant = constant_parts(system) if kind != "ports" else None
     orders = EarlierOrders()  # the MNA kernel's earlier pivot orders
-    # the compiled functions the runner calls from Python (the MNA kernel's pivot orders'
-    # fill, its trials of earlier pivot orders): compiled with the kernel, announced with it,
-    # not in the middle of the run
-    cold_helpers = kind != "ports" and any(
-        is_cold(f) for f in (*FILL_FUNCTIONS, *SEARCH_FUNCTIONS, *python_called(plan))
-    )
+    # the compiled functions the runner calls from Python (pivot orders and their fill, the
+    # MNA kernel's trials of earlier orders, the ports kernel's sparse factorizations):
+    # compiled with the kernel, announced with it, not in the middle of the run
+    cold_helpers = any(is_cold(f) for f in _helpers(kind, plan, system.size))
     entry = _loop_entry(kind)
     compiling = _announce_compile(kind, entry, cold_helpers)
     try:
@@ -417,7 +427,9 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
         ) from None
     st.fs[nw.H] = fixed if fixed else min(tstop / 100, tstep) / 10
     st.fs[nw.SAVED_H] = tstop / 50
-    if cold_helpers:
+    if cold_helpers and kind == "ports":
+        factor_trial()
+    elif cold_helpers:
         compile_trial(plan, st)
     deadline = wall_deadline(options, time.perf_counter)  # the clock the pauses read
     report_every = tstop / 10  # progress every tenth of the run

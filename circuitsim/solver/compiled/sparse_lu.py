@@ -237,6 +237,14 @@ def lu_solve(l_ptr, l_row, l_val, u_ptr, u_row, u_val, row_to, col_of, b, work, 
         work[j] = 0.0
 
 
+@njit(cache=True)
+def lu_solve_rows(l_ptr, l_row, l_val, u_ptr, u_row, u_val, row_to, col_of, b, work, x):
+    """x[k] = A^-1 b[k] for each row k of b and x ((m, n)): :func:`lu_solve` of m
+    right-hand sides in one call from Python."""
+    for k in range(b.shape[0]):
+        lu_solve(l_ptr, l_row, l_val, u_ptr, u_row, u_val, row_to, col_of, b[k], work, x[k])
+
+
 def _on_numba():
     global trailing_zeros
     from numba.cpython.unsafe.numbers import trailing_zeros

@@ -45,10 +45,17 @@ def python_called(kind: str) -> tuple:
         from circuitsim.solver import float_text
 
         return (float_text._write_rows,)
-    from circuitsim.solver.compiled import fill, newton, order_cache, pivot_search, time_loop
+    from circuitsim.solver.compiled import (
+        fill,
+        newton,
+        order_cache,
+        pivot_search,
+        sparse_factors,
+        time_loop,
+    )
 
     if kind == "ports":
-        return (time_loop.run_ports, newton.dense_factor)
+        return (time_loop.run_ports, newton.dense_factor, *sparse_factors.SPARSE_FUNCTIONS)
     helpers = (order_cache.assemble, order_cache.refactor, order_cache.stamp_terminals)
     return (time_loop.run_mna, *fill.FILL_FUNCTIONS, *pivot_search.SEARCH_FUNCTIONS, *helpers)
 
@@ -120,6 +127,10 @@ def build(kind: str) -> Path | None:
     path; None when there was nothing to build (no function called yet, or called with more
     than one set of types) or the build failed (said by a StartupLibraryWarning)."""
     _TRIED.add(kind)
+    if kind == "ports":  # its sparse factorization, whatever the size of the circuit run
+        from circuitsim.solver.compiled.sparse_factors import factor_trial
+
+        factor_trial()
     functions = [f for f in python_called(kind) if getattr(f, "signatures", ())]
     if python_called(kind)[0] not in functions:
         return None  # the entry itself is not compiled in this process
