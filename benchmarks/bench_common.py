@@ -56,6 +56,25 @@ def simulate_subprocess(netlist: Path, probe: str | None = None) -> tuple[float,
     return seconds, error
 
 
+def compile_bytecode() -> str:
+    """Write circuitsim's bytecode (``__pycache__``), as ``pip install`` does, so that
+    whole-process timings measure a process that loads it. Python writes it itself at a
+    module's first import, unless PYTHONDONTWRITEBYTECODE is set, as it is on the 2-core VMs
+    these figures come from: there every ``simulate`` process compiled all our modules from
+    source (0.28 against 0.17 s for the ideal chain of 4, docs/performance.md section 6).
+    Returns what was done, for machine.json."""
+    import compileall
+    import os
+
+    import circuitsim
+
+    package = Path(circuitsim.__file__).resolve().parent
+    if not compileall.compile_dir(str(package), quiet=1):
+        raise RuntimeError(f"compileall failed on {package}")
+    flag = os.environ.get("PYTHONDONTWRITEBYTECODE")
+    return f"compiled by compileall ({package}); PYTHONDONTWRITEBYTECODE={flag!r}"
+
+
 def machine() -> dict:
     """nproc, CPU model, Python, numpy, scipy, numba and ngspice versions."""
     import numba

@@ -91,6 +91,7 @@ def main(argv=None) -> int:
     bench_startup.REPEAT[0] = max(args.repeat, 3)
     out = Path(args.out)
     machine = bench_common.machine()
+    machine["bytecode"] = bench_common.compile_bytecode()  # the whole processes load it
     print("machine: " + ", ".join(f"{k} {v}" for k, v in machine.items()))
     bench_common.save(out, "machine", machine, "\n".join(f"- {k}: {v}" for k, v in machine.items()))
     for name in parts:
