@@ -19,13 +19,14 @@ includes waiting for a core):
    cached kernel (numba's runtime); then the same kernel from the start-up library instead
    (solver/jit.py: no numba). The processes of tables 2 and 3 start OpenBLAS on one thread,
    as ``circuitsim.cli.run`` starts a process (``cli.blas_threads``);
-4. peak memory (``ru_maxrss``) of a 50 s TL074 run, every signal against ``--probe``.
+4. peak memory (GNU time's ``%M``, see :func:`run_process`) of a 50 s TL074 run, every signal
+   against ``--probe``.
 
 Every process runs this checkout (PYTHONPATH) with Python's bytecode cache on, in a folder of
 its own (PYTHONPYCACHEPREFIX, warmed by an untimed run first), as an installed package has it;
-one row shows the ideal wheelset without it (PYTHONDONTWRITEBYTECODE=1: every module of ours
-compiled from source at each start). The numba kernels must be in the user cache
-(an untimed run first makes sure).
+one row shows the ideal wheelset without it (a copy of the package without ``__pycache__``,
+PYTHONDONTWRITEBYTECODE=1: every module of ours compiled from source at each start). The numba
+kernels must be in the user cache (an untimed run first makes sure).
 
 ``--against DIR``: instead, whole ``simulate`` processes of this checkout and of the checkout in
 DIR (an earlier commit, e.g. ``git archive REV | tar -x -C DIR``), interleaved one by one so
@@ -116,13 +117,23 @@ FLOOR = {
 
 
 def run_process(command: list[str], env: dict, cwd: Path | None = None) -> dict:
-    """One process to its end: CPU (user + system), wall, peak RSS (MB), exit code, output."""
+    """One process to its end: CPU (user + system), wall, peak RSS (MB; None without GNU
+    time), exit code, output.
+
+    The peak is GNU time's (``%M``) of the command it starts: ``os.wait4``'s ``ru_maxrss``
+    of a child of this process starts from this process's own RSS at the fork (about 146 MB
+    here, whatever the child does), so a small process cannot show its peak that way. CPU is
+    wait4's of the GNU time process, which counts the command it waited for (and GNU time's
+    own, about a millisecond)."""
     import time
 
-    with tempfile.TemporaryFile() as out:
+    gnu_time = shutil.which("time")
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryDirectory() as folder:
+        peak_file = Path(folder) / "peak_kb"
+        wrapped = [gnu_time, "-f", "%M", "-o", str(peak_file), *command] if gnu_time else command
         started = time.perf_counter()
         process = subprocess.Popen(
-            command, stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env,
+            wrapped, stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env,
             cwd=cwd,
         )  # fmt: skip
         _, status, usage = os.wait4(process.pid, 0)
@@ -130,18 +141,28 @@ def run_process(command: list[str], env: dict, cwd: Path | None = None) -> dict:
         process.returncode = os.waitstatus_to_exitcode(status)
         out.seek(0)
         text = out.read().decode(errors="replace")
+        peak = _peak_mb(peak_file) if gnu_time else None
     return {
         "cpu_s": usage.ru_utime + usage.ru_stime,
         "wall_s": wall,
-        "peak_mb": usage.ru_maxrss / 1024,
+        "peak_mb": peak,
         "code": process.returncode,
         "output": text,
     }
 
 
+def _peak_mb(path: Path) -> float | None:
+    """GNU time's ``%M`` (KB) from its output file, in MB (None if it wrote none)."""
+    try:
+        lines = path.read_text().split()
+    except OSError:
+        return None
+    return int(lines[-1]) / 1024 if lines and lines[-1].isdigit() else None
+
+
 def environment(pycache: Path | None, checkout: Path = REPO) -> dict:
     """``checkout`` (default this one) first on the path; the bytecode cache in ``pycache``
-    (None: off)."""
+    (None: none written, and read only where it exists beside the sources)."""
     env = dict(os.environ)
     path = [str(checkout), env.get("PYTHONPATH", "")]
     env["PYTHONPATH"] = os.pathsep.join(path).rstrip(os.pathsep)
@@ -161,16 +182,19 @@ def as_cli(env: dict) -> dict:
     return {"OPENBLAS_NUM_THREADS": "1", **env}
 
 
-def median_of(runs: list[dict], key: str) -> float:
-    return statistics.median(r[key] for r in runs)
+def median_of(runs: list[dict], key: str) -> float | None:
+    """The median of ``key`` over ``runs``; None when a run has none (no GNU time: peaks)."""
+    values = [r[key] for r in runs]
+    return None if any(v is None for v in values) else statistics.median(values)
 
 
-def repeated(command: list[str], env: dict, what: str) -> dict:
-    """REPEAT[0] runs of ``command`` after an untimed one: medians, and the spread of CPU."""
-    first = run_process(command, env)
+def repeated(command: list[str], env: dict, what: str, cwd: Path | None = None) -> dict:
+    """REPEAT[0] runs of ``command`` (in ``cwd``) after an untimed one: medians, and the
+    spread of CPU."""
+    first = run_process(command, env, cwd)
     if first["code"] != 0:
         raise RuntimeError(f"{what} failed: {first['output'].strip()[-400:]}")
-    runs = [run_process(command, env) for _ in range(max(1, REPEAT[0]))]
+    runs = [run_process(command, env, cwd) for _ in range(max(1, REPEAT[0]))]
     cpus = [r["cpu_s"] for r in runs]
     return {
         "cpu_s": median_of(runs, "cpu_s"),
@@ -194,11 +218,17 @@ def whole_processes(folder: Path, env: dict, log, with_ngspice: bool) -> dict:
             ngspice = [shutil.which("ngspice"), "-b", "-r", str(raw), str(netlist)]
             row["ngspice"] = repeated(ngspice, env, f"ngspice {name}")
         rows[name] = row
-    log("  whole process: ideal, no bytecode cache")
-    netlist = NETLISTS["ideal"]
-    plain = [sys.executable, "-m", "circuitsim", "simulate", str(netlist)]
+    log("  whole process: ideal, our modules without bytecode")
+    # a copy of the package without its __pycache__ (run.py compiles it), run from its folder:
+    # numpy's and the standard library's bytecode stays, ours is compiled at every start
+    source = folder / "source-only"
+    shutil.rmtree(source, ignore_errors=True)
+    shutil.copytree(REPO / "circuitsim", source / "circuitsim",
+                    ignore=shutil.ignore_patterns("__pycache__"))  # fmt: skip
+    plain = [sys.executable, "-m", "circuitsim", "simulate", str(NETLISTS["ideal"])]
     rows["ideal, no .pyc"] = {
-        "ours": repeated([*plain, "--csv", str(folder / "plain.csv")], environment(None), "plain")
+        "ours": repeated([*plain, "--csv", str(folder / "plain.csv")],
+                         environment(None, source), "plain", cwd=source)  # fmt: skip
     }
     return rows
 
