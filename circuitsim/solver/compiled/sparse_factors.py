@@ -23,7 +23,8 @@ from circuitsim.solver.compiled.sparse_lu import assemble, lu_solve_rows, refact
 from circuitsim.solver.compiled.sparse_order import analyse
 
 # Unknowns from which the ports kernel factors sparsely. Measured (docs/solver.md): one dense
-# rebuild took 0.09 ms at 54 unknowns and 4.6 ms at 162, SuperLU's about 1 ms at 162.
+# rebuild took 0.09 ms at 54 unknowns and 4.6 ms at 162; the sparse factorization (order,
+# LU and the solves) 1.1 ms at 162 (the ideal chain of 4) and 3.2 ms at 374 (TL074 chain of 2)
 SPARSE_FROM = 100
 # the compiled functions a sparse factorization calls from Python (the start-up library's)
 SPARSE_FUNCTIONS = (*FILL_FUNCTIONS, *SEARCH_FUNCTIONS, assemble, refactor, lu_solve_rows)
