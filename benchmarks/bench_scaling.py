@@ -50,7 +50,6 @@ from circuitsim.synthesis.options import SynthesisOptions
 
 CHAIN_SIZES = (1, 2, 4, 8, 16, 32, 64)
 QUICK_SIZES = (1, 4, 8)
-TL074_SIZES = (1, 2, 4, 8, 16)  # the macromodel's chains (about 4 junctions per op-amp)
 T_STOP = 5.0
 WHEELSET = {"V": 55.0, "f": 3.0, "a": 0.040}
 FIT_FROM = 4  # growth exponents over N >= this
@@ -294,9 +293,7 @@ def run(folder: Path, quick: bool, log, sizes=None, opamps=("ideal", "tl074")) -
     out: dict = {"t_stop_s": T_STOP, "repeat": REPEAT[0], "family": FAMILY, "cases": [],
                  "growth": {}}  # fmt: skip
     for opamp in opamps:
-        chain_sizes = sizes or (QUICK_SIZES if quick else CHAIN_SIZES)
-        if opamp == "tl074":
-            chain_sizes = [n for n in chain_sizes if n in TL074_SIZES]
+        chain_sizes = sizes or (QUICK_SIZES if quick else CHAIN_SIZES)  # both op-amp models
         rows = []
         for masses in chain_sizes:
             try:

@@ -26,6 +26,8 @@ the cost of one factorization, what a direct solve costs anyway.
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 
 from circuitsim.solver.linalg import factor, lapack_lu
@@ -40,20 +42,29 @@ class Ports:
 
     def __init__(self, size: int, p: np.ndarray, n: np.ndarray):
         m = p.size
-        w = np.zeros((size + 1, m))
-        columns = np.arange(m)
-        np.add.at(w, (p, columns), 1.0)
-        np.add.at(w, (n, columns), -1.0)
         self.size, self.m = size, m
         self.p, self.n = p, n
-        self.w = np.ascontiguousarray(w[:size])
-        self.wt = np.ascontiguousarray(self.w.T)
-        self.abs_w = np.abs(self.w)
         rows = np.stack([p, p, n, n]).ravel()
         cols = np.stack([p, n, p, n]).ravel()  # (p,p) (p,n) (n,p) (n,n)
         keep = (rows >= 0) & (cols >= 0)
         self._rows, self._cols, self._keep = rows[keep], cols[keep], keep
         self._signs = np.repeat([1.0, -1.0, -1.0, 1.0], m)[keep]
+
+    @cached_property
+    def w(self) -> np.ndarray:
+        """W, shape (n, m): column k is e_p - e_n of port k (ground rows left out). Dense, so
+        made at its first use (the reference loop's): n m entries, 0.25 GB at the TL074
+        chain of 64 masses, which the compiled kernels never ask for."""
+        w = np.zeros((self.size + 1, self.m))
+        columns = np.arange(self.m)
+        np.add.at(w, (self.p, columns), 1.0)
+        np.add.at(w, (self.n, columns), -1.0)
+        return np.ascontiguousarray(w[: self.size])
+
+    @cached_property
+    def wt(self) -> np.ndarray:
+        """W^T, shape (m, n), rows contiguous."""
+        return np.ascontiguousarray(self.w.T)
 
     def voltages(self, x: np.ndarray) -> np.ndarray:
         """Port voltages ``W^T x``, shape (m,)."""

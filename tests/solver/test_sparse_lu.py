@@ -67,6 +67,9 @@ def test_refactor_solves_as_a_dense_solve(seed):
         g = values * (1.0 + scale * rng.random(4))
         b = rng.random(n)
         column, x = factor_and_solve(lu, 1e5, g, b)
+        if column >= 0:  # a pivot became too small: a new order at these values, as the
+            lu = analyse(G, M, port_p, port_n, g, 1e5)  # kernel makes
+            column, x = factor_and_solve(lu, 1e5, g, b)
         assert column < 0
         dense = present_matrix(G, M, port_p, port_n, g, 1e5).toarray()
         reference = np.linalg.solve(dense, b)

@@ -41,8 +41,8 @@ def sparse_solve(G, M, port_p, port_n, g, a0: float, rhs: np.ndarray) -> np.ndar
     except np.linalg.LinAlgError:
         return None
     assemble(lu.a_val, lu.g_val, lu.m_val, a0, lu.port_pos, g, _NO_SWITCHES)
-    # the order was found on these values (pivots at least 0.1 of their column's largest):
-    # a failure of refactor's test (1e-3) is a zero pivot
+    # the order was found on these values (pivots at least sparse_order.PIVOT_PREFERENCE,
+    # 0.01, of their column's largest): a failure of refactor's test (1e-3) is a zero pivot
     if refactor(lu.a_ptr, lu.a_row, lu.a_val, lu.l_ptr, lu.l_row, lu.l_val, lu.u_ptr,
                 lu.u_row, lu.u_val, lu.work, lu.redo, True) >= 0:  # fmt: skip
         return None

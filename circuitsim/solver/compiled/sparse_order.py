@@ -3,7 +3,7 @@
 
 - :func:`analyse` (once per run, and again by :func:`repivot` only when a pivot has become
   too small): up to ``OWN_ORDER_LIMIT`` unknowns our search (compiled/pivot_search.py: a
-  matching by size, minimum degree, threshold partial pivoting 0.1 preferring the matched
+  matching by size, minimum degree, threshold partial pivoting 0.01 preferring the matched
   row) on the present matrix gives the row and column permutations; above it SuperLU does,
   once for each column order of ``SUPERLU_ORDERS``. The pattern of L and U without pivoting
   follows from each (compiled/fill.py), and the order whose Newton iteration costs fewest
@@ -30,17 +30,23 @@ from circuitsim.solver.compressed import Compressed, unique
 
 # up to this many unknowns, our own pivot order (compiled/pivot_search.py: minimum degree
 # on A + A^T with a matching by size on the diagonal); above it, SuperLU's column orders
-# (COLAMD, MMD_AT_PLUS_A): ours took 21 % more CPU in-process on the TL074 chain of 8
-# (1478 unknowns), and scipy's import (0.3 s of CPU) is a small part of such runs
+# (COLAMD, MMD_AT_PLUS_A). COLAMD's orders fill more as the TL074 chains grow: a refactor
+# costs 2.1 ms on its order against 0.28 ms on ours at 64 masses (11 782 unknowns), 0.25
+# against 0.14 at 32; ours lost only below (the TL074 chain of 8, 1478 unknowns: 0.04 ms
+# both, 10-20 % more CPU in the run) and saves scipy's import. The limit bounds minimum
+# degree's elimination graph, n^2 / 8 bytes (50 MB here); SuperLU above it was not measured
 # (docs/solver.md, "Our pivot order")
-OWN_ORDER_LIMIT = 1000
+OWN_ORDER_LIMIT = 20_000
 SUPERLU_ORDERS = ("COLAMD", "MMD_AT_PLUS_A")
 # SuperLU's orders: the first is kept unless another's iteration costs less than
 # ORDER_MARGIN of its own
 ORDER_MARGIN = 0.8
 # a column takes its matched row while that is at least this fraction of the largest
-# candidate, else the largest (SuperLU's diag_pivot_thresh, as the kernel used it)
-PIVOT_PREFERENCE = 0.1
+# candidate, else the largest (SuperLU's diag_pivot_thresh). At 0.1 the orders made when a
+# pivot had become too small left the matched rows and filled: 4-4.7 times the first order's
+# operations on the TL074 chain of 64 masses, whose run took 24 s; at 0.01 9.3 s (one
+# process each, 2026-12-03). Still ten times sparse_lu.PIVOT_THRESHOLD, ngspice's 1e-3.
+PIVOT_PREFERENCE = 0.01
 
 
 def port_stamps(n: int, port_p: np.ndarray, port_n: np.ndarray):
