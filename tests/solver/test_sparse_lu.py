@@ -185,6 +185,36 @@ def test_the_reach_sets_hold_the_columns_a_refactor_redoes():
     assert first.tolist() == [0, 1, 0, 2]  # the empty set: none (the number of words)
 
 
+def test_between_the_limits_both_searches_are_offered_and_the_run_keeps_the_chosen_one(
+    monkeypatch,
+):
+    n, (G, M, port_p, port_n), values = 60, mna_like(60, 1), PORT_VALUES
+    monkeypatch.setattr(sparse_order, "SUPERLU_FROM", n - 1)  # n is between the limits
+    changing = np.array([True, True, False, False])
+
+    def orders_of(search):
+        return pivot_orders(G, M, port_p, port_n, values, 1e5, changing=changing,
+                            search=search)  # fmt: skip
+
+    search: dict = {}
+    chosen = orders_of(search)
+    # each search alone (a run that recorded it)
+    ours, superlu = orders_of({"kind": "ours"}), orders_of({"kind": "superlu"})
+    assert len(ours) == 1 and len(superlu) == len(SUPERLU_ORDERS)
+    cost_ours = iteration_cost(ours[0], changing)
+    cost_superlu = iteration_cost(superlu[0], changing)
+    # SuperLU's first; ours taken when it costs less than ORDER_MARGIN of it, and then the
+    # run keeps its orders alone (the other search's would be tried first at a small pivot)
+    expected = "ours" if cost_ours < ORDER_MARGIN * cost_superlu else "superlu"
+    assert search == {"kind": expected}
+    same = ours if expected == "ours" else superlu
+    assert len(chosen) == len(same)
+    for a, b in zip(chosen, same, strict=True):
+        assert np.array_equal(a.col_of, b.col_of) and np.array_equal(a.row_to, b.row_to)
+    # and a later call of the run searches that way alone
+    assert len(orders_of(search)) == len(same)
+
+
 @pytest.mark.parametrize("search", ["ours", "SuperLU"])
 def test_the_pivot_order_of_fewer_operations_is_chosen_and_the_other_kept(search, monkeypatch):
     n, (G, M, port_p, port_n), values = 60, mna_like(60, 1), PORT_VALUES

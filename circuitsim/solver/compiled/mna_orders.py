@@ -13,32 +13,34 @@ from circuitsim.solver.compiled.terminal_plan import entry_pattern, entry_values
 from circuitsim.solver.system import MnaSystem
 
 
-def reorder(plan, st, a0: float) -> int:
+def reorder(plan, st, a0: float, search=None) -> int:
     """A new pivot order (sparse_order.repivot) at the present matrix, in place in st.lu, as
     the MNA loop asks (newton.FACTOR); 0, or nonzero when it has no room for the fill or is
-    singular."""
+    singular. ``search``: the run's (sparse_order.pivot_orders)."""
     g_switch = np.where(np.asarray(st.state, dtype=bool), plan.g_switch[:, 0], plan.g_switch[:, 1])
     values = np.concatenate((st.gd, g_switch))
     extra = entry_values(plan.terms, st.terms)
     from circuitsim.solver.compiled.sparse_order import repivot
 
     try:
-        return repivot(st.lu, plan.port_p, plan.port_n, values, a0, extra, changing_ports(plan))
+        return repivot(st.lu, plan.port_p, plan.port_n, values, a0, extra, changing_ports(plan),
+                       search)  # fmt: skip
     except np.linalg.LinAlgError:  # singular
         return 2
 
 
-def pivot_order(plan, gd, state, a0, terms, constant, spare: float = 1.5) -> list[SparseLU]:
+def pivot_order(plan, gd, state, a0, terms, constant, spare: float = 1.5,
+                search=None) -> list[SparseLU]:  # fmt: skip
     """sparse_order.pivot_orders at the junction conductances ``gd``, switch states
     ``state``, a0 and the multi-terminal elements' state ``terms`` (with room for ``spare``
     times the fill in L and U, for later orders): the chosen order first; ``constant``:
-    (G, M), sparse (:func:`constant_parts`)."""
+    (G, M), sparse (:func:`constant_parts`); ``search``: the run's (pivot_orders)."""
     from circuitsim.solver.compiled.sparse_order import pivot_orders
 
     values, extra = present_values(plan, gd, state, terms)
     G, M = constant
     return pivot_orders(G, M, plan.port_p, plan.port_n, values, a0, spare, extra,
-                        changing_ports(plan))  # fmt: skip
+                        changing_ports(plan), search)  # fmt: skip
 
 
 def changing_ports(plan) -> np.ndarray:

@@ -35,6 +35,7 @@ class EarlierOrders:
     def __init__(self) -> None:
         self.kept: list[SparseLU] = []
         self.reused = 0
+        self.search: dict = {}  # which search makes the run's orders (sparse_order.pivot_orders)
 
     def keep(self, lu: SparseLU) -> None:
         """Remember ``lu`` (a copy: the caller is about to reorder it in place)."""

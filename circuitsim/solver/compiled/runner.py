@@ -318,7 +318,8 @@ def _loop_state(kind, start: PortsStart, plan, rows, capacity, constant=None, ea
         devices = device_states(start.families)
         terms = terminal_state(start.families["terminals"], plan.terms)
         a0 = _a0_start(start)
-        lu, *others = pivot_order(plan, devices["gd"], devices["state"], a0, terms, constant)
+        lu, *others = pivot_order(plan, devices["gd"], devices["state"], a0, terms, constant,
+                                  search=earlier.search)  # fmt: skip
         for other in others:  # the other column orders' (tried when a pivot gets small)
             earlier.keep(other)
         state = initial_state(plan, start.families, start.x, start.q0.copy(), capacity, lu)
@@ -464,7 +465,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
                 if earlier is not None:
                     st = st._replace(lu=earlier)
                     continue
-                if reorder(plan, st, a0) == 0:
+                if reorder(plan, st, a0, orders.search) == 0:
                     continue
                 # no room for its fill, or singular: the step is undone, as the loop's REPIVOT
                 st.fs[:] = mid[0].fs_start
@@ -481,7 +482,8 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
                     raise np.linalg.LinAlgError("no pivot order suits the matrix")
                 repivoted_at = int(st.ints[nw.ATTEMPTS])
                 a0 = float(st.fs[loop.REPIVOT_A0])
-                lu = pivot_order(plan, st.gd, st.state, a0, st.terms, constant, 2.0)[0]
+                lu = pivot_order(plan, st.gd, st.state, a0, st.terms, constant, 2.0,
+                                 orders.search)[0]  # fmt: skip
                 st = st._replace(lu=lu)
                 made += 1
             elif status == loop.PAUSED:
@@ -524,6 +526,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
             # orders made (sparse_order.py); "orders_reused": an earlier one taken again instead
             stats["pivot_orders"] = made + int(st.ints[PIVOT_ORDERS]) - orders.reused
             stats["orders_reused"] = orders.reused
+            stats["pivot_search"] = orders.search.get("kind")  # "ours" or "superlu"
         counted.append(int(st.ints[nw.FACTORIZATIONS]))
     if status != loop.FINISHED:
         raise failure(system, st, status, tstop)

@@ -28,14 +28,16 @@ from circuitsim.solver.compiled.pivot_search import (
 from circuitsim.solver.compiled.sparse_lu import SparseLU
 from circuitsim.solver.compressed import Compressed, unique
 
-# up to this many unknowns, our own pivot order (compiled/pivot_search.py: minimum degree
-# on A + A^T with a matching by size on the diagonal); above it, SuperLU's column orders
-# (COLAMD, MMD_AT_PLUS_A). COLAMD's orders fill more as the TL074 chains grow: a refactor
-# costs 2.1 ms on its order against 0.28 ms on ours at 64 masses (11 782 unknowns), 0.25
-# against 0.14 at 32; ours lost only below (the TL074 chain of 8, 1478 unknowns: 0.04 ms
-# both, 10-20 % more CPU in the run) and saves scipy's import. The limit bounds minimum
-# degree's elimination graph, n^2 / 8 bytes (50 MB here); SuperLU above it was not measured
-# (docs/solver.md, "Our pivot order")
+# up to SUPERLU_FROM unknowns, our own pivot order (compiled/pivot_search.py: minimum degree
+# on A + A^T with a matching by size on the diagonal); above OWN_ORDER_LIMIT, SuperLU's
+# column orders (COLAMD, MMD_AT_PLUS_A); between them both are offered and the cheaper kept
+# (iteration_cost), and the run's later orders come from that search alone (pivot_orders'
+# ``search``). Neither wins everywhere there: a refactor took 2.1 ms on SuperLU's order against
+# 0.28 ms on ours at the TL074 chain of 64 masses (11 782 unknowns), but the TL074 lattice of
+# 32 masses (7552) ran in 17.3 s on SuperLU's against 27.2 on ours, the ideal lattice of 32
+# (1724) in 0.79 against 1.12 s. OWN_ORDER_LIMIT bounds minimum degree's elimination graph,
+# n^2 / 8 bytes (50 MB there). docs/solver.md, "Our pivot order".
+SUPERLU_FROM = 1000
 OWN_ORDER_LIMIT = 20_000
 SUPERLU_ORDERS = ("COLAMD", "MMD_AT_PLUS_A")
 # SuperLU's orders: the first is kept unless another's iteration costs less than
@@ -43,7 +45,7 @@ SUPERLU_ORDERS = ("COLAMD", "MMD_AT_PLUS_A")
 ORDER_MARGIN = 0.8
 # a column takes its matched row while that is at least this fraction of the largest
 # candidate, else the largest (SuperLU's diag_pivot_thresh). At 0.1 the orders made when a
-# pivot had become too small left the matched rows and filled: 4-4.7 times the first order's
+# pivot had become too small left the matched rows and filled: 1.5-4.7 times the first order's
 # operations on the TL074 chain of 64 masses, whose run took 24 s; at 0.01 9.3 s (one
 # process each, 2026-12-03). Still ten times sparse_lu.PIVOT_THRESHOLD, ngspice's 1e-3.
 PIVOT_PREFERENCE = 0.01
@@ -91,27 +93,34 @@ def present_matrix(G, M, port_p, port_n, values, a0,
 
 
 def analyse(G, M, port_p, port_n, values, a0, spare: float = 1.0, extra=None,
-            changing=None) -> SparseLU:  # fmt: skip
+            changing=None, search=None) -> SparseLU:  # fmt: skip
     """The pivot order at the present values and the fixed pattern it gives; L and U get
     room for ``spare`` times their fill (a later order, :func:`repivot`, may need more).
     ``extra``: (rows, cols, values) of entries besides G, M and the ports (multi-terminal
     devices; -1: ground, left out), part of the pattern whatever their values. ``changing``:
     (nports,) bool, the ports whose conductance changes at every Newton iteration (the
-    charged junctions; default none), whose columns the choice of order weighs.
+    charged junctions; default none), whose columns the choice of order weighs. ``search``:
+    as for :func:`pivot_orders`.
 
     Raises
     ------
     np.linalg.LinAlgError
         The present matrix is singular.
     """
-    return pivot_orders(G, M, port_p, port_n, values, a0, spare, extra, changing)[0]
+    return pivot_orders(G, M, port_p, port_n, values, a0, spare, extra, changing, search)[0]
 
 
 def pivot_orders(G, M, port_p, port_n, values, a0, spare: float = 1.0, extra=None,
-                 changing=None) -> list[SparseLU]:  # fmt: skip
-    """:func:`analyse`'s pivot order, then the others (above OWN_ORDER_LIMIT unknowns: one
-    per column order of ``SUPERLU_ORDERS`` on which the matrix is not singular), for a later
-    matrix that the chosen one does not suit (compiled/order_cache.py).
+                 changing=None, search=None) -> list[SparseLU]:  # fmt: skip
+    """:func:`analyse`'s pivot order, then the others (above SUPERLU_FROM unknowns: one per
+    column order of ``SUPERLU_ORDERS`` on which the matrix is not singular, and ours up to
+    OWN_ORDER_LIMIT), for a later matrix that the chosen one does not suit
+    (compiled/order_cache.py).
+
+    ``search``: a dict kept by one run (order_cache.EarlierOrders.search). The first call
+    records in ``search["kind"]`` which search ("ours" or "superlu") made the chosen order;
+    later calls search that way alone, so that a new order at a too-small pivot costs one
+    search, not both (SuperLU's pair took 7 s at 11 782 unknowns).
 
     Raises
     ------
@@ -124,32 +133,40 @@ def pivot_orders(G, M, port_p, port_n, values, a0, spare: float = 1.0, extra=Non
     e_row, e_col = (np.asarray(e, dtype=np.int64) for e in extra[:2])
     A = present_matrix(G, M, port_p, port_n, values, a0, (e_row, e_col, extra[2]))
     changing = np.zeros(len(port_p), dtype=bool) if changing is None else changing
-    orders, best_cost = [], np.inf
+    orders, best_cost, chosen = [], np.inf, None
     # A keeps its stored zeros: its pattern is that of every matrix of the run (G, M, all
     # port stamps and the extra entries, whatever the values)
-    for row_to, col_rank in _permutations(A):
+    for row_to, col_rank, kind in _permutations(A, (search or {}).get("kind")):
         candidate = _on_order(G, M, port_p, port_n, e_row, e_col, A, row_to, col_rank,
                               spare)  # fmt: skip
         cost = iteration_cost(candidate, changing)
         if not orders or cost < ORDER_MARGIN * best_cost:
-            orders.insert(0, candidate)
-            best_cost = cost
+            orders.insert(0, (candidate, kind))
+            best_cost, chosen = cost, kind
         else:
-            orders.append(candidate)
+            orders.append((candidate, kind))
     if not orders:
         raise np.linalg.LinAlgError(f"singular matrix ({n} unknowns): no pivot order")
-    return orders
+    if search is not None:
+        search.setdefault("kind", chosen)
+    # the others of the chosen search only: a kept order of the other one would be taken
+    # again at the first too-small pivot (order_cache.py), and it was the costlier
+    return [lu for lu, kind in orders if kind == chosen]
 
 
-def _permutations(A: Compressed):
-    """(row_to, col_rank) of each pivot order of the present matrix ``A`` (row i of A to
-    row ``row_to[i]``, column j to column ``col_rank[j]``): ours up to OWN_ORDER_LIMIT
-    unknowns, else SuperLU's, one per column order on which A is not singular."""
+def _permutations(A: Compressed, kind: str | None = None):
+    """(row_to, col_rank, search) of each pivot order of the present matrix ``A`` (row i of A
+    to row ``row_to[i]``, column j to column ``col_rank[j]``; search "superlu" or "ours"):
+    ours up to SUPERLU_FROM unknowns, SuperLU's above OWN_ORDER_LIMIT (one per column order
+    on which A is not singular), both between, SuperLU's first; only ``kind``'s when it is
+    given and offered at this size."""
     n = A.shape[0]
-    if n > OWN_ORDER_LIMIT:
-        yield from _superlu_permutations(A)
-        return
-    yield from _own_permutation(A)
+    superlu, ours = n > min(SUPERLU_FROM, OWN_ORDER_LIMIT), n <= OWN_ORDER_LIMIT
+    kinds = [k for k, offered in (("superlu", superlu), ("ours", ours)) if offered]
+    for search in [kind] if kind in kinds else kinds:
+        found = _superlu_permutations(A) if search == "superlu" else _own_permutation(A)
+        for row_to, col_rank in found:
+            yield row_to, col_rank, search
 
 
 def search_trial() -> None:
@@ -313,7 +330,8 @@ def _room(indices: np.ndarray, spare: float) -> np.ndarray:
     return out
 
 
-def repivot(lu: SparseLU, port_p, port_n, values, a0, extra_val=None, changing=None) -> int:
+def repivot(lu: SparseLU, port_p, port_n, values, a0, extra_val=None, changing=None,
+            search=None) -> int:  # fmt: skip
     """A new pivot order at the present values (``extra_val``: of the extra entries, zero if
     not given; ``changing`` as for :func:`analyse`), written into ``lu``'s arrays in place
     (the compiled Newton asks for it when a pivot has become too small, and goes on with it).
@@ -333,7 +351,8 @@ def repivot(lu: SparseLU, port_p, port_n, values, a0, extra_val=None, changing=N
     extra_val = np.zeros(lu.extra_row.size) if extra_val is None else extra_val
     # G's and M's stored zeros drop out here: the extra entries put their positions back
     new = analyse(G, M, port_p, port_n, values, a0,
-                  extra=(lu.extra_row, lu.extra_col, extra_val), changing=changing)  # fmt: skip
+                  extra=(lu.extra_row, lu.extra_col, extra_val), changing=changing,
+                  search=search)  # fmt: skip
     used_l, used_u = new.l_ptr[-1], new.u_ptr[-1]
     if used_l > lu.l_row.size or used_u > lu.u_row.size:
         return 1
