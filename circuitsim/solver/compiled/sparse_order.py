@@ -4,10 +4,11 @@
 - :func:`analyse` (once per run, and again by :func:`repivot` only when a pivot has become
   too small): up to ``OWN_ORDER_LIMIT`` unknowns our search (compiled/pivot_search.py: a
   matching by size, minimum degree, threshold partial pivoting 0.01 preferring the matched
-  row) on the present matrix gives the row and column permutations; above it SuperLU does,
-  once for each column order of ``SUPERLU_ORDERS``. The pattern of L and U without pivoting
-  follows from each (compiled/fill.py), and the order whose Newton iteration costs fewest
-  operations (:func:`iteration_cost`) is kept.
+  row) on the present matrix gives the row and column permutations; above ``SUPERLU_FROM``
+  SuperLU does too, once for each column order of ``SUPERLU_ORDERS``. The pattern of L and
+  U without pivoting follows from each (compiled/fill.py), and the order whose Newton
+  iteration costs fewest operations (:func:`iteration_cost`) is kept; a run's later orders
+  come from the search that made its first (``search``).
 
 The matrix is ``A = G + a0 M + sum_k g_k w_k w_k^T + T`` (w_k = e_p - e_n: junction and
 switch ports; T: the entries of multi-terminal devices, ``extra`` below, at fixed (row,
