@@ -197,8 +197,9 @@ def _csr(name: str, transposed: Compressed) -> dict:
 def low_rank_columns(system: MnaSystem, port_p, port_n, lin) -> tuple[Compressed, Compressed]:
     """U = [W, E_lin] and V = [W, Q_lin^T] (both (n, r), compressed columns; VT = V^T):
     W's column k is e_p - e_n of port k (ground rows left out), E_lin the columns ``lin`` of
-    E, Q_lin the rows ``lin`` of Q. Sparse throughout: dense, U and V took 2 x 0.38 GB
-    and the plan 3.7 s at the TL074 chain of 64 masses (11 782 unknowns)."""
+    E, Q_lin the rows ``lin`` of Q. Sparse throughout: dense, U and V took 2 x 0.31 GB
+    and the plan 3.7-3.9 s at the TL074 chain of 64 masses (11 782 unknowns, 3328 columns),
+    now 0.014 s."""
     n, nports = system.size, port_p.size
     rows = np.concatenate([port_p, port_n]).astype(np.int64)
     cols = np.tile(np.arange(nports, dtype=np.int64), 2)
