@@ -11,6 +11,11 @@ A knob is a potentiometer, a generator setting or a switch of the real circuit:
   found by translating the model at the parameter +10 % and comparing the circuits), or the
   ones the model file's ``[circuit] knobs`` list names.
 
+Only primary parameters (numbers in the file) are knobs: a parameter written as an expression
+(the bogie's ``c_y = "2*f22/V"``) follows the knobs it reads, in the circuit and in the
+bench's ODE alike, unless the scenario set it to a number of its own (``--param c_y=...``).
+A number knob that moves no resistor (a parameter the circuit does not realize) is refused.
+
 Every circuit of a session is translated with the same amplitude scales (the ranges of the
 first translation), so that a node voltage means the same physical value all along; a
 change that would rewire the circuit or change a capacitor is refused (:class:`BenchError`).
@@ -25,6 +30,7 @@ from typing import NamedTuple
 from circuitsim.bench.errors import BenchError
 from circuitsim.mechanics.errors import ModelError
 from circuitsim.mechanics.model import Model
+from circuitsim.mechanics.parameters import evaluate_parameters
 from circuitsim.mechanics.system import Sinusoid, System
 from circuitsim.netlist.circuit import Capacitor, Circuit, Resistor, VoltageSource
 from circuitsim.solver.engine import flat_circuit
@@ -77,7 +83,9 @@ class BenchSetup:
     coefficients : str or None
         Coefficient set (None: the model's default).
     parameters : dict of str to float
-        Every parameter's starting value (the scenario applied).
+        The starting value of every primary parameter (a number in the file) and of each
+        derived one the scenario set to a number of its own (the scenario applied); the other
+        derived parameters are evaluated from these at every knob setting.
     switches : dict of str to bool
         Each piecewise-linear term on (closed switch) or off at the start.
     forcing : dict of str to bool or None
@@ -125,7 +133,7 @@ class BenchSetup:
         return cls(
             model,
             coefficients,
-            dict(system.parameters),
+            given_parameters(model, system.parameters),
             {name: name in on for name in model.nonlinear_terms},
             forcing,
             x0,
@@ -181,6 +189,37 @@ class BenchSetup:
             if value:
                 return abs(float(value))
         return 1.0
+
+
+def given_parameters(model: Model, values: dict[str, float]) -> dict[str, float]:
+    """Of a System's parameter values, those a run gives: every primary parameter, and each
+    derived one whose value is not what its expression gives at the others (the scenario set
+    it to a number of its own).
+
+    Parameters
+    ----------
+    model : Model
+    values : dict of str to float
+        Every parameter's value (``System.parameters``), in their units.
+
+    Returns
+    -------
+    dict of str to float
+        In the model file's order.
+    """
+    info = model.parameter_info
+    primary = {n: float(v) for n, v in values.items() if info[n].expression is None}
+    followed = evaluate_parameters(info, primary, model.file)
+    return {
+        name: float(value)
+        for name, value in values.items()
+        if info[name].expression is None or not _same(followed[name], float(value))
+    }
+
+
+def _same(a: float, b: float) -> bool:
+    """Equal to rounding (an expression evaluated twice at the same values)."""
+    return a == b or abs(a - b) <= 1e-12 * max(abs(a), abs(b))
 
 
 class Translated(NamedTuple):
@@ -272,26 +311,40 @@ def find_knobs(setup: BenchSetup, options: SynthesisOptions, base: Synthesis) ->
     """The knobs of ``setup``'s model (see the module's description), in the page's order.
 
     ``options`` has the session's fixed ranges; ``base`` is the circuit at the start.
+
+    Raises
+    ------
+    BenchError
+        The model file's ``[circuit] knobs`` names a parameter written as an expression (it
+        follows the parameters it reads; those are the knobs).
     """
     model = setup.model
     info = model.parameter_info
     hints = setup.system(setup.parameters, setup.switches).circuit_hints or {}
     listed = hints.get("knobs")
+    derived = [name for name in listed or () if name in info and info[name].expression]
+    if derived:
+        name = derived[0]
+        raise BenchError(
+            f"{model.file}: circuit.knobs: {name} is computed from other parameters "
+            f"({name} = {info[name].expression.expression.text!r}) and follows them; list the "
+            "parameters it reads instead"
+        )
     flat = flat_circuit(base.circuit)
     knobs = []
     for option in OPTION_KNOBS:
         name = model.options.get(option)
-        if name is not None:
-            parts = _parts_set_by(setup, options, flat, name) if option == "speed" else ()
-            if option != "speed":
-                parts = tuple(
-                    e.name
-                    for e in flat.elements
-                    if isinstance(e, VoltageSource) and type(e.waveform).__name__ == "Sin"
-                )
-            knobs.append(
-                Knob(option, "number", name, info[name].unit, info[name].description, parts)
+        if name is None or info[name].expression is not None:
+            continue  # a derived parameter follows its own knobs
+        if option == "speed":  # the generator's settings may follow the speed too
+            parts = _parts_set_by(setup, options, flat, name, resistors_only=False)
+        else:
+            parts = tuple(
+                e.name
+                for e in flat.elements
+                if isinstance(e, VoltageSource) and type(e.waveform).__name__ == "Sin"
             )
+        knobs.append(Knob(option, "number", name, info[name].unit, info[name].description, parts))
     switch_parts = hints.get("switches", {})
     for term in model.nonlinear_terms:
         part = switch_parts.get(term)
@@ -307,7 +360,9 @@ def find_knobs(setup: BenchSetup, options: SynthesisOptions, base: Synthesis) ->
         )
     taken = {k.parameter for k in knobs}
     for name in listed if listed is not None else info:
-        if name in taken or name not in info:
+        if name in taken or name not in info or info[name].expression is not None:
+            continue
+        if name not in setup.parameters:
             continue
         parts = _parts_set_by(setup, options, flat, name)
         if parts:
@@ -316,9 +371,14 @@ def find_knobs(setup: BenchSetup, options: SynthesisOptions, base: Synthesis) ->
 
 
 def _parts_set_by(
-    setup: BenchSetup, options: SynthesisOptions, flat: Circuit, name: str
+    setup: BenchSetup,
+    options: SynthesisOptions,
+    flat: Circuit,
+    name: str,
+    resistors_only: bool = True,
 ) -> tuple[str, ...]:
-    """The resistors a parameter sets (empty if it also changes anything else, or nothing)."""
+    """The resistors a parameter sets (empty if it sets none; with ``resistors_only``, empty
+    also if it changes a source)."""
     value = setup.parameters.get(name, 0.0)
     if not value:
         return ()
@@ -334,7 +394,7 @@ def _parts_set_by(
             continue
     else:
         return ()
-    if not _same_sources(flat, other):
+    if resistors_only and not _same_sources(flat, other):
         return ()
     return tuple(changed)
 

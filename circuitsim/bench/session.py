@@ -21,7 +21,7 @@ import math
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -29,6 +29,7 @@ from circuitsim.bench.errors import BenchError
 from circuitsim.bench.knobs import (
     BenchSetup,
     Knob,
+    differences,
     find_knobs,
     fixed_ranges,
     synthesize_at,
@@ -36,6 +37,7 @@ from circuitsim.bench.knobs import (
 from circuitsim.bench.running import OVERLOAD_VOLTS, RunningCircuit
 from circuitsim.mechanics.solve import solve
 from circuitsim.netlist.circuit import Resistor
+from circuitsim.solver.engine import flat_circuit
 
 #: Tolerances of the ODE beside the circuit: rtol 1e-8 keeps it within 2e-6 % NRMSD of a
 #: 1e-10 solution (five orders inside the 0.5 % it is compared at) with 0.61 times the
@@ -223,8 +225,43 @@ class BenchSession:
             system = self.setup.system(parameters, switches)
             if synthesis.scale_map != self.scale_map:
                 raise BenchError("these values change the circuit's scales")
+            moved = differences(self.circuit.flat, flat_circuit(synthesis.circuit))
+            self._refuse_silent(values, parameters, system, moved)
             changed = self.circuit.restamp(synthesis)
             return self._knobs_changed(values, parameters, switches, system, pots, changed)
+
+    def _refuse_silent(self, values: dict, parameters: dict, system, moved: dict) -> None:
+        """Refuse a parameter knob (not the generator's ``freq``, ``amplitude``) turned to a
+        new value that moves no resistor: the circuit would run on as before.
+
+        Raises
+        ------
+        BenchError
+            Naming the knob, its parameter and why: the model's linear part changes but no
+            resistor follows, or the parameter changes nothing the model computes.
+        """
+        if moved:
+            return
+        by_name = {k.name: k for k in self.knobs}
+        for name in values:
+            knob = by_name[name]
+            if knob.kind != "number" or name in ("freq", "amplitude"):
+                continue
+            old, new = self.parameters[knob.parameter], parameters[knob.parameter]
+            if old == new:
+                continue
+            unit = f" {knob.unit}" if knob.unit else ""
+            turned = f"knob {name!r} ({knob.parameter} {old:g} -> {new:g}{unit})"
+            if not np.array_equal(system.A, self.system.A):
+                raise BenchError(
+                    f"{turned} changes the model's linear part but no resistor of the circuit "
+                    "follows it; nothing changed"
+                )
+            if _same_forcing(system.forcing, self.system.forcing):
+                raise BenchError(
+                    f"{turned} changes no resistor and nothing else the model computes "
+                    f"({knob.parameter} enters none of its coefficients); nothing changed"
+                )
 
     def _knobs_changed(self, values, parameters, switches, system, pots, changed) -> float:
         """What readers see of a knob change (the circuit is restamped); returns t."""
@@ -387,3 +424,18 @@ class BenchSession:
         """The knob and state changes with their model and wall times (s), as JSON text."""
         with self.lock:
             return json.dumps({"chunk_s": self.chunk, "events": self.history}, indent=1)
+
+
+def _same_forcing(a: tuple, b: tuple) -> bool:
+    """Whether two Systems' forcing terms are the same (arrays compared by value)."""
+    if len(a) != len(b) or any(type(x) is not type(y) for x, y in zip(a, b, strict=True)):
+        return False
+    for x, y in zip(a, b, strict=True):
+        for field in fields(x):
+            u, v = getattr(x, field.name), getattr(y, field.name)
+            if isinstance(u, np.ndarray) or isinstance(v, np.ndarray):
+                if not np.array_equal(u, v):
+                    return False
+            elif u != v:
+                return False
+    return True

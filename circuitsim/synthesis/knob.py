@@ -198,13 +198,13 @@ def add_knobs(
     Returns
     -------
     list of Knob
-        One per resistor turned (empty if the parameter moves no A entry).
+        One per resistor turned.
 
     Raises
     ------
     SynthesisError
-        A bad range or series, the simulated value outside the range, or an entry that
-        changes sign.
+        A bad range or series, the simulated value outside the range, an entry that
+        changes sign, or a parameter that moves no entry of A (no resistor follows it).
     """
     if not (math.isfinite(request.low) and math.isfinite(request.high) and
             0 < request.low < request.high):  # fmt: skip
@@ -222,9 +222,17 @@ def add_knobs(
         raise SynthesisError(
             f"unknown potentiometer series {request.pot_series!r}; choose E3 or E6"
         )
+    entries = knob_entries(system, request)
+    if not entries:
+        raise SynthesisError(
+            f"no resistor follows {request.parameter}: no entry of the linear part changes "
+            f"between {request.parameter} = {request.low:g} and {request.high:g} "
+            f"{request.unit}".rstrip()
+            + " (a knob turns resistors; name a parameter the circuit's coefficients depend on)"
+        )
     names = PartNames(system)
     knobs = []
-    for i, j in knob_entries(system, request):
+    for i, j in entries:
         target, source = system.states[i], system.states[j]
         knobs.append(_turn(circuit, bom, system, request, series, value, names, target, source))
     return knobs
@@ -338,8 +346,6 @@ def knob_summary(knobs: list[Knob], request: KnobRequest | None) -> list[str]:
     """One line per knob: the parts, the range's dial ends and the simulated setting."""
     if request is None:
         return []
-    if not knobs:
-        return [f"knob: no resistor follows {request.parameter} (no entry of A changes)"]
     unit = f" {request.unit}" if request.unit else ""
     lines = []
     for k in knobs:

@@ -151,3 +151,36 @@ def test_generate_cli_knob(tmp_path, capsys):
         main(["generate", "--speed-range", "70:40", "-o", str(out)])
     assert exit_info.value.code == 2
     assert "expected LO:HI" in capsys.readouterr().err
+
+
+def test_the_bogies_speed_knob_follows_its_derived_parameters(tmp_path):
+    """The bogie's speed enters only through c_y = 2 f22 / V and c_psi = 2 f11 b^2 / V
+    (derived parameters): the knob turns the four damping resistors of the wheelsets, each
+    dial realizing the typed coefficient over the mass, proportional to V."""
+    model = load_model("bogie")
+
+    @functools.cache
+    def linear_part(v):
+        return model.system(parameters={"V": v}).A
+
+    request = KnobRequest("V", 20.0, 60.0, linear_part, "m/s")
+    result = generate(model.system(), tmp_path / "b.cir", knob=request)
+    assert sorted(k.entry for k in result.knobs) == sorted(
+        (f"{q}_dot", f"{q}_dot") for q in ("y1", "psi1", "y2", "psi2")
+    )
+    per_speed = {"y": 2 * 3.62e6 / 1500.0, "p": 2 * 3.98e6 * 0.74**2 / 1200.0}  # |A| V
+    for knob in result.knobs:
+        for s in knob.settings:
+            assert knob.scale / s.resistance == pytest.approx(
+                per_speed[knob.entry[0][0]] / s.value, rel=1e-12
+            )
+
+
+def test_a_knob_that_moves_no_resistor_is_refused(tmp_path, capsys):
+    from circuitsim.cli import main
+
+    out = tmp_path / "w.cir"
+    code = main(["generate", "--speed-range", "1:10", "--knob", "f", "-o", str(out)])
+    assert code == 2
+    assert "no resistor follows f: no entry of the linear part changes" in capsys.readouterr().err
+    assert not out.exists()
