@@ -334,7 +334,7 @@ def scenario_help(option: str) -> str:
     """
     model = HELP_MODEL
     if model is None:
-        first = "else the first state, " if option == "y0" else ""
+        first = "else --state's (default the first state's), " if option == "y0" else ""
         return (
             f"sets the parameter the model's [options] table maps {option!r} to, in its unit "
             f"({first}the built-in wheelset: {_SCENARIO_WHEELSET[option]})"
@@ -345,8 +345,11 @@ def scenario_help(option: str) -> str:
         about = f"{about}; " if about else ""
         return f"sets {info.name} of {model.name} ({about}default {info.value:g})"
     if option == "y0":
-        unit = model.units[0] or "1"
-        return f"initial value of {model.states[0]}, {unit} (default: the model's [initial])"
+        state = model.default_state
+        unit = model.units[model.states.index(state)] or "1"
+        return (
+            f"initial value of --state (default {state}), {unit} (default: the model's [initial])"
+        )
     mapped = ", ".join(model.options) or "none"
     return f"not used by {model.name} (its [options] maps: {mapped}); use --param NAME=VALUE"
 
@@ -407,6 +410,13 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--freq", type=float, metavar="F", help=scenario_help("freq"))
     parser.add_argument("--amplitude", type=float, metavar="A", help=scenario_help("amplitude"))
     parser.add_argument("--y0", type=float, metavar="Y", help=scenario_help("y0"))
+    parser.add_argument(
+        "--state",
+        metavar="NAME",
+        help="the state --y0 starts away from rest (when the model's [options] table maps no "
+        "y0) and that hunting, sweep, tolerance and ode's phase portrait measure and plot "
+        "(default: the model's [options] state, else the first state)",
+    )
     parser.add_argument(
         "--flange", action=argparse.BooleanOptionalAction, default=None, help=_switch_help()
     )
@@ -479,7 +489,8 @@ def scenario_system(args: argparse.Namespace, with_model: bool = False, model: M
     """The System of ``--model``/``--coeffs`` and the scenario options.
 
     ``--y0`` sets the parameter the model's ``[options]`` table names
-    for it, or else the first state's initial value. With ``with_model`` the loaded Model is
+    for it, or else the initial value of ``--state`` (default: the model's ``[options]
+    state``, else the first state). With ``with_model`` the loaded Model is
     returned too, as ``(model, system)``, with its ``--input`` series. ``model``, when given,
     is used instead of loading ``--model`` again (a sweep builds many systems of one model;
     it applies ``--input`` with :func:`with_inputs` itself).
@@ -504,7 +515,7 @@ def scenario_system(args: argparse.Namespace, with_model: bool = False, model: M
         if "y0" in model.options:
             parameters.update(model.option_parameters({"y0": y0}))
         else:
-            x0 = {model.states[0]: y0}
+            x0 = {model.state_named(getattr(args, "state", None)): y0}
     parameters.update(dict(args.param))
     nonlinear = None
     if args.flange is not None:
@@ -549,3 +560,7 @@ def read_netlist_reporting_warnings(path: str):
     for warning in caught:
         print_warning(warning.message)
     return circuit
+
+
+#: How the output names the compiled kernels a study's variants ran on.
+KERNEL_WORDS = {"ports": "ports kernel", "compiled": "MNA kernel"}

@@ -48,7 +48,11 @@ def _add_hunting(sub: argparse._SubParsersAction) -> None:
     add_scenario_options(parser)
     hunting_help = {  # the scenario options whose meaning or default differ here
         "speed": "not used: the speed is swept (--speeds)",
-        "y0": f"the push: the first state's start value, its unit (default {DEFAULT_PUSH:g})",
+        "y0": "the push: --state's start value, its unit, or the parameter the model's "
+        f"[options] table maps y0 to (default {DEFAULT_PUSH:g})",
+        "state": "the state pushed (--y0) and measured (default: the model's [options] state; "
+        "else, when [options] maps y0, the first state its [initial] table starts away from "
+        "rest; else the first state)",
         "flange": "run with the piecewise-linear terms (the flange) on only, or off only "
         "(default: both, one after the other)",
         "forcing": "switch on only this forcing group of the model (repeatable); default: "
@@ -208,11 +212,13 @@ def _run_hunting(args: argparse.Namespace) -> int:
         settle=args.settle, record=args.record, threshold=args.threshold or 0.0,
         bound=args.bound or math.inf, repush=args.repush,
     )  # fmt: skip
+    state = _pushed_state(model, args, lambda: system_at(float(speeds[0]), flanges[0]))
     bar = _Eta()
     try:
         result = run_hunting(
-            system_at, speeds, name, unit, settings, flanges, not args.no_circuit, linear, bar
-        )
+            system_at, speeds, name, unit, settings, flanges, not args.no_circuit, linear, bar,
+            state,
+        )  # fmt: skip
     except HuntingError as exc:
         raise UsageError(str(exc)) from None
     finally:
@@ -229,7 +235,23 @@ def _y0(model: Model, args: argparse.Namespace) -> dict:
 
 
 def _x0(model: Model, args: argparse.Namespace):
-    return None if "y0" in model.options else {model.states[0]: args.y0}
+    return None if "y0" in model.options else {model.state_named(args.state): args.y0}
+
+
+def _pushed_state(model: Model, args: argparse.Namespace, probe) -> str:
+    """``--state``, else the model's ``[options] state``; else, where ``--y0`` sets a
+    parameter (``[options] y0``), the first state the scenario starts away from rest (its
+    ``[initial]`` table places the push); else the first state."""
+    from circuitsim.mechanics import ModelError
+
+    if args.state is not None or "state" in model.options or "y0" not in model.options:
+        return model.state_named(args.state)
+    try:
+        x0 = probe().x0
+    except ModelError:  # run_hunting says so, naming the speed
+        return model.default_state
+    moved = [s for s, v in zip(model.states, x0, strict=True) if v] if x0 is not None else []
+    return moved[0] if moved else model.default_state
 
 
 def _summary(result, count: int) -> None:

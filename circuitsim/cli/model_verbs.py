@@ -246,8 +246,8 @@ def _add_ode(sub: argparse._SubParsersAction) -> None:
         "--plot",
         metavar="FILE",
         help="write a figure in the format of its suffix (.png, .pdf, .svg ...): every state "
-        "against time, one panel per unit, and the phase portrait of the first coordinate of "
-        "a second-order model",
+        "against time, one panel per unit, and the phase portrait of --state's coordinate "
+        "(default: the model's [options] state, else the first) of a second-order model",
     )
     parser.set_defaults(func=_run_ode)
 
@@ -311,11 +311,18 @@ def _run_ode(args: argparse.Namespace) -> int:
     if args.plot:
         from circuitsim.compare.figures import plot_states
 
-        shown = {name: system.parameters[name] for name in model.options.values()}
+        shown = {
+            name: system.parameters[name]
+            for option, name in model.options.items()
+            if option != "state"  # the only option that names a state, not a parameter
+        }
         shown.update(dict(args.param))
         settings = ", ".join([system.coefficient_set] + [f"{k}={v:g}" for k, v in shown.items()])
         title = f"{model.name} ({settings})"
-        plot_states(args.plot, result, title=title, time_unit=model.time_unit)
+        plot_states(
+            args.plot, result, title=title, time_unit=model.time_unit,
+            state=model.state_named(args.state),
+        )  # fmt: skip
     terms = ", ".join(term.name for term in system.nonlinear) or "none"
     print(f"model {model.name}, coefficient set {system.coefficient_set}, nonlinear: {terms}")
     for line in fit_summaries(system):

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, TextIO
 
 from circuitsim.cli.circuit_verbs import TSTOP_HELP
 from circuitsim.cli.common import (
+    KERNEL_WORDS,
     UsageError,
     add_jobs_option,
     add_model_options,
@@ -277,6 +278,7 @@ def _run_sweep(args: argparse.Namespace) -> int:
                 progress=bar,
                 ngspice_timeout=args.ngspice_timeout,
                 executor=executor,
+                state=model.state_named(args.state),
             )
             if one:
                 from circuitsim.compare.sweep import run_sweep
@@ -310,6 +312,7 @@ def _run_sweep(args: argparse.Namespace) -> int:
     kernels = result.timings.get("kernels")
     ready = "" if kernels is None else f", compiled kernels ready {kernels:.3g} s"
     where = "" if executor is None else f", {executor.label}"
+    where += "".join(f", {KERNEL_WORDS.get(k, k)}" for k in result.stats.get("kernels", ()))
     print(
         f"{_plural(len(grid), 'variant')} of {name} ({result.engine}{where}; changed: "
         f"{', '.join(result.changed) or 'none'}): synthesis {result.timings['synthesis']:.3g} s"

@@ -8,6 +8,7 @@ import math
 
 from circuitsim.cli.circuit_verbs import TSTOP_HELP
 from circuitsim.cli.common import (
+    KERNEL_WORDS,
     UsageError,
     add_jobs_option,
     add_model_options,
@@ -159,7 +160,8 @@ def _run_tolerance(args: argparse.Namespace) -> int:
     ):
         raise UsageError("gaussian tolerances must be below 30 % (3 sigma below 100 %)")
     folder = prepare_output_folder("--out", args.out, "tolerance.json", "tolerance.png")
-    system = scenario_system(args)
+    model, system = scenario_system(args, with_model=True)
+    state = model.state_named(args.state)
     tolerances = Tolerances(
         args.resistor_tolerance, args.capacitor_tolerance, args.offset, args.distribution
     )
@@ -185,7 +187,7 @@ def _run_tolerance(args: argparse.Namespace) -> int:
     from circuitsim.atomic import write_text_atomic
 
     write_text_atomic(json_path, json.dumps(result.to_json(), indent=1) + "\n")
-    plot_tolerance(result, png_path)
+    plot_tolerance(result, png_path, state)
     _print_summary(result)
     print(f"wrote {json_path}")
     print(f"wrote {png_path}")
@@ -229,7 +231,8 @@ def _print_summary(result) -> None:
             f"{th.frequency_ratio_tolerance:g} (every state)"
         )
     times = ", ".join(f"{k} {v:.3g} s" for k, v in result.timings.items())
-    print(f"times: {times}")
+    kernel = "" if result.kernel is None else f" (builtin, {KERNEL_WORDS[result.kernel]})"
+    print(f"times{kernel}: {times}")
 
 
 COMMANDS = [_add_tolerance]

@@ -104,13 +104,14 @@ def plot_states(
     time_unit: str = "s",
     samples: int = 20001,
     dpi: int = 90,
+    state: str | None = None,
 ) -> Figure:
     """Draw every state against time, one panel per unit, and save to ``path``.
 
     States sharing a unit share a panel (the wheelset: m, rad, m/s, rad/s), so a model of
-    any size gives a figure of a few panels. When the first state has a rate ``<q>_dot``
-    (a second-order model) a phase portrait of that pair ends the figure, with the kinks
-    marked.
+    any size gives a figure of a few panels. When ``state`` (default: the first) is a
+    coordinate with a rate ``<q>_dot`` (a second-order model; a rate's own coordinate is
+    taken for a rate) a phase portrait of that pair ends the figure, with the kinks marked.
 
     Parameters
     ----------
@@ -126,19 +127,24 @@ def plot_states(
         Dense-output samples over the span.
     dpi : int
         Resolution.
+    state : str, optional
+        The phase portrait's coordinate (or its rate).
 
     Returns
     -------
     Figure
         The figure written (its axes carry the labels).
     """
+    state = result.states[0] if state is None else state
+    if state.endswith("_dot") and state[: -len("_dot")] in result.states:
+        state = state[: -len("_dot")]
     t = np.linspace(result.t[0], result.t[-1], samples)
     x = result.sol(t)
     groups: dict[str, list[int]] = {}
     for index, unit in enumerate(result.units):
         groups.setdefault(unit, []).append(index)
-    first, rate = result.states[0], f"{result.states[0]}_dot"
-    phase = rate in result.states
+    first, rate = state, f"{state}_dot"
+    phase = first in result.states and rate in result.states
     panels = len(groups) + phase
     figure = Figure(figsize=(9, 1.2 + 2.2 * panels))
     axes = np.atleast_1d(figure.subplots(panels, 1))

@@ -303,9 +303,10 @@ def run_sweep(
     parameter, unit : str
         Its name and unit (for the CSV and plot).
     engine : {"builtin", "ngspice"}
-        builtin: each variant is its own run of the ports kernel (the same steps and, to
-        round-off, the same values as simulating that variant's circuit alone, which
-        ``kernel="auto"`` runs on the ports kernel too), ``workers`` threads at a time;
+        builtin: each variant is its own run of the compiled kernel ``simulate``'s
+        ``kernel="auto"`` chooses for the base circuit (the same steps and, to round-off, the
+        same values as simulating that variant's circuit alone; ``stats["kernels"]`` names
+        it), ``workers`` threads at a time;
         ngspice: one ngspice process per variant, ``workers`` at a time.
     options : SynthesisOptions, optional
     state : str, optional
@@ -355,8 +356,11 @@ def run_sweep(
     )
     if engine == "builtin":
         from circuitsim.solver.compiled import warm_up
+        from circuitsim.solver.variants import variants_kernel
 
-        ready = warm_up()
+        # the kernel simulate's auto chooses for the base circuit (every batch chooses so)
+        kernel = variants_kernel(variants.circuits[len(variants.circuits) // 2])
+        ready = warm_up((kernel,))
         if ready is not None:
             timings["kernels"] = ready
     started = time.perf_counter()
@@ -442,7 +446,7 @@ def _clipped(node_peaks, nodes, states, limit, options, describe) -> list[str]:
 def _run_builtin(
     variants: SweepCircuits, measure: VariantMeasure, executor: Executor, progress
 ) -> list[VariantOutcome]:
-    """Every variant as its own ports-kernel run (:func:`~circuitsim.solver.variants.
+    """Every variant as its own compiled run (:func:`~circuitsim.solver.variants.
     simulate_variants`: the steps of its single run), resistor changes taken from the base
     circuit (the middle one), run by ``executor``."""
     eta = Eta(getattr(executor, "label", "builtin"))

@@ -69,7 +69,8 @@ class Model:
     parameter_info : dict of str to Parameter
         Defaults with unit and description.
     options : dict of str to str
-        Command-line option name -> parameter name (``speed -> V``).
+        Command-line option name -> parameter name (``speed -> V``); ``state`` -> a state
+        name (:attr:`default_state`).
     coefficient_sets : tuple of str
         Names of the coefficient sets; ``default_coefficients`` is the one used when none is
         named.
@@ -107,6 +108,28 @@ class Model:
     def n(self) -> int:
         """Number of states."""
         return len(self.states)
+
+    @property
+    def default_state(self) -> str:
+        """The state the verbs push (``--y0``) and measure when no ``--state`` is given: the
+        one ``[options] state`` names, else the first."""
+        return self.options.get("state", self.states[0])
+
+    def state_named(self, name: str | None) -> str:
+        """``name`` (a ``--state``), or :attr:`default_state` for None.
+
+        Raises
+        ------
+        ModelError
+            A name that is no state of the model.
+        """
+        if name is None:
+            return self.default_state
+        if name not in self.states:
+            raise self._fail(
+                "--state", f"unknown state {name!r} (states: {', '.join(self.states)})"
+            )
+        return name
 
     def with_input_file(self, name: str, path: str) -> Model:
         """This model with forcing group ``name``'s input read from the CSV file ``path``.

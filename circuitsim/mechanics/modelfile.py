@@ -150,7 +150,7 @@ def read_model(path: str | Path | None = None) -> ModelSpec:
         equations = states
 
     parameters = _parameters(reader, document)
-    options = _options(reader, document, parameters)
+    options = _options(reader, document, parameters, states)
     sets, default_set = _coefficient_sets(reader, document, parameters)
     matrices = _matrices(reader, document, kind, len(equations))
     nonlinear = {
@@ -276,19 +276,30 @@ def _parameters(reader: TableReader, document: dict) -> dict[str, Parameter]:
     return read_parameters(reader, table, check_identifier)
 
 
-def _options(reader: TableReader, document: dict, parameters: dict) -> dict[str, str]:
+def _options(
+    reader: TableReader, document: dict, parameters: dict, states: tuple[str, ...]
+) -> dict[str, str]:
+    """Option -> parameter; ``state`` names a state instead (the one the verbs push and
+    measure by default: STATE_OPTION)."""
     table = reader.table(document.get("options"), "options", False)
     options = {}
     for option, target in table.items():
         key = f"options.{option}"
+        what = "a state" if option == STATE_OPTION else "a parameter"
         if not isinstance(target, str):
-            raise reader.fail(
-                key, f"wrong type: expected a parameter name, got {type_name(target)}"
-            )
-        if target not in parameters:
+            raise reader.fail(key, f"wrong type: expected {what} name, got {type_name(target)}")
+        if option == STATE_OPTION:
+            if target not in states:
+                raise reader.fail(key, f"unknown state {target!r} (states: {', '.join(states)})")
+        elif target not in parameters:
             raise reader.fail(key, f"unknown parameter {target!r}")
         options[option] = target
     return options
+
+
+#: The ``[options]`` key that names a state (``state = "y2"``): the state ``hunting``,
+#: ``sweep``, ``tolerance``, the plots and ``--y0`` use when no ``--state`` is given.
+STATE_OPTION = "state"
 
 
 def _coefficient_sets(reader: TableReader, document: dict, parameters: dict):

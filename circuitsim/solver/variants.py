@@ -1,14 +1,17 @@
-"""Many variants of one circuit: each its own ports-kernel run, a few at a time in threads.
+"""Many variants of one circuit: each its own compiled run, a few at a time in threads.
 
 A parameter sweep simulates circuits that differ only in element values. Each variant runs
-exactly what ``simulate(circuit, SimulationOptions.from_circuit(circuit, kernel="ports"))``
-runs (same options, same time steps, same Newton iterates), but records only the probed
-signals (formed row by row, so their values equal the single run's to round-off). A run of more
-than 20,000 attempted steps returns to Python every 20,000 attempts (``fixed_pauses``: its
-values do not depend on the machine's speed or load), where a single run does so by the
-clock; each return restarts the loop's local caches, so such runs agree to round-off. And
-``workers`` variants run at once in threads: the compiled loop releases the GIL, so the
-threads use separate cores without the start-up and pickling of worker processes.
+exactly what ``simulate(circuit, SimulationOptions.from_circuit(circuit, kernel=...))`` runs
+(same options, same time steps, same Newton iterates) on the kernel that ``kernel="auto"``
+chooses for the base circuit (the ports kernel, or the MNA kernel where many junctions switch
+or many ports are eliminated: :func:`~circuitsim.solver.compiled.runner.auto_kernel`), but
+records only the probed signals (formed row by row, so their values equal the single run's
+to round-off). A run of more than 20,000 attempted steps returns to Python every 20,000
+attempts (``fixed_pauses``: its values do not depend on the machine's speed or load), where a
+single run does so by the clock; each return restarts the loop's local caches, so such runs
+agree to round-off. And ``workers`` variants run at once in threads: the compiled loop
+releases the GIL, so the threads use separate cores without the start-up and pickling of
+worker processes.
 """
 
 from __future__ import annotations
@@ -44,8 +47,9 @@ def simulate_variants(
     progress: Progress | None = None,
     base: Circuit | None = None,
     reduce: Reduce | None = None,
+    kernel: str = "auto",
 ) -> list:
-    """The ``.tran`` of every circuit on the ports kernel, only ``probes`` recorded.
+    """The ``.tran`` of every circuit on one compiled kernel, only ``probes`` recorded.
 
     Variants that differ from the base circuit (``base``, else the first) only in the values
     of top-level resistors, with a ``uic`` transient (a sweep's), share its assembly, start
@@ -71,17 +75,21 @@ def simulate_variants(
         Applied to each variant's waveforms in its worker thread as soon as it ends (the
         index counts ``circuits`` from 0); its results are returned instead, so that a long
         study need not hold every trace at once.
+    kernel : {"auto", "ports", "compiled"}
+        The kernel every variant runs on; ``"auto"``: the one ``simulate`` chooses for the
+        base circuit (:func:`variants_kernel`). A shared start is made on the ports kernel
+        only (the MNA kernel assembles each variant).
 
     Returns
     -------
     list of Waveforms (or of ``reduce``'s results)
         In the order of ``circuits``; ``stats["wall_time_s"]`` is each variant's own time
-        (its share of a shared start not included).
+        (its share of a shared start not included), ``stats["kernel"]`` the kernel it ran on.
 
     Raises
     ------
     CircuitInputError
-        A circuit without ``.tran``, one the ports kernel cannot run, or an unknown probe
+        A circuit without ``.tran``, one the kernel cannot run, an unknown kernel or probe
         (the message names the variant, counted from 0).
     ConvergenceError, SingularMatrixError
         With a note naming the variant.
@@ -95,9 +103,13 @@ def simulate_variants(
         use_numba()
     check_cache()  # once, here, before threads would race for it
     reference = base if base is not None else (circuits[0] if total else None)
+    if total:
+        kernel = variants_kernel(reference, kernel)
     changes = [resistor_changes(reference, c) for c in circuits] if total else []
     shared = None
     enough = 1 if base is not None else 2  # the first circuit alone needs no shared start
+    if kernel != "ports":  # the MNA kernel's constant parts come from each variant's assembly
+        enough = total + 1
     if sum(c is not None for c in changes) >= enough and reference.transient is not None:
         if reference.transient.uic:
             try:
@@ -113,7 +125,7 @@ def simulate_variants(
             if shared is not None and changes[k] is not None and shared.names >= changes[k].keys():
                 futures[pool.submit(_one_shared, shared, changes[k], probes, k, reduce)] = k
             else:
-                futures[pool.submit(_one, circuit, probes, k, reduce)] = k
+                futures[pool.submit(_one, circuit, probes, k, reduce, kernel)] = k
         for done, future in enumerate(as_completed(futures), start=1):
             k = futures[future]
             try:
@@ -126,6 +138,31 @@ def simulate_variants(
             if progress is not None:
                 progress(done, total)
     return results
+
+
+def variants_kernel(circuit: Circuit, kernel: str = "auto") -> str:
+    """The compiled kernel a study of ``circuit``'s variants runs on: ``"ports"`` or
+    ``"compiled"`` (the MNA kernel); ``"auto"`` chooses as ``simulate`` does for ``circuit``.
+
+    A circuit no compiled kernel runs gets ``"ports"``: each variant's run then says why,
+    naming the variant.
+
+    Raises
+    ------
+    CircuitInputError
+        An unknown kernel.
+    """
+    from circuitsim.solver.compiled import kernel_unavailable
+    from circuitsim.solver.compiled.runner import auto_kernel
+
+    if kernel not in ("auto", "ports", "compiled"):
+        raise CircuitInputError(f"kernel {kernel!r}: expected auto, ports or compiled")
+    if kernel != "auto":
+        return kernel
+    if circuit.transient is None:
+        return "ports"
+    system = build_system(circuit, None, kernel="auto")
+    return "ports" if kernel_unavailable(system) is not None else auto_kernel(system)
 
 
 def resistor_changes(base: Circuit, other: Circuit) -> dict[str, float] | None:
@@ -165,16 +202,17 @@ class _Shared(NamedTuple):
     names: frozenset  # the assembled elements' names (a variant's changes must be among them)
 
 
-def _checked_system(circuit: Circuit, probes: list[str], k: int):
+def _checked_system(circuit: Circuit, probes: list[str], k: int, kernel: str = "ports"):
     """The variant's assembled system, its probes' unknowns and the recorded rows."""
     from circuitsim.solver.compiled import kernel_unavailable
 
     if circuit.transient is None:
         raise CircuitInputError(f"variant {k}: the circuit has no .tran")
-    system = build_system(circuit, None, kernel="ports")
-    reason = kernel_unavailable(system, "ports")
+    system = build_system(circuit, None, kernel=kernel)
+    reason = kernel_unavailable(system, kernel)
     if reason is not None:
-        raise CircuitInputError(f"variant {k}: the ports kernel cannot run it: {reason}")
+        what = "ports kernel" if kernel == "ports" else "MNA kernel"
+        raise CircuitInputError(f"variant {k}: the {what} cannot run it: {reason}")
     unknown = [p for p in probes if p not in system.signals]
     if unknown:
         raise CircuitInputError(
@@ -207,24 +245,36 @@ def _one_shared(
     stats: dict = {"analysis": "tran", "newton_iterations": 0}
     times, values = run_ports_from(shared.start, G, shared.rows, stats, fixed_pauses=True)
     stats["shared_start"] = True
+    stats["kernel"] = "ports"
     waves = _waveforms(system, times, values, probes, shared.index, stats, started)
     return waves if reduce is None else reduce(k, waves)
 
 
-def _one(circuit: Circuit, probes: list[str], k: int, reduce: Reduce | None):
-    """One variant's run (in a worker thread)."""
+def _one(circuit: Circuit, probes: list[str], k: int, reduce: Reduce | None, kernel: str = "ports"):
+    """One variant's run on ``kernel`` (in a worker thread)."""
     from circuitsim.solver.compiled import run_ports
+    from circuitsim.solver.compiled.runner import run_compiled
 
     started = _time.perf_counter()
-    system, index, rows = _checked_system(circuit, probes, k)
+    system, index, rows = _checked_system(circuit, probes, k, kernel)
     tran = circuit.transient
     stats: dict = {"analysis": "tran", "newton_iterations": 0}
-    times, values = run_ports(
-        system, tran.tstep, tran.tstop, tran.tstart, tran.tmax, tran.uic, None, stats, rows=rows,
+    run = run_ports if kernel == "ports" else run_compiled
+    times, values = run(
+        system,
+        tran.tstep,
+        tran.tstop,
+        tran.tstart,
+        tran.tmax,
+        tran.uic,
+        None,
+        stats,
+        rows=rows,
         fixed_pauses=True,
     )
     stats["factorizations"] = system.factorizations
     stats["shared_start"] = False
+    stats["kernel"] = kernel
     waves = _waveforms(system, times, values, probes, index, stats, started)
     return waves if reduce is None else reduce(k, waves)
 
@@ -242,4 +292,3 @@ def _waveforms(system, times, values, probes, index, stats, started) -> Waveform
     stats["method"] = system.options.method
     stats["wall_time_s"] = _time.perf_counter() - started
     return Waveforms(time=times, signals=signals, engine="builtin", stats=stats)
-

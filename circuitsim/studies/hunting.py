@@ -242,6 +242,7 @@ def run_hunting(
     circuit: bool = True,
     linear_critical: float | None = None,
     progress: Progress | None = None,
+    state: str | None = None,
 ) -> HuntingResult:
     """The bifurcation diagram: every flange setting, up then down, ODE then circuit.
 
@@ -249,7 +250,7 @@ def run_hunting(
     ----------
     system_at : callable(speed, flange) -> System
         The free-response scenario at one speed with the piecewise-linear terms on or off;
-        its ``x0`` is the push (the first state's start value must not be 0).
+        its ``x0`` is the push (``state``'s start value must not be 0).
     speeds : ndarray, shape (k,)
         Increasing; the down sweep runs them in reverse from the up sweep's final state.
     parameter, unit : str
@@ -263,6 +264,8 @@ def run_hunting(
     linear_critical : float, optional
         The linear critical speed, carried into the result (for the figure).
     progress : callable(done, total, message), optional
+    state : str, optional
+        The state pushed and measured (default: the first).
 
     Returns
     -------
@@ -271,7 +274,8 @@ def run_hunting(
     Raises
     ------
     HuntingError
-        Bad settings, a push of 0, or a model that cannot be built at one of the speeds.
+        Bad settings, an unknown state, a push of 0, or a model that cannot be built at one
+        of the speeds.
     IntegrationError, SolverError, SynthesisError
         From the paths.
     """
@@ -280,11 +284,20 @@ def run_hunting(
     if speeds.size < 2 or np.any(np.diff(speeds) <= 0):
         raise HuntingError("the speeds must increase, at least two of them")
     probe = _system(system_at, float(speeds[0]), bool(flanges[0]), parameter, unit)
-    state, state_unit = probe.states[0], (probe.units[0] if probe.units else "")
-    push = 0.0 if probe.x0 is None else float(probe.x0[0])
+    state = probe.states[0] if state is None else state
+    if state not in probe.states:
+        raise HuntingError(f"unknown state {state!r} (states: {', '.join(probe.states)})")
+    index = list(probe.states).index(state)
+    state_unit = probe.units[index] if probe.units else ""
+    push = 0.0 if probe.x0 is None else float(probe.x0[index])
     if push == 0:
+        started = [] if probe.x0 is None else [
+            f"{s} = {v:g}" for s, v in zip(probe.states, probe.x0, strict=True) if v
+        ]  # fmt: skip
+        where = f" (the start: {', '.join(started)})" if started else ""
         raise HuntingError(
-            f"the push is 0: start {state} away from rest (e.g. --y0 0.005) for a free response"
+            f"the push is 0: start {state} away from rest (e.g. --y0 0.005, --state {state}) "
+            f"for a free response{where}"
         )
     settings = replace(
         settings,

@@ -178,6 +178,9 @@ class ToleranceResult:
     timings : dict of str to float
         Wall seconds of ``synthesis``, ``realized`` (mapping checks), ``reference`` (the ODE),
         ``simulation`` (with each circuit's comparison, in the worker threads).
+    kernel : str or None
+        The compiled kernel the circuits ran on (``"ports"`` or ``"compiled"``, the MNA
+        kernel: the one ``simulate`` chooses for the nominal circuit); None when not simulated.
     """
 
     tolerances: Tolerances
@@ -192,6 +195,7 @@ class ToleranceResult:
     timings: dict[str, float] = field(default_factory=dict)
     speed_unit: str = "m/s"
     speed: float | None = None
+    kernel: str | None = None
 
     @property
     def unstable_fraction(self) -> float | None:
@@ -241,6 +245,7 @@ class ToleranceResult:
             "thresholds": None if self.thresholds is None else vars(self.thresholds),
             "summary": self.summary(),
             "timings_s": self.timings,
+            "kernel": self.kernel,
         }
 
 
@@ -362,9 +367,10 @@ def run_tolerance(
     if not simulate:
         return result
     result.thresholds = thresholds
-    metrics, passed = _simulate_and_compare(samples.circuits, synthesis, system, thresholds,
-                                            workers, progress, timings)  # fmt: skip
-    result.metrics, result.passed = metrics, passed
+    metrics, passed, kernel = _simulate_and_compare(
+        samples.circuits, synthesis, system, thresholds, workers, progress, timings
+    )
+    result.metrics, result.passed, result.kernel = metrics, passed, kernel
     return result
 
 
@@ -411,15 +417,17 @@ def within(values: dict, thresholds: Thresholds) -> bool:
 
 
 def _simulate_and_compare(circuits, synthesis, system, thresholds, workers, progress, timings):
-    """Every circuit through :func:`~circuitsim.solver.variants.simulate_variants`, then its
-    metrics against the ODE (one reference solution for all)."""
+    """Every circuit through :func:`~circuitsim.solver.variants.simulate_variants` on the
+    kernel ``simulate`` chooses for the nominal circuit, then its metrics against the ODE (one
+    reference solution for all); returns (metrics, passed, kernel)."""
     from circuitsim.compare.case import reference_traces
     from circuitsim.compare.mapping import map_waveforms
     from circuitsim.solver.compiled import warm_up
-    from circuitsim.solver.variants import simulate_variants
+    from circuitsim.solver.variants import simulate_variants, variants_kernel
 
     states = list(system.states)
-    ready = warm_up()
+    kernel = variants_kernel(synthesis.circuit)
+    ready = warm_up((kernel,))
     if ready is not None:
         timings["kernels"] = ready
     started = time.perf_counter()
@@ -436,7 +444,9 @@ def _simulate_and_compare(circuits, synthesis, system, thresholds, workers, prog
         return state_metrics(reference, map_waveforms(waves, synthesis.scale_map, states))
 
     started = time.perf_counter()
-    values = simulate_variants(circuits, probes, workers=workers, progress=advance, reduce=reduce)
+    values = simulate_variants(
+        circuits, probes, workers=workers, progress=advance, reduce=reduce, kernel=kernel
+    )
     timings["simulation"] = time.perf_counter() - started
     metrics = {s: {m: np.full(len(values), np.nan) for m in METRICS} for s in states}
     passed = np.zeros(len(values), dtype=bool)
@@ -445,40 +455,57 @@ def _simulate_and_compare(circuits, synthesis, system, thresholds, workers, prog
         for s, v in per_state.items():
             for name in METRICS:
                 metrics[s][name][k] = v[name]
-    return metrics, passed
+    return metrics, passed, kernel
 
 
 def plot_tolerance(result: ToleranceResult, path, state: str | None = None) -> None:
-    """Histograms: the realized critical speed and, when simulated, ``state``'s %NRMSD, peak
-    ratio and frequency ratio against the ODE (thresholds dashed). PNG, written atomically."""
+    """Histograms: the realized critical speed (for a model with one) and, when simulated,
+    ``state``'s %NRMSD, peak ratio and frequency ratio against the ODE (thresholds dashed;
+    ``state`` default: the first). PNG, written atomically.
+
+    Raises
+    ------
+    ComparisonError
+        ``state`` is not one of the simulated states.
+    """
     from matplotlib.figure import Figure
 
     from circuitsim.atomic import write_figure_atomic
 
-    panels = [("realized critical speed", result.critical_speed, result.speed_unit)]
+    panels = []  # (kind, title, values, unit)
+    if result.critical_speed_model is not None or np.isfinite(result.critical_speed).any():
+        panels.append(("critical", "realized critical speed", result.critical_speed,
+                       result.speed_unit))  # fmt: skip
     if result.metrics:
         state = state or next(iter(result.metrics))
+        if state not in result.metrics:
+            raise ComparisonError(f"state {state!r} is not one of {', '.join(result.metrics)}")
         m = result.metrics[state]
         panels += [
-            (f"{state}: NRMSD", m["nrmsd_percent"], "%"),
-            (f"{state}: peak ratio", m["peak_ratio"], ""),
-            (f"{state}: frequency ratio", m["frequency_ratio"], ""),
+            ("nrmsd", f"{state}: NRMSD", m["nrmsd_percent"], "%"),
+            ("peak", f"{state}: peak ratio", m["peak_ratio"], ""),
+            ("frequency", f"{state}: frequency ratio", m["frequency_ratio"], ""),
         ]
+    if not panels:  # no speed and not simulated: say so rather than draw empty axes
+        panels.append(("critical", "realized critical speed (the model has none)",
+                       result.critical_speed, result.speed_unit))  # fmt: skip
     columns = 2 if len(panels) > 1 else 1
     rows = math.ceil(len(panels) / columns)
     fig = Figure(figsize=(5.0 * columns, 3.4 * rows + 0.4))
     axes = np.atleast_1d(fig.subplots(rows, columns)).ravel()
+    for ax in axes[len(panels) :]:
+        ax.set_visible(False)
     th = result.thresholds
-    for k, (ax, (title, values, unit)) in enumerate(zip(axes, panels, strict=True)):
+    for ax, (kind, title, values, unit) in zip(axes, panels, strict=False):
         finite = np.asarray(values, dtype=float)
         finite = finite[np.isfinite(finite)]
         ax.hist(finite, bins=max(5, min(40, int(np.sqrt(max(finite.size, 1))) * 2)),
                 color="C0", alpha=0.8)  # fmt: skip
-        if k == 0 and result.critical_speed_model is not None:
+        if kind == "critical" and result.critical_speed_model is not None:
             ax.axvline(result.critical_speed_model, color="C3", ls="--", lw=1, label="model")
             ax.legend(fontsize=8)
-        if th is not None and k > 0:
-            _threshold_marks(ax, k, th, finite)
+        if th is not None and kind != "critical":
+            _threshold_marks(ax, kind, th, finite)
         ax.locator_params(axis="x", nbins=5)  # an offset axis of 1e-6 ratios stays readable
         ax.set_title(title, fontsize=9)
         ax.set_xlabel(unit or "ratio")
@@ -496,14 +523,14 @@ def plot_tolerance(result: ToleranceResult, path, state: str | None = None) -> N
     write_figure_atomic(fig, path, format="png", dpi=110)
 
 
-def _threshold_marks(ax, k: int, th: Thresholds, finite: np.ndarray) -> None:
-    """The threshold(s) of panel ``k`` (1: NRMSD, 2: peak ratio, 3: frequency ratio) as
-    dashed lines, or as a note when they lie far outside the drawn values (a line there would
+def _threshold_marks(ax, kind: str, th: Thresholds, finite: np.ndarray) -> None:
+    """The threshold(s) of a ``kind`` panel (``nrmsd``, ``peak``, ``frequency``) as dashed
+    lines, or as a note when they lie far outside the drawn values (a line there would
     squeeze the histogram into one pixel)."""
-    if k == 1:
+    if kind == "nrmsd":
         edges = [th.nrmsd_percent]
     else:
-        tol = th.peak_ratio_tolerance if k == 2 else th.frequency_ratio_tolerance
+        tol = th.peak_ratio_tolerance if kind == "peak" else th.frequency_ratio_tolerance
         edges = [1 - tol, 1 + tol]
     low, high = (float(np.min(finite)), float(np.max(finite))) if finite.size else (0.0, 1.0)
     span = max(high - low, 1e-12)

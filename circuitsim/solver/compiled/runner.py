@@ -183,9 +183,11 @@ def run_compiled(
     progress: Callable[[str], None] | None = None,
     stats: dict | None = None,
     rows: np.ndarray | None = None,
+    fixed_pauses: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`~circuitsim.solver.transient.run_transient`, compiled; only the unknowns
-    ``rows`` (default: all) are recorded and returned.
+    ``rows`` (default: all) are recorded and returned; ``fixed_pauses`` as in
+    :func:`run_ports`.
 
     Returns
     -------
@@ -193,7 +195,9 @@ def run_compiled(
         Accepted time points >= tstart (with uic, after 0: see ``recorded``), seconds.
     solutions : ndarray, shape (m, len(rows))
     """
-    return _run("compiled", system, tstep, tstop, tstart, tmax, uic, progress, stats, rows)
+    return _run(
+        "compiled", system, tstep, tstop, tstart, tmax, uic, progress, stats, rows, fixed_pauses
+    )
 
 
 def run_ports(
