@@ -458,10 +458,10 @@ def _simulate_and_compare(circuits, synthesis, system, thresholds, workers, prog
     return metrics, passed, kernel
 
 
-def plot_tolerance(result: ToleranceResult, path, state: str | None = None) -> None:
+def plot_tolerance(result: ToleranceResult, path, state: str | None = None):
     """Histograms: the realized critical speed (for a model with one) and, when simulated,
     ``state``'s %NRMSD, peak ratio and frequency ratio against the ODE (thresholds dashed;
-    ``state`` default: the first). PNG, written atomically.
+    ``state`` default: the first). PNG, written atomically; returns the Figure.
 
     Raises
     ------
@@ -521,6 +521,7 @@ def plot_tolerance(result: ToleranceResult, path, state: str | None = None) -> N
     fig.suptitle(label, fontsize=9)
     fig.tight_layout()
     write_figure_atomic(fig, path, format="png", dpi=110)
+    return fig
 
 
 def _threshold_marks(ax, kind: str, th: Thresholds, finite: np.ndarray) -> None:

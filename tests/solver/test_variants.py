@@ -119,3 +119,36 @@ def test_a_shared_start_takes_a_new_g_only_with_uic():
     start = ports_start(system, 1e-5, 5e-3, uic=False)
     with pytest.raises(ValueError, match="only for a uic start"):
         run_ports_from(start, system.G)
+
+
+def test_variants_run_on_the_kernel_simulate_chooses():
+    """``kernel="auto"`` (the default): the kernel ``simulate`` chooses for the base circuit,
+    named in each variant's stats; the ideal quarter car's circuit (many switching junctions)
+    runs on the MNA kernel, and each variant equals its own single ``simulate`` run."""
+    from dataclasses import replace
+
+    from circuitsim.mechanics import load_model
+    from circuitsim.solver.variants import variants_kernel
+    from circuitsim.synthesis.options import SynthesisOptions
+    from circuitsim.synthesis.translator import synthesize
+
+    model = load_model("quarter_car")
+    base = synthesize(model.system(), SynthesisOptions(opamp="ideal", t_stop=0.5)).circuit
+    assert variants_kernel(base) == "compiled" and variants_kernel(rc(1e3)) == "ports"
+    assert variants_kernel(base, "ports") == "ports"
+    with pytest.raises(CircuitInputError, match="kernel 'mna': expected auto, ports or comp"):
+        variants_kernel(base, "mna")
+    resistor = next(e for e in base.elements if isinstance(e, Resistor))
+    other = replace(base, elements=[
+        replace(e, resistance=1.1 * e.resistance) if e is resistor else e for e in base.elements
+    ])  # fmt: skip
+    probe = "v(" + next(e for e in base.elements if isinstance(e, Capacitor)).positive + ")"
+    waves = simulate_variants([base, other], [probe], workers=2)
+    for circuit, w in zip([base, other], waves, strict=True):
+        assert w.stats["kernel"] == "compiled"
+        single = simulate(circuit, SimulationOptions.from_circuit(circuit, kernel="auto"))
+        assert single.stats["kernel"].startswith("compiled")
+        np.testing.assert_array_equal(w.time, single.time)
+        scale = np.max(np.abs(single.signals[probe]))
+        np.testing.assert_allclose(w.signals[probe], single.signals[probe], atol=1e-12 * scale)
+    assert simulate_variants([rc(1e3)], ["v(out)"])[0].stats["kernel"] == "ports"
