@@ -232,9 +232,25 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:
         "--plot",
         metavar="FILE.png",
         help="draw the circuit traces over the ODE's, in the format of the suffix (.png, .pdf, "
-        ".svg ...)",
+        ".svg ...); past 6 states the panels fill side-by-side columns",
+    )
+    parser.add_argument(
+        "--states",
+        type=_state_list,
+        metavar="A,B,...",
+        help="the states --plot draws, in this order (comma-separated; default: every state)",
     )
     parser.set_defaults(func=_run_compare)
+
+
+def _state_list(text: str) -> list[str]:
+    """``--states y1,psi1``: the names, in order, each once."""
+    names = [name.strip() for name in text.split(",")]
+    if not all(names) or len(set(names)) != len(names):
+        raise argparse.ArgumentTypeError(
+            f"expected state names separated by commas, each once, got {text!r}"
+        )
+    return names
 
 
 def _check_compare(args: argparse.Namespace) -> None:
@@ -324,7 +340,8 @@ def _run_compare(args: argparse.Namespace) -> int:
     )
     opamp = args.opamp_subckt if args.opamp == "lib" else args.opamp
     label = f"{args.engine}, {opamp}, {args.series}"
-    system = scenario_system(args)
+    model, system = scenario_system(args, with_model=True)
+    _check_plotted(args, system)
     case = run_case(
         system,
         options,
@@ -336,7 +353,17 @@ def _run_compare(args: argparse.Namespace) -> int:
     )
     _print_warnings(case.synthesis)
     _print_fits(system, sys.stderr if args.json else sys.stdout)
-    return _print_case(args, case, label)
+    return _print_case(args, case, label, model.time_unit)
+
+
+def _check_plotted(args: argparse.Namespace, system) -> None:
+    """Refuse a ``--states`` name that is no state of the model (before any run)."""
+    unknown = [name for name in args.states or () if name not in system.states]
+    if unknown:
+        raise UsageError(
+            f"--states: no state {', '.join(map(repr, unknown))} in model {system.name} "
+            f"(states: {', '.join(system.states)})"
+        )
 
 
 def _compare_given(args: argparse.Namespace, thresholds) -> int:
@@ -352,7 +379,8 @@ def _compare_given(args: argparse.Namespace, thresholds) -> int:
     if not Path(scale).is_file():
         raise UsageError(f"no scale file {scale} (give --scale FILE.scale.json)")
     scale_map = ScaleMap.load(scale)
-    system = scenario_system(args)
+    model, system = scenario_system(args, with_model=True)
+    _check_plotted(args, system)
     if args.netlist is not None:
         args.engine = args.engine or "builtin"
         label = f"{args.engine}, {Path(source).name}"
@@ -376,10 +404,10 @@ def _compare_given(args: argparse.Namespace, thresholds) -> int:
         label = f"{waves.engine or 'raw'}, {Path(source).name}"
         case = compare_waveforms(system, waves, scale_map, thresholds, waves.engine, label=label)
     _print_fits(system, sys.stderr if args.json else sys.stdout)
-    return _print_case(args, case, label)
+    return _print_case(args, case, label, model.time_unit)
 
 
-def _print_case(args: argparse.Namespace, case, label: str) -> int:
+def _print_case(args: argparse.Namespace, case, label: str, time_unit: str = "s") -> int:
     """The comparison as a table (or JSON), the plot; exit code 0 pass, 1 fail."""
     import json
 
@@ -391,9 +419,11 @@ def _print_case(args: argparse.Namespace, case, label: str) -> int:
             args.plot,
             case.reference,
             {label: case.circuit},
+            states=args.states,
             units={state: m.unit for state, m in comparison.states.items()},
             title=f"circuit over ODE ({label})",
             errors=True,
+            time_unit=time_unit,
         )
     written = [str(args.plot)] if args.plot else []
     if case.netlist is not None and case.synthesis is not None:  # generated and written here

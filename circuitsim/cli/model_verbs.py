@@ -140,12 +140,24 @@ def _run_stability(args: argparse.Namespace) -> int:
     print(f"model {model.name}, coefficient set {coefficients}")
     unit = model.parameter_info[speed_parameter].unit
     label = f"critical {speed_parameter}" if args.parameter else "critical speed"
+    rate, hertz = _time_units(model)
     print(f"{label:18s} {value:.4f} {unit}")
-    print(f"hunting frequency  {frequency:.4f} Hz")
-    print(f"eigenvalues at {speed_parameter} = {speed:g} {unit} (1/s):")
+    print(f"hunting frequency  {frequency:.4f} {hertz}")
+    print(f"eigenvalues at {speed_parameter} = {speed:g} {unit} ({rate}):")
     for v in lam:
         print(f"  {v.real:+.6g} {v.imag:+.6g}j")
     return 0
+
+
+def _time_units(model) -> tuple[str, str]:
+    """The units of an eigenvalue and of a frequency in the model's time: ``("1/s", "Hz")``;
+    a dimensionless time: ``("per unit time", "cycles per unit time")``."""
+    time_unit = getattr(model, "time_unit", "s")
+    if time_unit == "s":
+        return "1/s", "Hz"
+    if not time_unit:
+        return "per unit time", "cycles per unit time"
+    return f"1/{time_unit}", f"cycles per {time_unit}"
 
 
 def _print_modes(args: argparse.Namespace, model) -> int:
@@ -160,8 +172,7 @@ def _print_modes(args: argparse.Namespace, model) -> int:
     coefficients = args.coeffs or model.default_coefficients
     found = modes(model, coefficients, parameters)
     values = model.environment(coefficients, parameters)[1]
-    time_unit = getattr(model, "time_unit", "s")
-    rate = f"1/{time_unit}" if time_unit else "per unit time"
+    rate, hertz = _time_units(model)
     if args.json:
         report = {
             "model": model.name,
@@ -180,7 +191,6 @@ def _print_modes(args: argparse.Namespace, model) -> int:
         print(json.dumps(report))
         return 0
     given = ", ".join(f"{k}={v:g}" for k, v in parameters.items()) or "the model's defaults"
-    hertz = "Hz" if time_unit == "s" else f"cycles per {rate[2:]}" if time_unit else "cycles"
     print(f"model {model.name}, coefficient set {coefficients}, at {given}")
     print(f"{'eigenvalue (' + rate + ')':>32s}  {'damping':>9s}  {'natural':>11s}  "
           f"{'damped':>11s}  ({hertz})")  # fmt: skip

@@ -29,6 +29,13 @@ def save_figure(figure, path: str | os.PathLike, dpi: int = 90) -> None:
     write_figure_atomic(figure, path, dpi=dpi)
 
 
+#: States per column of an overlay: more states are drawn in side-by-side columns.
+STATES_PER_COLUMN = 6
+
+#: Columns of an overlay at most (a 30-state model: 5 columns of 6).
+MAX_COLUMNS = 6
+
+
 def plot_overlay(
     path: str | os.PathLike,
     reference: dict[str, Trace],
@@ -41,22 +48,25 @@ def plot_overlay(
     errors: bool = False,
     n_points: int = 1500,
     dpi: int = 72,
-) -> None:
+    time_unit: str = "s",
+) -> Figure:
     """Each state's circuit trace(s) over the reference trace, one panel per state.
 
     With ``errors``, a second panel per state shows circuit minus reference: traces that agree
-    to a line width differ where the comparison lives.
+    to a line width differ where the comparison lives. Past :data:`STATES_PER_COLUMN` states
+    the panels fill side-by-side columns (at most :data:`MAX_COLUMNS`), so that a model of
+    many states gives a grid rather than one tall column.
 
     Parameters
     ----------
     path : path
         Figure to write, in the format of its suffix (PNG, PDF, SVG ...).
     reference : dict of str to (ndarray, ndarray)
-        Per state ``(t, values)``, model seconds and physical units.
+        Per state ``(t, values)``, model time and physical units.
     circuits : dict of str to dict of str to (ndarray, ndarray)
         Per curve label (``"builtin, ideal"`` ...) the circuit's state traces, already mapped.
     states : list of str, optional
-        Panels to draw (default: the reference's states).
+        Panels to draw, in order (default: the reference's states).
     units : dict of str to str, optional
         Axis units per state.
     title : str
@@ -73,15 +83,35 @@ def plot_overlay(
         per period at 10 Hz over 5 s).
     dpi : int
         Resolution.
+    time_unit : str
+        The model's time unit (``"s"``; ``""`` for a dimensionless time).
+
+    Returns
+    -------
+    Figure
+        The figure written.
+
+    Raises
+    ------
+    KeyError
+        A state of ``states`` that the reference does not have (the CLI checks names first).
     """
     states = states or list(reference)
     units = units or {}
     scales = scales or {}
-    rows = 2 * len(states) if errors else len(states)
-    figure = Figure(figsize=(6.4, 1.5 * rows + 0.6))
-    axes = figure.subplots(rows, 1, sharex=True, squeeze=False)
-    panels = axes[::2, 0] if errors else axes[:, 0]
-    for axis, state in zip(panels, states, strict=True):
+    columns = min(MAX_COLUMNS, -(-len(states) // STATES_PER_COLUMN))
+    per_column = -(-len(states) // columns)
+    rows = 2 * per_column if errors else per_column
+    if columns == 1:
+        size = (6.4, 1.5 * rows + 0.6)
+    else:  # lower panels in a grid: 5 columns of 6 states with errors stay on one screen
+        size = (4.2 * columns, 1.2 * rows + 0.8)
+    figure = Figure(figsize=size)
+    axes = figure.subplots(rows, columns, sharex=True, squeeze=False)
+    step = 2 if errors else 1
+    for k, state in enumerate(states):
+        column, row = divmod(k, per_column)
+        axis = axes[step * row, column]
         factor = scales.get(state, 1.0)
         grid = _grid(reference[state], n_points)
         t, values = grid, resample(reference[state], grid)
@@ -95,18 +125,24 @@ def plot_overlay(
         axis.set_ylabel(f"{state} ({unit})" if unit else state, fontsize=8)
         axis.grid(True, alpha=0.3)
         if errors:
-            _error_panel(
-                axes[2 * states.index(state) + 1, 0], state, reference, circuits, factor, n_points
-            )
-            axes[2 * states.index(state) + 1, 0].set_ylabel(
-                f"error ({unit})" if unit else "error", fontsize=8
-            )
+            below = axes[step * row + 1, column]
+            _error_panel(below, state, reference, circuits, factor, n_points)
+            below.set_ylabel(f"error ({unit})" if unit else "error", fontsize=8)
+    for k in range(len(states), per_column * columns):  # the last column's empty slots
+        column, row = divmod(k, per_column)
+        for extra in range(step):
+            axes[step * row + extra, column].set_visible(False)
     axes[0, 0].legend(loc="upper right", fontsize=7, ncol=2)
-    axes[-1, 0].set_xlabel("model time (s)")
+    label = f"model time ({time_unit})" if time_unit else "model time (dimensionless)"
+    for column in range(columns):
+        filled = min(per_column, len(states) - column * per_column)
+        axes[step * filled - 1, column].set_xlabel(label)
+        axes[step * filled - 1, column].xaxis.set_tick_params(labelbottom=True)
     if title:
         figure.suptitle(title, fontsize=10)
     figure.tight_layout()
     save_figure(figure, path, dpi)
+    return figure
 
 
 def _grid(trace: Trace, n_points: int) -> np.ndarray:

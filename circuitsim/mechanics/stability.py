@@ -136,9 +136,7 @@ def critical_speed(
     crossing = np.nonzero((rates[:-1] < 0) & (rates[1:] >= 0))[0]
     if crossing.size == 0:
         raise ModelError(
-            f"the linear part does not lose stability for {parameter} in [{lo:g}, {hi:g}] "
-            f"(largest real part {rates[0]:.4g} 1/s at {lo:g}, {rates[-1]:.4g} 1/s at {hi:g}; "
-            f"between {rates.min():.4g} and {rates.max():.4g} 1/s)",
+            _no_crossing(parameter, lo, hi, grid, rates, _rate_unit(model)),
             file=model.file,
             key=f"parameters.{parameter}",
         )
@@ -146,6 +144,35 @@ def critical_speed(
     value = brentq(rate, grid[i], grid[i + 1], xtol=1e-12 * abs(grid[i + 1]), rtol=1e-13)
     lam = eigenvalues(model, parameter, [value], coefficients, parameters)[0, 0]
     return float(value), float(abs(lam.imag) / (2.0 * np.pi))
+
+
+def _rate_unit(model: Model) -> str:
+    """The unit of an eigenvalue: 1/s, or per the model's time unit (dimensionless: "")."""
+    unit = getattr(model, "time_unit", "s")
+    return f"1/{unit}" if unit else "per unit time"
+
+
+def _no_crossing(parameter, lo, hi, grid, rates, unit: str) -> str:
+    """Why a bracket holds no loss of stability, in words that fit the scan: stable all
+    along, unstable all along, or unstable at the low end and stable further on."""
+    where = f"{parameter} in [{lo:g}, {hi:g}]"
+    extent = (
+        f"largest real part {rates[0]:.4g} {unit} at {lo:g}, {rates[-1]:.4g} {unit} at "
+        f"{hi:g}; between {rates.min():.4g} and {rates.max():.4g} {unit}"
+    )
+    if np.all(rates < 0):
+        return f"the linear part is stable over the whole bracket, {where} ({extent})"
+    if np.all(rates >= 0):
+        return (
+            f"the linear part is unstable over the whole bracket, {where} ({extent}): it loses "
+            "stability below the bracket, if at all"
+        )
+    regains = grid[int(np.nonzero((rates[:-1] >= 0) & (rates[1:] < 0))[0][0]) + 1]
+    return (
+        f"the linear part is unstable at the bracket's low end and stable from about "
+        f"{parameter} = {regains:.4g} on: it gains stability there and does not lose it in "
+        f"{where} ({extent})"
+    )
 
 
 @dataclass(frozen=True)

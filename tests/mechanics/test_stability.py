@@ -81,8 +81,11 @@ def test_oscillator_with_negative_damping_closed_form(tmp_path):
     value, frequency = critical_speed(model, parameter="mu", bracket=(0.01, 10.0))
     assert value == pytest.approx(0.3, rel=1e-10)
     assert frequency == pytest.approx(4.0 / (2 * math.pi), rel=1e-10)
-    with pytest.raises(ModelError, match="does not lose stability"):
+    with pytest.raises(ModelError, match=r"is stable over the whole bracket, mu in \[0.01, 0.2\]"):
         critical_speed(model, parameter="mu", bracket=(0.01, 0.2))
+    # unstable from mu = 0.3 on: a bracket above it is unstable all along, not "stable"
+    with pytest.raises(ModelError, match=r"is unstable over the whole bracket, mu in \[1, 10\]"):
+        critical_speed(model, parameter="mu", bracket=(1.0, 10.0))
     with pytest.raises(ModelError, match="unknown parameter 'V'"):
         critical_speed(model)
 
@@ -100,3 +103,17 @@ def test_bracket_messages_name_the_bracket(wheelset):
     rate = lambda v: max(np.linalg.eigvals(wheelset.system(parameters={"V": v}).A).real)  # noqa: E731
     assert at_lo == pytest.approx(rate(10.0), rel=1e-3)
     assert at_hi == pytest.approx(rate(50.0), rel=1e-3)
+
+
+def test_a_bracket_that_regains_stability_says_so_in_the_models_time_unit(tmp_path):
+    """Damping (mu - 1)(mu - 3) is negative between 1 and 3: from 2 to 5 the linear part is
+    unstable at first and stable from 3 on; a dimensionless time gives rates per unit time."""
+    path = tmp_path / "band.toml"
+    text = textwrap.dedent(NEGATIVE_DAMPING).replace('"c - mu"', '"(mu - 1)*(mu - 3)"')
+    path.write_text(text.replace('kind = "second_order"', 'kind = "second_order"\ntime_unit = "1"'))
+    model = load_model(path)
+    with pytest.raises(ModelError) as caught:
+        critical_speed(model, parameter="mu", bracket=(2.0, 5.0))
+    message = str(caught.value)
+    assert "unstable at the bracket's low end and stable from about mu = 3." in message
+    assert "per unit time" in message and "1/s" not in message
