@@ -8,7 +8,7 @@ import contextlib
 from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
-from circuitsim.cli.common import UsageError, print_warning
+from circuitsim.cli.common import KERNEL_WORDS, UsageError, print_warning
 
 if TYPE_CHECKING:
     from circuitsim.mechanics.model import Model
@@ -163,6 +163,7 @@ def report_grid(result, grid: ParameterGrid, paths, executor) -> None:
     total = len(grid)
     simulation = sweep.timings["simulation"]
     where = "in-process" if executor is None else executor.label
+    where += "".join(f", {KERNEL_WORDS.get(k, k)}" for k in sweep.stats.get("kernels", ()))
     shared = sweep.stats.get("shared_start")
     own = "" if shared is None else (
         f"; {shared} from the base circuit's shared start (resistor changes), "
