@@ -189,3 +189,20 @@ def test_tolerance_draws_the_named_state_and_no_speed_panel_without_a_speed(tmp_
     figure = plot_tolerance(result, tmp_path / "t.png", "y")
     titles = [a.get_title() for a in figure.axes if a.get_visible()]
     assert titles == ["y: NRMSD", "y: peak ratio", "y: frequency ratio"]
+
+
+def test_hunting_circuit_path_measures_the_named_state(tmp_path):
+    """The circuit path too: its amplitudes of y (the second coordinate) follow the typed
+    equation's, to the circuit's accuracy."""
+    model = write_model(tmp_path, 'state = "y"')
+    out = tmp_path / "out"
+    args = ["hunting", "--model", model, "--speeds", "40,50,60", "--settle", "1", "--record",
+            "1", "--repush", "0", "--y0", "0.005", "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    with open(out / "hunting.csv") as handle:
+        rows = [r for r in csv.DictReader(handle) if r["path"] == "circuit"]
+    assert len(rows) == 6
+    expected = reference_amplitudes(np.array([40.0, 50.0, 60.0]), 0.005)
+    for row in rows:
+        key = (row["direction"], float(row["V (m/s)"]))
+        assert float(row["amplitude_y (m)"]) == pytest.approx(expected[key], rel=1e-3)
