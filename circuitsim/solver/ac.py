@@ -42,9 +42,10 @@ MAX_POINTS = 1_000_000
 def ac_frequencies(sweep: AcSweep, reltol: float = 1e-3) -> np.ndarray:
     """The frequencies of an ``.ac`` sweep, Hz, as SPICE steps through them.
 
-    ``dec``/``oct``: ``points`` per decade/octave from ``fstart``, each the previous times
-    ``10**(1/points)`` (``2**(1/points)``); ``lin``: ``points`` in all, evenly spaced (from 3
-    points: ngspice gives 1 or 2 points as the start frequency alone). The
+    ``dec``: ``floor(decades * points)`` equal ratios from ``fstart`` to ``fstop`` (ngspice
+    39's rule: the sweep ends on ``fstop``; a range below one step gives ``fstart`` alone);
+    ``oct``: each frequency the previous times ``2**(1/points)``; ``lin``: ``points`` in all,
+    evenly spaced (from 3 points: ngspice gives 1 or 2 points as the start frequency alone). The
     sweep ends at the last frequency within ``fstop`` plus a tolerance of ``reltol`` of one
     step (ngspice's ACan), so a grid that lands on ``fstop`` up to rounding includes it.
 
@@ -78,11 +79,20 @@ def ac_frequencies(sweep: AcSweep, reltol: float = 1e-3) -> np.ndarray:
         return np.array(out or [fstart])
     if fstart <= 0.0:
         raise CircuitInputError(f"{where}: a logarithmic sweep needs a start frequency > 0")
-    base = 10.0 if variation == "dec" else 2.0
-    delta = math.exp(math.log(base) / points)
-    expected = math.log(fstop / fstart) / math.log(delta) + 1
-    if expected > MAX_POINTS:
-        raise CircuitInputError(f"{where}: {expected:.3g} frequencies, more than {MAX_POINTS}")
+    if variation == "dec":
+        # ngspice 39: a whole number of equal ratios from fstart to fstop, so the sweep ends
+        # on fstop; points per decade is rounded down to fit
+        steps = math.floor(abs(math.log10(fstop / fstart)) * points)
+        if steps == 0:
+            return np.array([fstart])
+        if steps + 1 > MAX_POINTS:
+            raise CircuitInputError(f"{where}: {steps + 1} frequencies, more than {MAX_POINTS}")
+        delta = math.exp(math.log(fstop / fstart) / steps)
+    else:
+        delta = math.exp(math.log(2.0) / points)
+        expected = math.log(fstop / fstart) / math.log(delta) + 1
+        if expected > MAX_POINTS:
+            raise CircuitInputError(f"{where}: {expected:.3g} frequencies, more than {MAX_POINTS}")
     out, freq, tol = [], fstart, delta * fstop * reltol
     while freq <= fstop + tol:
         out.append(freq)

@@ -252,3 +252,17 @@ def test_ngspice_39_takes_a_closed_switch_as_open_in_ac(tmp_path):
         ".model swm SW(vt=0.5 vh=0 ron=10 roff=1meg)\n.ac lin 3 1 10\n.end\n"
     )
     assert np.allclose(run_ngspice(deck)["vm(b)"], 1e3 / (1e3 + 1e6), rtol=1e-9)
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+@pytest.mark.parametrize(
+    "card", [".ac dec 1000 5 20", ".ac dec 7 3.3 47k", ".ac oct 5 1 100", ".ac lin 7 1 2"]
+)
+def test_the_frequency_grid_is_ngspice_s_on_awkward_ranges(card):
+    from circuitsim.interop.ngspice import run_ngspice
+
+    text = f"rc\nV1 in 0 AC 1\nR1 in out 1k\nC1 out 0 1u\n{card}\n.end\n"
+    ours, reference = _run(text).time, run_ngspice(text).time
+    assert ours.shape == reference.shape
+    assert np.allclose(ours, reference, rtol=1e-15, atol=0.0)
