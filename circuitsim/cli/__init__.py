@@ -42,6 +42,7 @@ from circuitsim.cli import (
     bench_verbs,
     circuit_verbs,
     common,
+    frf_verbs,
     hunting_verbs,
     model_verbs,
     netlist_verbs,
@@ -59,6 +60,7 @@ COMMANDS = [
     *hunting_verbs.COMMANDS,
     *bench_verbs.COMMANDS,
     *tolerance_verbs.COMMANDS,
+    *frf_verbs.COMMANDS,
 ]
 
 

@@ -85,10 +85,13 @@ def _run_check(args: argparse.Namespace) -> int:
 def _add_simulate(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "simulate",
-        help="run a netlist's .tran (or .op) with our MNA engine or ngspice",
+        help="run a netlist's .tran, .op or .ac with our MNA engine or ngspice",
         description=(
-            "Simulate FILE.cir: its first .tran, or its .op if it has no .tran, with the "
-            "built-in MNA engine (default) or ngspice. Writes every node voltage and every "
+            "Simulate FILE.cir: its first .tran, or its .op if it has no .tran, or its .ac "
+            "if it has neither (--analysis chooses), with the "
+            "built-in MNA engine (default) or ngspice. An .ac sweep writes, per frequency "
+            "(Hz), the magnitude and phase (degrees) of each signal: vm(node), vp(node), "
+            "im(vsource), ip(vsource). Writes every node voltage and every "
             "voltage-source current (or only --probe signals) on the engine's own time points, "
             "with the same column names and order from both engines; or, with --states, the "
             "physical states through the netlist's scale file. Probes are checked before the "
@@ -112,8 +115,19 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         "voltages), compiled (numba, every unknown), python (the reference), or auto (ports "
         "where the circuit allows, at any size; default)",
     )
+    parser.add_argument(
+        "--analysis",
+        choices=("tran", "op", "ac"),
+        help="which of the netlist's analyses to run (default: .tran, else .op, else .ac; an "
+        "operating point needs no card)",
+    )
     add_ngspice_timeout(parser)
-    parser.add_argument("--csv", metavar="FILE", help="write time,v(node),...,i(vsource),...")
+    parser.add_argument(
+        "--csv",
+        metavar="FILE",
+        help="write time,v(node),...,i(vsource),... (an .ac sweep: "
+        "frequency,vm(node),vp(node),...)",
+    )
     parser.add_argument(
         "--plot",
         metavar="FILE",
@@ -182,18 +196,27 @@ def _run_simulate(args: argparse.Namespace) -> int:
         }
         try:
             options = SimulationOptions.from_circuit(circuit, kernel=args.kernel, **limits)
-            waves = simulate(circuit, options, progress=progress_after(1.0), probes=probes)
+            waves = simulate(
+                circuit,
+                options,
+                progress=progress_after(1.0),
+                probes=probes,
+                analysis=args.analysis,
+            )
         except SolverError as exc:  # about the circuit ("D1: no .model ..."): say which file
             exc.args = (f"{args.netlist}: {exc}",)
             raise
     if scale_map is not None:
+        if waves.axis == "frequency":
+            raise UsageError("--states maps transient traces; this run is an .ac sweep")
         waves = _physical_states(waves, scale_map)
     stats = waves.stats
     engine = args.engine
     if "kernel" in stats:  # "ports", or "python (why the compiled kernels do not apply)"
         name, _, why = stats["kernel"].partition(" (")
         engine += f" ({name} kernel: {why[:-1]})" if why else f" ({name} kernel)"
-    summary = f"{args.netlist}: {engine}, {len(waves.time)} time point(s)"
+    points = "frequencies" if waves.axis == "frequency" else "time point(s)"
+    summary = f"{args.netlist}: {engine}, {len(waves.time)} {points}"
     if "accepted" in stats:
         summary += (
             f", {stats['accepted']} accepted / {stats['rejected']} rejected steps, "
@@ -206,13 +229,17 @@ def _run_simulate(args: argparse.Namespace) -> int:
         waves.to_csv(args.csv)
         print(f"wrote {args.csv}")
     if args.plot:
-        from circuitsim.solver.plotting import plot_waveforms
+        from circuitsim.solver.plotting import plot_bode, plot_waveforms
 
-        plot_waveforms(waves, args.plot, title=Path(args.netlist).name)
+        plot = plot_bode if waves.axis == "frequency" else plot_waveforms
+        plot(waves, args.plot, title=Path(args.netlist).name)
         print(f"wrote {args.plot}")
     if not args.csv and not args.plot:
+        where = f"f = {waves.time[-1]:.6g} Hz" if waves.axis == "frequency" else "t = "
+        if waves.axis != "frequency":
+            where += f"{waves.time[-1]:.6g} s"
         for name in waves.names:
-            print(f"  {name} = {waves[name][-1]:.6g}  (at t = {waves.time[-1]:.6g} s)")
+            print(f"  {name} = {waves[name][-1]:.6g}  (at {where})")
     return 0
 
 
@@ -250,8 +277,15 @@ def _simulate_ngspice(args: argparse.Namespace, probes: list[str] | None):
             f"netlist: {why}); probes are checked after the run",
             file=sys.stderr,
         )
-        return run_ngspice(Path(args.netlist), probes=probes, timeout=args.ngspice_timeout)
-    waves = run_ngspice(Path(args.netlist), timeout=args.ngspice_timeout)
+        return run_ngspice(
+            Path(args.netlist),
+            probes=probes,
+            timeout=args.ngspice_timeout,
+            analysis=args.analysis,
+        )
+    waves = run_ngspice(Path(args.netlist), timeout=args.ngspice_timeout, analysis=args.analysis)
+    if waves.axis == "frequency":  # magnitude and phase of each signal, as ours writes them
+        names = [n[0] + part + n[1:] for n in names for part in "mp"]
     missing = [name for name in names if name not in waves]
     if missing:
         raise NgspiceError(

@@ -214,7 +214,8 @@ def _waveforms(
             signals[key] = np.ascontiguousarray(values, dtype=float)
     if "operating point" in plotname.lower():
         axis = np.zeros(1)
-    return Waveforms(time=axis, signals=signals, engine="ngspice")
+    scale = "frequency" if "frequency" in (n.lower() for n in names) else "time"
+    return Waveforms(time=axis, signals=signals, engine="ngspice", axis=scale)
 
 
 def signal_name(name: str, kind: str) -> str:

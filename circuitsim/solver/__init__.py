@@ -1,8 +1,9 @@
-"""MNA engine: flattens a Circuit, assembles it, and runs ``.op`` and ``.tran``.
+"""MNA engine: flattens a Circuit, assembles it, and runs ``.op``, ``.tran`` and ``.ac``.
 
 Public API::
 
-    simulate(circuit, options=None, progress=None) -> Waveforms
+    simulate(circuit, options=None, progress=None, probes=None, analysis=None) -> Waveforms
+    ac_analysis(circuit, sweep=None, options=None, probes=None) -> Waveforms
     operating_point(circuit, options=None) -> Waveforms
     transient(circuit, tstep, tstop, tstart=0, tmax=None, uic=False, options=None,
               progress=None) -> Waveforms
@@ -11,7 +12,7 @@ Public API::
 See docs/solver.md for the method and its measured accuracy against ngspice.
 """
 
-from circuitsim.solver.engine import operating_point, simulate, transient
+from circuitsim.solver.engine import ac_analysis, operating_point, simulate, transient
 from circuitsim.solver.options import SimulationOptions
 
-__all__ = ["SimulationOptions", "operating_point", "simulate", "transient"]
+__all__ = ["SimulationOptions", "ac_analysis", "operating_point", "simulate", "transient"]

@@ -16,7 +16,14 @@ from collections.abc import Callable
 
 import numpy as np
 
-from circuitsim.netlist.circuit import Circuit, Expression, OperatingPoint, SubcircuitCall
+from circuitsim.netlist.circuit import (
+    AcSweep,
+    Circuit,
+    Expression,
+    OperatingPoint,
+    SubcircuitCall,
+    Transient,
+)
 from circuitsim.netlist.names import fold
 from circuitsim.solver.dc import operating_point_solution
 from circuitsim.solver.errors import CircuitInputError
@@ -198,14 +205,73 @@ def _transient_runner(system: MnaSystem, stats: dict):
     return transient_runner(system, stats)
 
 
+def ac_analysis(
+    circuit: Circuit,
+    sweep: AcSweep | None = None,
+    options: SimulationOptions | None = None,
+    probes: list[str] | None = None,
+) -> Waveforms:
+    """Small-signal AC sweep (``.ac``) at the DC operating point (solver/ac.py).
+
+    Parameters
+    ----------
+    circuit : Circuit
+    sweep : AcSweep, optional
+        Default: the circuit's first ``.ac`` card.
+    options : SimulationOptions, optional
+    probes : list of str, optional
+        Signals as for :func:`transient` (``v(out)``, ``i(v1)``); each gives a magnitude
+        and a phase column (``vm(out)``, ``vp(out)``).
+
+    Returns
+    -------
+    Waveforms
+        ``time`` holds the frequencies, Hz; ``vm``/``vp`` (V, degrees) per node and
+        ``im``/``ip`` (A, degrees) per voltage source; ``stats["analysis"] == "ac"``.
+
+    Raises
+    ------
+    CircuitInputError
+        No ``.ac`` card and no sweep given, a bad sweep, or a probe that names no signal.
+    ConvergenceError, SingularMatrixError
+    """
+    from circuitsim.solver.ac import ac_frequencies, ac_signals, ac_solutions
+
+    started = _time.perf_counter()
+    if sweep is None:
+        sweep = next((a for a in circuit.analyses if isinstance(a, AcSweep)), None)
+        if sweep is None:
+            raise CircuitInputError("the netlist has no .ac card")
+    system = build_system(circuit, options)
+    names = probe_names(system, probes)
+    frequencies = ac_frequencies(sweep, system.options.reltol)
+    stats: dict = {"analysis": "ac", "newton_iterations": 0, "frequencies": frequencies.size}
+    with single_threaded_blas():
+        x, _ = operating_point_solution(system, dc_op=True, clamp_ic=False, stats=stats)
+        solutions = ac_solutions(system, x, frequencies)
+    stats["factorizations"] = system.factorizations + frequencies.size
+    stats["unknowns"] = system.size
+    stats["wall_time_s"] = _time.perf_counter() - started
+    signals = ac_signals(system, solutions, names)
+    return Waveforms(
+        time=frequencies, signals=signals, engine="builtin", stats=stats, axis="frequency"
+    )
+
+
+ANALYSES = ("tran", "op", "ac")
+
+
 def simulate(
     circuit: Circuit,
     options: SimulationOptions | None = None,
     progress: Callable[[str], None] | None = None,
     probes: list[str] | None = None,
+    analysis: str | None = None,
 ) -> Waveforms:
-    """Run the circuit's first ``.tran``, or its operating point if it has no ``.tran``
-    (an ``.op`` line, or no analysis at all: a circuit built in Python).
+    """Run one of the circuit's analyses: ``analysis`` ("tran", "op" or "ac") if given,
+    else its first ``.tran``, else its operating point if it has an ``.op`` card or no
+    analysis at all (a circuit built in Python), else its ``.ac`` (ngspice's runner picks
+    the same way).
 
     ``options`` default to ngspice's, overridden by the circuit's ``.options``. ``probes``:
     only these signals (see :func:`transient`; default all).
@@ -213,17 +279,26 @@ def simulate(
     Raises
     ------
     CircuitInputError
-        Analyses only of kinds this engine does not run (``.ac``): an operating point in
-        their place would answer another question.
+        ``analysis`` names a kind the netlist has no card for (an operating point is always
+        possible), or is unknown.
     """
-    tran = circuit.transient
-    if tran is None:
-        if circuit.analyses and not any(isinstance(a, OperatingPoint) for a in circuit.analyses):
-            raise CircuitInputError(
-                "the netlist asks for .ac only; this engine runs .tran and .op "
-                "(ngspice runs .ac: --engine ngspice)"
-            )
+    kinds = {_KIND[type(a)] for a in circuit.analyses}
+    if analysis is None:
+        if "tran" in kinds:
+            analysis = "tran"
+        elif "op" in kinds or not kinds:
+            analysis = "op"
+        else:
+            analysis = "ac"
+    if analysis not in ANALYSES:
+        raise CircuitInputError(f"unknown analysis {analysis!r}; choose tran, op or ac")
+    if analysis != "op" and analysis not in kinds:
+        raise CircuitInputError(f"the netlist has no .{analysis} card")
+    if analysis == "op":
         return operating_point(circuit, options, probes)
+    if analysis == "ac":
+        return ac_analysis(circuit, None, options, probes)
+    tran = circuit.transient
     return transient(
         circuit,
         tran.tstep,
@@ -235,3 +310,6 @@ def simulate(
         progress,
         probes,
     )
+
+
+_KIND = {Transient: "tran", OperatingPoint: "op", AcSweep: "ac"}

@@ -1,4 +1,4 @@
-"""A quick figure of simulation results: one panel for voltages, one for currents."""
+"""Quick figures of simulation results: traces against time, or a Bode plot of an .ac sweep."""
 
 from __future__ import annotations
 
@@ -43,4 +43,44 @@ def plot_waveforms(waves: Waveforms, path: str | os.PathLike, title: str = "") -
     axes[-1, 0].set_xlabel("time (s)")
     if title:
         axes[0, 0].set_title(title)
+    write_figure_atomic(fig, path, bbox_inches="tight")
+
+
+def plot_bode(waves: Waveforms, path: str | os.PathLike, title: str = "") -> None:
+    """Save a Bode plot of an ``.ac`` sweep: magnitude (dB) above, phase (degrees) below,
+    against frequency (Hz, logarithmic), one line per signal.
+
+    ``waves`` holds ``vm(...)``/``vp(...)`` and ``im(...)``/``ip(...)`` pairs (as both
+    engines return them). Signals inside subcircuit instances are left out when top-level
+    ones exist, as in :func:`plot_waveforms`; so is a signal that is zero at every frequency
+    (no path from the excitation), which has no level in dB.
+    """
+    import numpy as np
+    from matplotlib.figure import Figure
+
+    pairs = [n for n in waves.names if n[1:2] == "m" and n[0] in "vi"]
+    pairs = [n for n in pairs if "." not in n] or pairs
+    pairs = [n for n in pairs if np.any(waves[n] > 0)]
+    fig = Figure(figsize=(10, 7))
+    magnitude, phase = fig.subplots(2, 1, sharex=True)
+    for name in pairs:
+        label = name[0] + name[2:]
+        with np.errstate(divide="ignore"):
+            magnitude.semilogx(waves.time, 20 * np.log10(waves[name]), label=label)
+        phase.semilogx(waves.time, waves[name[0] + "p" + name[2:]], label=label)
+    magnitude.set_ylabel("magnitude (dB re 1 V or 1 A)")
+    phase.set_ylabel("phase (degrees)")
+    phase.set_xlabel("frequency (Hz)")
+    for ax in (magnitude, phase):
+        ax.grid(True, which="both", alpha=0.3)
+    if pairs:
+        magnitude.legend(
+            fontsize="x-small",
+            loc="upper left",
+            bbox_to_anchor=(1.01, 1.0),
+            ncol=1 + len(pairs) // 14,
+            frameon=False,
+        )
+    if title:
+        magnitude.set_title(title)
     write_figure_atomic(fig, path, bbox_inches="tight")

@@ -24,19 +24,23 @@ class Waveforms:
     Attributes
     ----------
     time : ndarray, shape (m,)
-        Seconds, strictly increasing (for an operating point: one point at 0).
+        Seconds, strictly increasing (for an operating point: one point at 0); for an
+        ``.ac`` sweep the frequencies, Hz (``axis == "frequency"``).
     signals : dict of str to ndarray, shape (m,)
         Volts for ``v(...)``, amperes for ``i(...)``, in insertion order.
     engine : str
         Who produced them (``"builtin"``, ``"ngspice"``).
     stats : dict
         Engine statistics (accepted/rejected steps, Newton iterations, wall time s ...).
+    axis : str
+        What ``time`` holds: ``"time"`` (s) or ``"frequency"`` (Hz); the CSV's first column.
     """
 
     time: np.ndarray
     signals: dict[str, np.ndarray] = field(default_factory=dict)
     engine: str = ""
     stats: dict = field(default_factory=dict)
+    axis: str = "time"
 
     def __getitem__(self, name: str) -> np.ndarray:
         """The signal called ``name`` (case-insensitive; ``"out"`` means ``v(out)``)."""
@@ -65,6 +69,7 @@ class Waveforms:
             signals={fold(n): np.interp(times, self.time, self[n]) for n in chosen},
             engine=self.engine,
             stats=dict(self.stats),
+            axis=self.axis,
         )
 
     def select(self, names: list[str]) -> Waveforms:
@@ -74,6 +79,7 @@ class Waveforms:
             signals={self._key(n): self[n] for n in names},
             engine=self.engine,
             stats=dict(self.stats),
+            axis=self.axis,
         )
 
     def _key(self, name: str) -> str:
@@ -81,10 +87,11 @@ class Waveforms:
         return key if key in self.signals else f"v({key})"
 
     def to_csv(self, path: str | os.PathLike) -> None:
-        """Write ``time,<signal>,...`` with a header row, atomically; every value with 17
-        significant digits, correctly rounded (it reads back exactly: float_text.py)."""
+        """Write ``time,<signal>,...`` (``frequency,...`` for an ``.ac`` sweep) with a header
+        row, atomically; every value with 17 significant digits, correctly rounded (it reads
+        back exactly: float_text.py)."""
         columns = [self.time, *self.signals.values()]
-        header = ",".join(["time", *self.signals])
+        header = ",".join([self.axis, *self.signals])
         try:
             from circuitsim.solver.float_text import column_lines
         except ImportError:  # no numba: numpy's writer (the same values, ~6x slower)
@@ -119,4 +126,5 @@ class Waveforms:
             time=data[:, 0],
             signals={name: data[:, i + 1] for i, name in enumerate(header[1:])},
             engine=engine,
+            axis="frequency" if header[0] == "frequency" else "time",
         )

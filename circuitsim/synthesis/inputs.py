@@ -11,6 +11,7 @@ divided by the time scale K. Points past the end of the run are left out.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -72,10 +73,32 @@ def pwl_points(force, volts: float, K: float, t_stop: float, tmax: float):
     )
 
 
-def add_forcing(system, circuit, names, inputs, make_input, G, K, options, t_stop, tmax):
+@dataclass(frozen=True)
+class Generator:
+    """One voltage source of a forcing input.
+
+    Attributes
+    ----------
+    source : str
+        The voltage source's name (``VXFG1``).
+    forcing : int
+        Index of the input in ``System.forcing``.
+    volts_per_unit : float
+        Its volts per unit of the input, signed (negative for the negated generator).
+    """
+
+    source: str
+    forcing: int
+    volts_per_unit: float
+
+
+def add_forcing(
+    system, circuit, names, inputs, make_input, G, K, options, t_stop, tmax
+) -> list[Generator]:
     """One generator per forcing input (a negated one when an entry has the other sign) and a
     resistor into each integrator it enters (``make_input(name, node, gain, target, role)``
-    appended to ``inputs[state]``)."""
+    appended to ``inputs[state]``). Returns the generators, in the circuit's order."""
+    generators = []
     for k, force in enumerate(system.forcing, start=1):
         direction = np.asarray(force.direction, dtype=float)
         used = np.flatnonzero(direction)
@@ -98,6 +121,7 @@ def add_forcing(system, circuit, names, inputs, make_input, G, K, options, t_sto
             else:
                 raise TypeError(f"unknown forcing {type(force).__name__}")
             circuit.add(VoltageSource(name, node, "0", waveform=waveform))
+            generators.append(Generator(name, k - 1, float(sign * volts)))
             sources[sign] = node
         for i in used:
             target = system.states[i]
@@ -110,3 +134,4 @@ def add_forcing(system, circuit, names, inputs, make_input, G, K, options, t_sto
                     f"forcing {k} -> {target} integrator (direction[{target}])",
                 )
             )
+    return generators

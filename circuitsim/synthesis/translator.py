@@ -42,7 +42,7 @@ from circuitsim.synthesis.blocks import BomEntry, Builder
 from circuitsim.synthesis.bounds import HARD_RANGE, check_buildable
 from circuitsim.synthesis.errors import SynthesisError
 from circuitsim.synthesis.eseries import CAPACITOR_DECADES
-from circuitsim.synthesis.inputs import add_forcing
+from circuitsim.synthesis.inputs import Generator, add_forcing
 from circuitsim.synthesis.naming import PartNames, node_name
 from circuitsim.synthesis.offsets import apply_opamp_errors
 from circuitsim.synthesis.opamp_library import install, load_opamp
@@ -75,6 +75,9 @@ class Synthesis:
     step : StepChoice
         The ``.tran`` maximum step and the mode or forcing that set it
         (:mod:`circuitsim.synthesis.timestep`).
+    generators : list of Generator
+        The forcing inputs' voltage sources and their volts per unit of input
+        (:mod:`circuitsim.synthesis.inputs`).
     """
 
     circuit: Circuit
@@ -84,6 +87,7 @@ class Synthesis:
     t_stop: float = 0.0
     node_peaks: dict[str, float] = field(default_factory=dict)
     step: StepChoice | None = None
+    generators: list[Generator] = field(default_factory=list)
 
     @property
     def max_error(self) -> float:
@@ -192,7 +196,9 @@ def synthesize(
                 )
             )
     step = choose_step(system, K, t_stop, options.points_per_period)
-    add_forcing(system, circuit, names, inputs, _Input, G, K, options, t_stop, step.tmax)
+    generators = add_forcing(
+        system, circuit, names, inputs, _Input, G, K, options, t_stop, step.tmax
+    )
     _add_constants(system, circuit, names, inputs, G, K)
     first_block, first_bom = len(circuit.elements), len(builder.bom)
     signals = _add_nonlinear(system, builder, names, nodes, inputs, G, K, options)
@@ -230,7 +236,9 @@ def synthesize(
     )
     round_derived(circuit)  # SIN(0 13.2 3), not 13.200000000000001 (float noise of K * a)
     apply_opamp_errors(circuit, options.opamp_offset, options.opamp_bias)
-    return Synthesis(circuit, scale_map, builder.bom, warnings, t_stop, node_peaks, step)
+    return Synthesis(
+        circuit, scale_map, builder.bom, warnings, t_stop, node_peaks, step, generators
+    )
 
 
 def _predicted_peaks(x, G, states, nodes, signals, options, node_peaks, warnings) -> None:

@@ -318,18 +318,33 @@ def transfer_curve(
     return x, waves["out"], reference(x)
 
 
+def open_loop_deck() -> str:
+    """The TL074 open loop driven by ``AC 1`` at its + input, ``.ac dec 100 1 100meg``."""
+    body = SUPPLIES + "VP p 0 DC 0 AC 1\nXU p 0 vcc vee out TL074\n"
+    return deck(body, ".ac dec 100 1 100meg")
+
+
+def builtin_open_loop_magnitude() -> tuple[np.ndarray, np.ndarray]:
+    """:func:`ngspice_open_loop_magnitude` by our engine's ``.ac``."""
+    from circuitsim.netlist.reader import parse_netlist
+    from circuitsim.solver import ac_analysis
+
+    waves = ac_analysis(parse_netlist(open_loop_deck()), probes=["out"])
+    return waves.time, waves["vm(out)"]
+
+
 def ngspice_open_loop_magnitude(tmp_dir) -> tuple[np.ndarray, np.ndarray]:
     """Open-loop |v(out)/v(in)| of the TL074 from an ngspice ``.ac`` sweep, 1 Hz .. 100 MHz.
 
-    The project's runner returns ``.tran``/``.op`` only, so this runs ``ngspice -b`` directly
-    and has it write the magnitude with ``wrdata``. Returns (frequency Hz, magnitude V/V).
+    This runs ``ngspice -b`` directly and has it write the magnitude with ``wrdata`` (not the
+    project's runner: the figure stays independent of our code). Returns (frequency Hz,
+    magnitude V/V).
     """
     import subprocess
     from pathlib import Path
 
     out = Path(tmp_dir) / "ac.txt"
-    body = SUPPLIES + "VP p 0 DC 0 AC 1\nXU p 0 vcc vee out TL074\n"
-    text = deck(body, ".ac dec 100 1 100meg").replace(
+    text = open_loop_deck().replace(
         "\n.end\n", f"\n.control\nrun\nwrdata {out} vm(out)\n.endc\n.end\n"
     )
     path = Path(tmp_dir) / "ac.cir"

@@ -75,3 +75,12 @@ def test_small_signal_ac_agrees_with_the_step_measurements(tmp_path):
     decade = (f > 1e3) & (f < 1e5)
     slope = np.polyfit(np.log10(f[decade]), np.log10(magnitude[decade]), 1)[0]
     assert slope == pytest.approx(-1.0, abs=0.01)
+
+
+@partbench.requires_ngspice
+def test_our_small_signal_ac_of_the_macromodel_is_ngspice_s(tmp_path):
+    f, magnitude = partbench.builtin_open_loop_magnitude()
+    f_ng, magnitude_ng = partbench.ngspice_open_loop_magnitude(tmp_path)
+    assert np.allclose(f, f_ng, rtol=1e-6)  # wrdata prints 15 digits
+    assert np.max(np.abs(20 * np.log10(magnitude / magnitude_ng))) < 1e-3
+    assert magnitude[0] == pytest.approx(measured("builtin")["dc_gain"], rel=0.01)

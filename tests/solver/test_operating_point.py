@@ -192,16 +192,3 @@ def test_gmin_and_source_stepping_reach_the_same_solution():
         ok, x = getattr(solver, method)(np.zeros(system.size))
         assert ok, method
         assert x[k] == pytest.approx(reference, abs=1e-6), method
-
-
-def test_simulate_refuses_a_netlist_that_asks_for_ac_only():
-    """ngspice answers an .ac-only netlist with a frequency response; an operating point in
-    its place would be a different answer, so the engine says what it cannot run."""
-    from circuitsim.netlist.reader import parse_netlist
-    from circuitsim.solver.errors import CircuitInputError
-
-    text = "* ac\nV1 in 0 DC 0 AC 1\nR1 in out 1k\nC1 out 0 1u\n.ac dec 5 10 10k\n.end\n"
-    with pytest.raises(CircuitInputError, match=r"\.ac only"):
-        simulate(parse_netlist(text))
-    w = simulate(parse_netlist(text.replace(".ac dec", ".op\n.ac dec")))
-    assert w.time.shape == (1,) and w["v(out)"][0] == pytest.approx(0.0)

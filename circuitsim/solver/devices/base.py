@@ -105,6 +105,10 @@ class DeviceFamily:
     def source_rhs(self, time: float, scale: float, rhs: np.ndarray, dc: bool) -> None:
         """Add independent-source values at ``time`` (times ``scale``) to ``rhs``."""
 
+    def ac_source(self, rhs: np.ndarray) -> None:
+        """Add the small-signal excitation (``AC mag phase``) as phasors to the complex
+        ``rhs`` (solver/ac.py)."""
+
     def breakpoints(self, tstop: float) -> np.ndarray:
         """Times (s) in [0, tstop] where a waveform has a corner."""
         return np.zeros(0)

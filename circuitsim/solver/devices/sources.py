@@ -6,7 +6,7 @@ import numpy as np
 
 from circuitsim.netlist.circuit import CurrentSource, VoltageSource
 from circuitsim.solver.context import Stamps
-from circuitsim.solver.devices.base import DeviceFamily
+from circuitsim.solver.devices.base import DeviceFamily, number
 from circuitsim.solver.devices.source_waveforms import SourceValues
 from circuitsim.solver.errors import CircuitInputError
 from circuitsim.solver.layout import VectorPattern, branch_stamp
@@ -26,6 +26,7 @@ class VoltageSourceFamily(DeviceFamily):
         self.n = layout.nodes([e.negative for e in elements])
         self.branch = np.array([layout.add_branch(e.name) for e in elements], dtype=np.intp)
         self.values = SourceValues(elements)
+        self.phasors = ac_phasors(elements)
 
     def stamp_linear(self, stamps: Stamps) -> None:
         stamps.add(*branch_stamp(self.p, self.n, self.branch))
@@ -58,6 +59,9 @@ class VoltageSourceFamily(DeviceFamily):
     def source_rhs(self, time: float, scale: float, rhs: np.ndarray, dc: bool) -> None:
         rhs[self.branch] += scale * self.values.values(time, dc)
 
+    def ac_source(self, rhs: np.ndarray) -> None:
+        rhs[self.branch] += self.phasors
+
     def breakpoints(self, tstop: float) -> np.ndarray:
         return self.values.breakpoints(tstop)
 
@@ -80,6 +84,7 @@ class CurrentSourceFamily(DeviceFamily):
         self.terminals = np.stack([p, n], axis=1)
         self.rows = VectorPattern(np.stack([p, n]))
         self.values = SourceValues(elements)
+        self.phasors = ac_phasors(elements)
 
     def set_timing(self, tstep: float, tstop: float) -> None:
         self.values.set_timing(tstep, tstop)
@@ -88,9 +93,19 @@ class CurrentSourceFamily(DeviceFamily):
         i = scale * self.values.values(time, dc)
         self.rows.add(rhs, np.stack([-i, i]))
 
+    def ac_source(self, rhs: np.ndarray) -> None:
+        self.rows.add(rhs, np.stack([-self.phasors, self.phasors]))
+
     def breakpoints(self, tstop: float) -> np.ndarray:
         return self.values.breakpoints(tstop)
 
     def kernel_data(self) -> dict:
         signs = np.tile([-1.0, 1.0], (self.terminals.shape[0], 1))
         return {"kind": "sources", "values": self.values, "rows": self.terminals, "signs": signs}
+
+
+def ac_phasors(elements) -> np.ndarray:
+    """Each source's ``AC mag phase`` as a complex amplitude (V or A; phase in degrees)."""
+    magnitude = np.array([number(e.ac_magnitude, e.name, "AC magnitude") for e in elements])
+    phase = np.array([number(e.ac_phase, e.name, "AC phase") for e in elements])
+    return magnitude * np.exp(1j * np.radians(phase))
