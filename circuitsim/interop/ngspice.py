@@ -50,7 +50,7 @@ from pathlib import Path
 
 from circuitsim.interop.errors import NgspiceError, NgspiceTimeout
 from circuitsim.interop.ngspice_deck import TITLE, DeckLine, check_inert, decode, flatten_deck
-from circuitsim.interop.ngspice_files import hide_included
+from circuitsim.interop.ngspice_files import STITCH_BLANKS, hide_included
 from circuitsim.interop.rawfile import parse_ascii_raw, parse_rawfile
 from circuitsim.interop.sandbox import (
     TimeLimitExceeded,
@@ -203,13 +203,15 @@ def _deck_found(netlist: Circuit | str | os.PathLike) -> list[DeckLine]:
 def _cards(lines: list[str]) -> list[tuple[str, list[int]]]:
     """Each card's first word (lower case) and the indices of its lines (``+`` lines too).
 
-    ``#`` and ``$`` lines are passed over when joining, as ngspice's stitching does.
+    ``#`` and ``$`` lines are passed over when joining, and the first character above blank
+    decides (a vertical tab before ``+`` continues too), as ngspice's stitching does.
     """
     cards: list[tuple[str, list[int]]] = []
     for index, text in enumerate(lines):
-        if text.startswith("+") and cards:
+        lead = text.lstrip(STITCH_BLANKS)
+        if lead.startswith("+") and cards:
             cards[-1][1].append(index)
-        elif text.startswith(("#", "$")):
+        elif lead.startswith(("#", "$", "*")) or not lead:
             continue
         else:
             word = re.split(r"[\s;]", text, maxsplit=1)[0].lower()

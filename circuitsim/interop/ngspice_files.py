@@ -44,6 +44,7 @@ __all__ = [
     "FILE_OPTIONS",
     "FILE_MODELS",
     "CIDER_FILE_PARAMETERS",
+    "STITCH_BLANKS",
     "refuse_file_names",
     "hide_included",
 ]
@@ -82,7 +83,8 @@ CIDER_FILE_PARAMETERS: dict[str, str] = {
 """Parameters of CIDER's numerical devices (NUMD, NBJT, NUMOS) that name a file."""
 
 _BLANKS = " \t\n\v\f\r"
-_LEAD = "".join(chr(c) for c in range(33))  # ngspice's stitching skips characters <= ' '
+STITCH_BLANKS = "".join(chr(c) for c in range(33))
+"""What ngspice's stitching skips before a card's first character (every character <= ' ')."""
 _RUN = re.compile(r"[a-z0-9_]+")
 _DOTTED_RUN = re.compile(r"[a-z0-9_.]+")
 _MIN_WORD = 3
@@ -113,7 +115,7 @@ def _cards(lines: list[DeckLine]) -> list[list[DeckLine]]:
     """
     cards: list[list[DeckLine]] = []
     for line in lines:
-        lead = line.text.lstrip(_LEAD)
+        lead = line.text.lstrip(STITCH_BLANKS)
         if not lead or lead[0] in "*#$":
             continue
         if lead[0] == "+" and cards:
@@ -138,7 +140,7 @@ def refuse_file_names(lines: list[DeckLine]) -> None:
         The message quotes no text of the line beyond the word, which is ngspice's vocabulary.
     """
     for card in _cards(lines):
-        keyword = card[0].text.lstrip(_LEAD).lower()
+        keyword = card[0].text.lstrip(STITCH_BLANKS).lower()
         is_option = keyword.startswith(".opt")
         is_model = keyword.startswith((".model", ".cmodel"))
         for line in card:

@@ -153,5 +153,5 @@ def test_only_the_chosen_card_is_left_for_ngspice():
         assert kept in out and "R1 in 0 1k" in out and ".Op" not in out
         tran_lines = {"+ 0 1u", "+ uic"} <= set(out)
         assert tran_lines == (analysis == "tran")
-        assert out[-7:] == [*block[:3], f"setplot {analysis}1", *block[3:]]
+        assert out[-8:] == [*block[:4], f"setplot {analysis}1", *block[4:]]
         assert ".tran 1u 2m" not in out

@@ -290,3 +290,15 @@ def test_circuit_options_and_file_words_elsewhere_pass(tmp_path):
     )
     lines = flatten_deck(text, "main.cir", tmp_path)
     assert [line.text for line in lines][:4] == text.splitlines()[1:5]
+
+
+def test_a_dropped_analysis_takes_its_continuation_lines_along():
+    """ngspice continues a card on a line whose first character above blank is ``+`` (a
+    vertical tab first, too): left behind when its ``.op`` card is dropped, such a line would
+    continue the ``.options`` card before it."""
+    from circuitsim.interop.ngspice import _deck_lines
+
+    deck = "x\n" + BODY + ".options reltol=1e-3\n.op\n\v+ measoutfile=/tmp/victim.txt\n.end\n"
+    text = _with_control(_deck_lines(deck), "tran")
+    assert "measoutfile=/tmp" not in text
+    assert ".options reltol=1e-3\n" in text
