@@ -25,6 +25,8 @@ hands over only circuit lines:
 * the first line (the title) is replaced by a fixed one; reading stops at the top file's
   ``.end`` (in an included file ``.end`` is dropped, as ngspice does).
 
+A card that would make ngspice open a file (``.options measoutfile=...`` and the others
+:mod:`circuitsim.interop.ngspice_files` lists) is refused, naming its file and line.
 :func:`check_inert` checks the result once more, line by line, the way ngspice will see it.
 """
 
@@ -117,7 +119,8 @@ def flatten_deck(text: str, source: str, folder: Path) -> list[DeckLine]:
     NetlistError
         An include or library file is missing, unreadable, not a regular file, included by
         itself, nested deeper than 32 files, or all files together pass 256 MiB; a ``.lib``
-        section is missing or has no ``.endl``; an ``.include`` names no file. When the line
+        section is missing or has no ``.endl``; an ``.include`` names no file; a card makes
+        ngspice open a file (:func:`~.ngspice_files.refuse_file_names`). When the line
         at fault is in an included file, its text is not shown (only file and line number).
     """
     reading = _Reading(size=len(text))
