@@ -21,6 +21,7 @@ import pytest
 
 from circuitsim.cli import main
 from circuitsim.interop.ngspice import _with_control, run_ngspice
+from circuitsim.interop.sandbox import bare_environment, confined, run_with_limit
 from circuitsim.netlist.errors import NetlistError
 from tests.conftest import NGSPICE, requires_ngspice
 
@@ -302,3 +303,42 @@ def test_a_dropped_analysis_takes_its_continuation_lines_along():
     text = _with_control(_deck_lines(deck), "tran")
     assert "measoutfile=/tmp" not in text
     assert ".options reltol=1e-3\n" in text
+
+
+@pytest.fixture
+def outside_tmp():
+    """A folder outside /tmp (in /var/tmp), removed afterwards."""
+    import shutil
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp(prefix="circuitsim-victim-", dir="/var/tmp"))
+    yield folder
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+@requires_ngspice
+@pytest.mark.ngspice
+@pytest.mark.skipif(not confined(), reason="the kernel has no Landlock: writes are not confined")
+def test_the_sandbox_lets_ngspice_write_only_in_its_folder(tmp_path, outside_tmp):
+    """The third line of defence: a deck ngspice would let write a file elsewhere (no check of
+    ours, no ``set measoutfile``), run through ``run_with_limit``: the file outside /tmp keeps
+    its content, a new file in /tmp is not made (files that exist in /tmp stay writable: see
+    docs/netlists.md)."""
+    victims = [outside_tmp / "victim.txt", tmp_path / "new" / "made.txt"]
+    victims[1].parent.mkdir()
+    for victim in victims:
+        deck = "x\n" + BODY + f".options measoutfile={victim}\n"
+        deck += ".control\nrun\nwrite out.raw\n.endc\n.end\n"
+        for confine in (False, True):  # unconfined first: the deck is a live attack
+            victims[0].write_text(PRECIOUS)
+            victims[1].unlink(missing_ok=True)
+            folder = tmp_path / f"private-{victim.name}-{confine}"
+            folder.mkdir()
+            (folder / "deck.cir").write_text(deck)
+            done = run_with_limit(
+                [NGSPICE, "-b", "-n", "deck.cir"], folder, bare_environment(folder), 120, confine
+            )
+            assert (folder / "out.raw").stat().st_size > 0  # the run itself works
+            written = victim.exists() and victim.read_text() != PRECIOUS
+            assert written == (not confine), done.stderr
+        assert "Could not open file" in done.stderr
