@@ -153,13 +153,14 @@ def run_ngspice(
         except OSError as exc:
             raise NgspiceError(f"cannot start ngspice ({binary}): {exc}") from None
         wall = time.perf_counter() - started
-        log = hide_included(done.stdout + "\n" + done.stderr, found)
-        errors = _error_lines(log)
-        if errors:
-            raise NgspiceError("ngspice reported errors", errors)
+        log = done.stdout + "\n" + done.stderr
+        if _error_lines(log):
+            shown = hide_included(log, found)  # no line of an included file quoted
+            raise NgspiceError("ngspice reported errors", _error_lines(shown) or _tail(shown))
         if not raw.exists() or raw.stat().st_size == 0:
             raise NgspiceError(
-                f"ngspice wrote no results (exit status {done.returncode})", _tail(log)
+                f"ngspice wrote no results (exit status {done.returncode})",
+                _tail(hide_included(log, found)),
             )
         waves = parse_rawfile(raw.read_bytes())
     waves.stats["wall_time_s"] = wall

@@ -87,6 +87,7 @@ STITCH_BLANKS = "".join(chr(c) for c in range(33))
 """What ngspice's stitching skips before a card's first character (every character <= ' ')."""
 _RUN = re.compile(r"[a-z0-9_]+")
 _DOTTED_RUN = re.compile(r"[a-z0-9_.]+")
+_MODEL_HINTS = re.compile("file|source|state|table")  # in every word of FILE_MODELS
 _MIN_WORD = 3
 _MAX_WHOLE_LINES = 5000  # included lines compared whole with ngspice's output lines
 
@@ -105,6 +106,11 @@ def _words(text: str) -> set[str]:
         words.update(_RUN.findall(variant))
         words.update(_DOTTED_RUN.findall(variant))
     return words
+
+
+def _plain_words(text: str) -> set[str]:
+    """The runs of ASCII letters, digits and ``_`` in ``text``, lower case."""
+    return set(_RUN.findall(text.lower()))
 
 
 def _cards(lines: list[DeckLine]) -> list[list[DeckLine]]:
@@ -144,6 +150,9 @@ def refuse_file_names(lines: list[DeckLine]) -> None:
         is_option = keyword.startswith(".opt")
         is_model = keyword.startswith((".model", ".cmodel"))
         for line in card:
+            seen = line.text.lower().replace("\\", "")
+            if not (is_option or (is_model and _MODEL_HINTS.search(seen)) or "file" in seen):
+                continue  # none of the words can be in it (a large library reads fast)
             words = _words(line.text)
             if is_option:
                 for name in sorted(words & FILE_OPTIONS.keys()):
@@ -197,14 +206,14 @@ def hide_included(log: str, lines: list[DeckLine]) -> str:
     included = [line for line in lines if line.included and not _ours(line.file)]
     if not included:
         return log
-    shown = set().union(*(_words(line.text) for line in lines if not line.included))
+    shown = set().union(*(_plain_words(line.text) for line in lines if not line.included))
     secret: dict[str, list[DeckLine]] = {}
     whole: list[tuple[str, DeckLine]] = []
     for line in included:
-        words = {w for w in _words(line.text) if len(w) >= _MIN_WORD and not w.strip(".").isdigit()}
-        first = _printable(line.text).split(maxsplit=1)
+        words = {w for w in _plain_words(line.text) if len(w) >= _MIN_WORD and not w.isdigit()}
+        first = line.text.split(maxsplit=1)
         if first and first[0].startswith("."):
-            words -= _words(first[0])  # .subckt, .model ...: SPICE's words, not the file's
+            words -= _plain_words(first[0])  # .subckt, .model ...: SPICE's words, not the file's
         words -= shown
         for word in words:
             secret.setdefault(word, []).append(line)
@@ -228,7 +237,7 @@ def _quoted(
 ) -> DeckLine | None:
     """The included line ``entry`` quotes, if any (the one with most of its words)."""
     votes: dict[DeckLine, int] = {}
-    for word in _words(entry):
+    for word in _plain_words(entry):
         for line in secret.get(word, ()):
             votes[line] = votes.get(line, 0) + 1
     if votes:
