@@ -8,11 +8,12 @@ Two duties of the ngspice runner (docs/netlists.md, "The ngspice runner"):
   reads no file but the deck and its system ``spinit``). What ngspice 39's sources (tag
   ``ngspice-39`` of ``imr/ngspice``) show, card by card:
 
-  - every ``.opt...`` card (``ciprefix(".opt")``: ``.opt``, ``.option``, ``.options``,
-    ``.optfoo``; any case, ``+`` lines included) becomes front-end variables of the circuit
+  - an option card's words become front-end variables of the circuit, any variable at all
     (``src/frontend/options.c`` ``inp_getopts``, ``src/frontend/inp.c`` ``inp_dodeck`` with
-    ``cp_setparse``), any variable at all, so the variables ngspice opens a file or runs a
-    program by are refused (:data:`FILE_OPTIONS`);
+    ``cp_setparse``), so the variables ngspice opens a file or runs a program by
+    (:data:`FILE_OPTIONS`) are refused on every card starting ``.opt`` (``inp_getopts``
+    takes them by ``ciprefix(".opt")``; plain ngspice 39 acted on ``.option`` and
+    ``.options`` in any case in the tests, not on ``.opt``, ``.opts`` or ``.optfoo``);
   - ``.model`` (and XSPICE's ``.cmodel``) of the code models that read a file
     (:data:`FILE_MODELS`) and CIDER's file parameters (:data:`CIDER_FILE_PARAMETERS`) on any
     card.
