@@ -15,6 +15,7 @@ docs/netlists.md, "Running ngspice", says what was checked and why):
 
     .control
     set filetype=binary
+    set measoutfile=meas.txt
     run
     setplot tran1
     write out.raw
@@ -48,7 +49,8 @@ import time
 from pathlib import Path
 
 from circuitsim.interop.errors import NgspiceError, NgspiceTimeout
-from circuitsim.interop.ngspice_deck import TITLE, check_inert, decode, flatten_deck
+from circuitsim.interop.ngspice_deck import TITLE, DeckLine, check_inert, decode, flatten_deck
+from circuitsim.interop.ngspice_files import STITCH_BLANKS, hide_included
 from circuitsim.interop.rawfile import parse_ascii_raw, parse_rawfile
 from circuitsim.interop.sandbox import (
     TimeLimitExceeded,
@@ -131,7 +133,8 @@ def run_ngspice(
         ``.tran``/``.op``/``.ac`` (or not the one asked for), or a probe is not among the
         results.
     """
-    lines = _deck_lines(netlist)
+    found = _deck_found(netlist)
+    lines = [line.text for line in found]
     analysis = _chosen_analysis(lines, analysis)
     deck = _with_control(lines, analysis)
     binary = shutil.which("ngspice")
@@ -146,17 +149,18 @@ def run_ngspice(
                 [binary, "-b", "-n", "deck.cir"], folder, bare_environment(folder), timeout
             )
         except TimeLimitExceeded as exc:
-            raise NgspiceTimeout(timeout, _tail(exc.output)) from None
+            raise NgspiceTimeout(timeout, _tail(hide_included(exc.output, found))) from None
         except OSError as exc:
             raise NgspiceError(f"cannot start ngspice ({binary}): {exc}") from None
         wall = time.perf_counter() - started
         log = done.stdout + "\n" + done.stderr
-        errors = _error_lines(log)
-        if errors:
-            raise NgspiceError("ngspice reported errors", errors)
+        if _error_lines(log):
+            shown = hide_included(log, found)  # no line of an included file quoted
+            raise NgspiceError("ngspice reported errors", _error_lines(shown) or _tail(shown))
         if not raw.exists() or raw.stat().st_size == 0:
             raise NgspiceError(
-                f"ngspice wrote no results (exit status {done.returncode})", _tail(log)
+                f"ngspice wrote no results (exit status {done.returncode})",
+                _tail(hide_included(log, found)),
             )
         waves = parse_rawfile(raw.read_bytes())
     waves.stats["wall_time_s"] = wall
@@ -175,6 +179,11 @@ def run_ngspice(
 
 def _deck_lines(netlist: Circuit | str | os.PathLike) -> list[str]:
     """The netlist's circuit lines, flattened (:func:`~.ngspice_deck.flatten_deck`)."""
+    return [line.text for line in _deck_found(netlist)]
+
+
+def _deck_found(netlist: Circuit | str | os.PathLike) -> list[DeckLine]:
+    """The netlist's circuit lines with their origins (:func:`~.ngspice_deck.flatten_deck`)."""
     if isinstance(netlist, Circuit):
         from circuitsim.netlist.writer import write_netlist
 
@@ -189,19 +198,21 @@ def _deck_lines(netlist: Circuit | str | os.PathLike) -> list[str]:
         except OSError as exc:
             raise NgspiceError(f"cannot read the netlist {path}: {exc.strerror or exc}") from None
         found = flatten_deck(text, str(path), path.resolve().parent)
-    return [line.text for line in found]
+    return found
 
 
 def _cards(lines: list[str]) -> list[tuple[str, list[int]]]:
     """Each card's first word (lower case) and the indices of its lines (``+`` lines too).
 
-    ``#`` and ``$`` lines are passed over when joining, as ngspice's stitching does.
+    ``#`` and ``$`` lines are passed over when joining, and the first character above blank
+    decides (a vertical tab before ``+`` continues too), as ngspice's stitching does.
     """
     cards: list[tuple[str, list[int]]] = []
     for index, text in enumerate(lines):
-        if text.startswith("+") and cards:
+        lead = text.lstrip(STITCH_BLANKS)
+        if lead.startswith("+") and cards:
             cards[-1][1].append(index)
-        elif text.startswith(("#", "$")):
+        elif lead.startswith(("#", "$", "*")) or not lead:
             continue
         else:
             word = re.split(r"[\s;]", text, maxsplit=1)[0].lower()
@@ -263,7 +274,16 @@ def _with_control(lines: list[str], analysis: str) -> str:
     }
     kept = [text for index, text in enumerate(lines) if index not in dropped]
     check_inert(kept)
-    block = [".control", "set filetype=binary", "run", f"setplot {analysis}1", "write out.raw"]
+    # measoutfile is refused in the deck (ngspice_files); set here too, a global variable
+    # outranks the circuit's .options ones (cp_getvar), so .meas output stays in the folder
+    block = [
+        ".control",
+        "set filetype=binary",
+        "set measoutfile=meas.txt",
+        "run",
+        f"setplot {analysis}1",
+        "write out.raw",
+    ]
     return "\n".join([TITLE, *kept, *block, ".endc", ".end"]) + "\n"
 
 

@@ -25,6 +25,8 @@ hands over only circuit lines:
 * the first line (the title) is replaced by a fixed one; reading stops at the top file's
   ``.end`` (in an included file ``.end`` is dropped, as ngspice does).
 
+A card that would make ngspice open a file (``.options measoutfile=...`` and the others
+:mod:`circuitsim.interop.ngspice_files` lists) is refused, naming its file and line.
 :func:`check_inert` checks the result once more, line by line, the way ngspice will see it.
 """
 
@@ -35,6 +37,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from circuitsim.interop.ngspice_files import refuse_file_names
 from circuitsim.netlist.errors import NetlistError
 
 __all__ = ["DeckLine", "TITLE", "flatten_deck", "check_inert", "decode"]
@@ -49,12 +52,15 @@ class DeckLine:
     """One physical line of the deck ngspice reads, and where it came from.
 
     ``text`` is the line as ngspice's reader delivers it (carriage returns and leading blanks
-    removed); ``file`` and ``number`` (1-based) locate it in the user's files.
+    removed); ``file`` and ``number`` (1-based) locate it in the user's files; ``included``
+    is true for a line of an included file or library section (its text is never quoted in
+    messages).
     """
 
     text: str
     file: str
     number: int
+    included: bool = False
 
 
 @dataclass
@@ -113,12 +119,14 @@ def flatten_deck(text: str, source: str, folder: Path) -> list[DeckLine]:
     NetlistError
         An include or library file is missing, unreadable, not a regular file, included by
         itself, nested deeper than 32 files, or all files together pass 256 MiB; a ``.lib``
-        section is missing or has no ``.endl``; an ``.include`` names no file. When the line
+        section is missing or has no ``.endl``; an ``.include`` names no file; a card makes
+        ngspice open a file (:func:`~.ngspice_files.refuse_file_names`). When the line
         at fault is in an included file, its text is not shown (only file and line number).
     """
     reading = _Reading(size=len(text))
     try:
         _read_lines(reading, _physical_lines(text), source, folder, top=True)
+        refuse_file_names(reading.lines)
     except NetlistError as error:
         if error.file not in (None, source) and error.text:
             # a line of an included file: that file may be anything (.include /etc/passwd),
@@ -147,7 +155,7 @@ def _read_lines(reading: _Reading, lines: list[str], file: str, folder: Path, to
         if reading.in_control or not line or line.startswith("*") or _starts(line, ".title"):
             reading.continued = reading.continued and not line  # blank lines keep it
             continue
-        where = DeckLine(line, file, number)
+        where = DeckLine(line, file, number, included=not top)
         if _starts(line, ".inc"):
             reading.continued = False
             _include(reading, where, folder)
@@ -175,7 +183,7 @@ def _keep(reading: _Reading, where: DeckLine) -> None:
         if stripped.endswith("\\\\"):  # ngspice: the next line becomes a "+" line
             text = stripped[:-2]
             reading.continued = True
-    reading.lines.append(DeckLine(text, where.file, where.number))
+    reading.lines.append(DeckLine(text, where.file, where.number, where.included))
 
 
 def _is_end(line: str) -> bool:

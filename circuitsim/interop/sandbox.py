@@ -16,7 +16,9 @@ Three pieces, used by :mod:`circuitsim.interop.ngspice`:
   closed and its output captured, and kills the whole group when the time limit passes or
   when the caller is interrupted. Its process id goes into the folder (``.child``): should the
   caller be killed with SIGKILL, the next clean-up kills that orphan too (on Linux, where
-  ``/proc/<pid>/cwd`` confirms it is still the program working in that folder).
+  ``/proc/<pid>/cwd`` confirms it is still the program working in that folder). Where the
+  kernel has Landlock, the program may change nothing outside its working folder and open no
+  TCP connection (:mod:`circuitsim.interop.confine`).
 """
 
 from __future__ import annotations
@@ -32,12 +34,20 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+from circuitsim.interop.confine import landlock_abi, write_confinement
+
 try:
     import fcntl
 except ImportError:  # pragma: no cover - Windows: no flock, stale folders are left alone
     fcntl = None  # type: ignore[assignment]
 
-__all__ = ["private_folder", "remove_stale_folders", "bare_environment", "run_with_limit"]
+__all__ = [
+    "private_folder",
+    "remove_stale_folders",
+    "bare_environment",
+    "run_with_limit",
+    "confined",
+]
 
 _LOCK = ".lock"
 _CHILD = ".child"  # the process id of the program running in the folder
@@ -192,25 +202,44 @@ class TimeLimitExceeded(Exception):
         super().__init__("time limit exceeded")
 
 
-def run_with_limit(args: list[str], cwd: Path, env: dict[str, str], timeout: float) -> Finished:
+def run_with_limit(
+    args: list[str], cwd: Path, env: dict[str, str], timeout: float, confine: bool = True
+) -> Finished:
     """Run ``args`` in ``cwd`` with ``env``; kill it (and its children) after ``timeout`` s.
+
+    With ``confine`` (the default) the program may change the file system beneath ``cwd``
+    only and open no TCP connection, where the kernel has Landlock
+    (:func:`~circuitsim.interop.confine.write_confinement`; :func:`confined` says whether).
 
     Raises
     ------
     TimeLimitExceeded
         The time limit passed; the process group was killed.
     OSError
-        The program could not be started.
+        The program could not be started, or not confined where the kernel offers it.
     """
-    process = subprocess.Popen(
-        args,
-        cwd=cwd,
-        env=env,
-        stdin=subprocess.DEVNULL,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        start_new_session=os.name == "posix",
-    )
+    # ngspice copies its input into a tmpfile() first, which glibc opens (O_TMPFILE) in /tmp
+    # whatever TMPDIR says: writing to files there stays allowed, making entries does not
+    tmp = tuple(Path(p) for p in ("/tmp",) if os.path.isdir(p))
+    confinement = write_confinement(cwd, tmp) if confine else None
+    restrict, ruleset = confinement if confinement is not None else (None, None)
+    try:
+        process = subprocess.Popen(
+            args,
+            cwd=cwd,
+            env=env,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            start_new_session=os.name == "posix",
+            preexec_fn=restrict,  # noqa: PLW1509 - prepared in the parent, two system calls
+            pass_fds=() if ruleset is None else (ruleset,),
+        )
+    except subprocess.SubprocessError as exc:  # the child could not restrict itself
+        raise OSError(f"cannot confine {args[0]} to its folder: {exc}") from None
+    finally:
+        if ruleset is not None:
+            os.close(ruleset)
     try:
         (cwd / _CHILD).write_text(str(process.pid))  # for remove_stale_folders, should we die
         out, err = process.communicate(timeout=timeout)
@@ -227,6 +256,11 @@ def run_with_limit(args: list[str], cwd: Path, env: dict[str, str], timeout: flo
             _kill(process)
             process.wait()
     return Finished(process.returncode, _text(out), _text(err))
+
+
+def confined() -> bool:
+    """True where :func:`run_with_limit` confines a program's writes (the kernel has Landlock)."""
+    return landlock_abi() >= 1
 
 
 def _kill(process: subprocess.Popen) -> None:
