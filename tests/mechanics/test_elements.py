@@ -259,3 +259,33 @@ def test_without_matrices_or_elements_the_matrices_are_missing(tmp_path):
     with pytest.raises(ModelError, match="missing table") as caught:
         load_model(write(tmp_path, text))
     assert caught.value.key == "matrices"
+
+
+def test_the_example_of_docs_model_md_assembles_what_the_text_says(tmp_path):
+    from pathlib import Path
+
+    text = (Path(__file__).parents[2] / "docs" / "model.md").read_text()
+    section = text.split("## Elements:", 1)[1].split("\n## ", 1)[0]
+    example = section.split("```toml\n", 1)[1].split("```", 1)[0]
+    values = dict(m=1500.0, I=1200.0, m_f=2600.0, Ky=2.4e6, K_f=3e5, C_f=3e4, W=21600.0,
+                  b=0.74, r0=0.44, f11=3.98e6, f22=3.62e6, V=30.0, k=1.7e7, eta=0.009)  # fmt: skip
+    values["lambda"] = 0.3
+    head = '[model]\nname = "example"\nkind = "second_order"\n[parameters]\n' + "".join(
+        f"{name} = {value!r}\n" for name, value in values.items()
+    )
+    model = load_model(write(tmp_path, head + example))
+    v = values
+    k_g = v["W"] * v["lambda"] / v["b"]
+    M = np.diag([v["m"], v["I"], v["m_f"]])
+    C = np.diag([2 * v["f22"] / v["V"], 2 * v["f11"] * v["b"] ** 2 / v["V"], v["C_f"]])
+    K = np.array([
+        [2 * v["Ky"] + k_g, -2 * v["f22"], -2 * v["Ky"]],
+        [2 * v["f11"] * v["b"] * v["lambda"] / v["r0"], -v["W"] * v["b"] * v["lambda"], 0],
+        [-2 * v["Ky"], 0, 2 * v["Ky"] + v["K_f"]],
+    ])  # fmt: skip
+    inverse = np.linalg.inv(M)
+    A = model.system().A
+    np.testing.assert_allclose(A[3:, :3], -inverse @ K, rtol=1e-14, atol=0)
+    np.testing.assert_allclose(A[3:, 3:], -inverse @ C, rtol=1e-14, atol=0)
+    (flange,) = model.system().nonlinear
+    assert flange.name == "flange" and flange.direction[3] == pytest.approx(-1 / v["m"])
