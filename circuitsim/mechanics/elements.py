@@ -129,8 +129,10 @@ def read_elements(
         return weights
 
     mass = _masses(reader, table, coordinates, value)
-    damping: list[list[Tree]] = [[_ZERO] * size for _ in range(size)]
-    stiffness: list[list[Tree]] = [[_ZERO] * size for _ in range(size)]
+    # each entry's terms, summed at the end (a balanced sum: a file of thousands of elements
+    # on one coordinate stays a shallow tree)
+    damping: list[list[list[Tree]]] = [[[] for _ in range(size)] for _ in range(size)]
+    stiffness: list[list[list[Tree]]] = [[[] for _ in range(size)] for _ in range(size)]
     contacts: dict[str, NonlinearSpec] = {}
     for kind, (values_of, forms_of, optional) in KINDS.items():
         for name, entry in reader.table(table.get(kind), f"elements.{kind}", False).items():
@@ -188,11 +190,11 @@ def _environments(reader: TableReader, parameters: dict, coefficient_sets: dict)
     return out
 
 
-def _masses(reader: TableReader, table: dict, coordinates, value) -> list[list[Tree]]:
+def _masses(reader: TableReader, table: dict, coordinates, value) -> list[list[list[Tree]]]:
     """M from ``[elements.masses]``: each coordinate's mass or inertia, positive."""
     masses = reader.table(table.get("masses"), "elements.masses")
     size = len(coordinates)
-    mass = [[_ZERO] * size for _ in range(size)]
+    mass: list[list[list[Tree]]] = [[[] for _ in range(size)] for _ in range(size)]
     for name, entry in masses.items():
         if name not in coordinates:
             raise reader.fail(
@@ -200,7 +202,7 @@ def _masses(reader: TableReader, table: dict, coordinates, value) -> list[list[T
                 f"unknown coordinate (coordinates: {', '.join(coordinates)})",
             )
         index = coordinates.index(name)
-        mass[index][index] = value(entry, f"elements.masses.{name}", "positive").expression.tree
+        mass[index][index] = [value(entry, f"elements.masses.{name}", "positive").expression.tree]
     missing = [name for name in coordinates if name not in masses]
     if missing:
         raise reader.fail(
@@ -242,20 +244,32 @@ def _contact(reader, entry, key, name, description, numbers, rows) -> NonlinearS
     )
 
 
-def _outer(target: list[list[Tree]], factor: Tree, left: Form, right: Form) -> None:
-    """``target += factor * left right^T`` (symbolically)."""
+def _outer(target: list[list[list[Tree]]], factor: Tree, left: Form, right: Form) -> None:
+    """``target += factor * left right^T`` (symbolically: one more term per entry)."""
     for i, a in left.items():
         for j, b in right.items():
-            target[i][j] = _add(target[i][j], _mul(factor, _mul(a, b)))
+            term = _mul(factor, _mul(a, b))
+            if term != _ZERO:
+                target[i][j].append(term)
 
 
-def _items(trees, given, name: str, coordinates) -> list[list[Item]]:
+def _sum(terms: list[Tree]) -> Tree:
+    """The terms' sum as a balanced tree (depth log2 of their number)."""
+    if not terms:
+        return _ZERO
+    while len(terms) > 1:
+        pairs = [_add(terms[k], terms[k + 1]) for k in range(0, len(terms) - 1, 2)]
+        terms = pairs + terms[len(pairs) * 2 :]
+    return terms[0]
+
+
+def _items(terms, given, name: str, coordinates) -> list[list[Item]]:
     """Rows of Items: the assembled entries plus those of ``[matrices]`` (if given)."""
     rows = []
-    for i, row in enumerate(trees):
+    for i, row in enumerate(terms):
         items = []
-        for j, tree in enumerate(row):
-            key = f"elements.{name}[{coordinates[i]}][{coordinates[j]}]"
+        for j, entry in enumerate(row):
+            tree, key = _sum(entry), f"elements.{name}[{coordinates[i]}][{coordinates[j]}]"
             if given is not None:
                 tree = _add(given[i][j].expression.tree, tree)
                 key = f"matrices.{name}[{i}][{j}] + {key}"

@@ -289,3 +289,11 @@ def test_the_example_of_docs_model_md_assembles_what_the_text_says(tmp_path):
     np.testing.assert_allclose(A[3:, 3:], -inverse @ C, rtol=1e-14, atol=0)
     (flange,) = model.system().nonlinear
     assert flange.name == "flange" and flange.direction[3] == pytest.approx(-1 / v["m"])
+
+
+def test_thousands_of_elements_on_one_coordinate_load(tmp_path):
+    """Each entry is a balanced sum of its terms: 3000 springs stay a shallow expression."""
+    springs = "".join(f'k{i} = {{ stiffness = "k", deflection = "x" }}\n' for i in range(3000))
+    text = HEAD + '\n[elements.masses]\nx = "m"\nth = "J"\n[elements.springs]\n' + springs
+    model = load_model(write(tmp_path, text))
+    assert model.system().A[2, 0] == pytest.approx(-3000 * 400.0 / 3.0, rel=1e-13)
