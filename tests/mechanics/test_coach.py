@@ -135,10 +135,8 @@ def flange(y):
     return P["k_r"] * (y - np.clip(y, -P["eta"], P["eta"]))
 
 
-@pytest.mark.slow
-def test_the_hunting_case_grows_into_a_flange_limited_cycle_as_scipy_solves_it(coach):
-    """V = 110 m/s (above the critical 93.4 m/s), a 5 mm push of the leading wheelset."""
-    V, t_stop = 110.0, 3.0
+def scipy_solution(V, t_stop):
+    """The coach's equations with the flanges, from a 5 mm push of y1, by solve_ivp."""
     M, C, K = reference_matrices(V)
     inverse = np.linalg.inv(M)
     n = len(NAMES)
@@ -151,21 +149,46 @@ def test_the_hunting_case_grows_into_a_flange_limited_cycle_as_scipy_solves_it(c
 
     x0 = np.zeros(2 * n)
     x0[0] = 0.005
-    theirs = solve_ivp(rhs, (0, t_stop), x0, method="DOP853", rtol=1e-11, atol=1e-13,
-                       max_step=5e-4, dense_output=True)  # fmt: skip
+    return solve_ivp(rhs, (0, t_stop), x0, method="DOP853", rtol=1e-11, atol=1e-13,
+                     max_step=5e-4, dense_output=True)  # fmt: skip
+
+
+def worst_nrmsd_percent(ours, theirs, t_stop):
+    t = np.linspace(0, t_stop, 20001)
+    x_ours, x_theirs = ours.sol(t), theirs.sol(t)
+    errors = np.sqrt(np.mean((x_ours - x_theirs) ** 2, axis=1)) / np.ptp(x_theirs, axis=1)
+    return 100 * np.max(errors)
+
+
+@pytest.mark.slow
+def test_the_hunting_case_grows_into_a_flange_limited_cycle_as_scipy_solves_it(coach):
+    """V = 110 m/s (above the critical 93.4 m/s), a 5 mm push of the leading wheelset."""
+    V, t_stop = 110.0, 3.0
+    theirs = scipy_solution(V, t_stop)
     system = coach.system()
     assert system.parameters["V"] == V and system.x0[0] == 0.005
     ours = solve(system, (0, t_stop))
+    assert worst_nrmsd_percent(ours, theirs, t_stop) < 1e-4
     t = np.linspace(0, t_stop, 6001)
-    x_ours, x_theirs = ours.sol(t), theirs.sol(t)
-    for k, state in enumerate(system.states):
-        nrmsd = 100 * np.sqrt(np.mean((x_ours[k] - x_theirs[k]) ** 2)) / np.ptp(x_theirs[k])
-        assert nrmsd < 1e-4, state
+    x_theirs = theirs.sol(t)
     late = t > 2.0
     for i in range(4):  # every wheelset rides on its flanges, held there: a limit cycle
         peak = np.max(np.abs(x_theirs[2 * i, late]))
         assert P["eta"] < peak < P["eta"] + 0.004, NAMES[2 * i]
     assert len(ours.kinks) > 100
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 45 item 1: at V = 98.5 m/s wheelset 1 touches its flange 54 um deep for "
+    "8 ms (3.9739-3.9822 s); one step of the direct solution (3.9735-3.9867 s) spans the "
+    "whole contact and misses it (worst state 0.77 % NRMSD, y4_dot)",
+)
+def test_a_shallow_flange_contact_is_not_missed(coach):
+    V, t_stop = 98.5, 6.0
+    ours = solve(coach.system(parameters={"V": V}), (0, t_stop))
+    assert worst_nrmsd_percent(ours, scipy_solution(V, t_stop), t_stop) < 1e-4
 
 
 @pytest.mark.slow
