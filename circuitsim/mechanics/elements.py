@@ -118,7 +118,10 @@ def read_elements(
             if sign == "positive" and not number > 0:
                 raise reader.fail(key, f"must be positive, got {number:g}{set_name}")
             if sign == "not negative" and number < 0:
-                raise reader.fail(key, f"must not be negative, got {number:g}{set_name}")
+                hint = " (a signed stiffness is [elements.gravitational])" * key.startswith(
+                    "elements.springs."
+                )
+                raise reader.fail(key, f"must not be negative, got {number:g}{set_name}{hint}")
         return item
 
     def form(entry, key: str) -> Form:

@@ -152,7 +152,11 @@ ERRORS = [
     (('x = "m"\n', 'x = "m"\nz = "m"\n'), "elements.masses.z", "unknown coordinate"),
     (('th = "J"\n', ""), "elements.masses", "missing mass for th"),
     (('th = "J"', 'th = "-J"'), "elements.masses.th", "must be positive, got -0.5"),
-    (('"twice_k"', '"-k"'), "elements.springs.ground.stiffness", "must not be negative, got -400"),
+    (
+        ('"twice_k"', '"-k"'),
+        "elements.springs.ground.stiffness",
+        "must not be negative, got -400 (a signed stiffness is [elements.gravitational])",
+    ),
     (
         ('damping = "c"', 'damping = "-c"'),
         "elements.dampers.damper.damping",
