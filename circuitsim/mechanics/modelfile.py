@@ -39,6 +39,7 @@ TOP_KEYS = {
     "options": "command-line option -> parameter",
     "coefficients": "named coefficient sets",
     "matrices": "M, C, K (second order) or A (first order)",
+    "elements": "masses, springs, dampers, creep, contacts (second order; assembled into M, C, K)",
     "nonlinear": "piecewise-linear terms: abs() form, deadzone, saturation, table, fit",
     "forcing": "inputs: sinusoids, time series, steps, bumps",
     "initial": "initial conditions",
@@ -152,11 +153,20 @@ def read_model(path: str | Path | None = None) -> ModelSpec:
     parameters = _parameters(reader, document)
     options = _options(reader, document, parameters, states)
     sets, default_set = _coefficient_sets(reader, document, parameters)
-    matrices = _matrices(reader, document, kind, len(equations))
+    from_elements = "elements" in document
+    matrices = _matrices(reader, document, kind, len(equations), required=not from_elements)
     nonlinear = {
         group: _nonlinear(reader, table, f"nonlinear.{group}", states, equations, kind)
         for group, table in reader.table(document.get("nonlinear"), "nonlinear", False).items()
     }
+    if from_elements:
+        if kind != "second_order":
+            raise reader.fail("elements", "only a second_order model is built from elements")
+        from circuitsim.mechanics.elements import read_elements  # it builds on this module
+
+        matrices, nonlinear = read_elements(
+            reader, document, coordinates, parameters, sets, matrices, nonlinear
+        )
     forcing = {
         group: _forcing(reader, table, f"forcing.{group}", equations)
         for group, table in reader.table(document.get("forcing"), "forcing", False).items()
@@ -334,14 +344,15 @@ def _coefficient_sets(reader: TableReader, document: dict, parameters: dict):
     return sets, default
 
 
-def _matrices(reader: TableReader, document: dict, kind: str, size: int) -> dict:
-    table = reader.table(document.get("matrices"), "matrices")
+def _matrices(reader: TableReader, document: dict, kind: str, size: int, required=True) -> dict:
+    """``[matrices]``; not ``required`` (a model from ``[elements]``): optional, M, K too."""
+    table = reader.table(document.get("matrices"), "matrices", required)
     if kind == "second_order":
-        square, vectors, required = ("M", "C", "K"), ("F",), ("M", "K")
+        square, vectors, needed = ("M", "C", "K"), ("F",), ("M", "K")
     else:
-        square, vectors, required = ("A",), ("b",), ("A",)
+        square, vectors, needed = ("A",), ("b",), ("A",)
     reader.check_keys(table, "matrices", square + vectors)
-    for name in required:
+    for name in needed if required else ():
         if name not in table:
             raise reader.fail(f"matrices.{name}", "missing key")
     matrices: dict = {}
