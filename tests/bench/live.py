@@ -19,13 +19,18 @@ ROOT = Path(__file__).resolve().parents[2]
 PATIENCE = 240.0
 
 
-def request(url: str, data=None, method: str | None = None) -> tuple[int, object]:
+def request(
+    url: str, data=None, method: str | None = None, headers: dict | None = None
+) -> tuple[int, object]:
     """(status, decoded JSON or text) of a GET, or of a POST of ``data`` (JSON-encoded unless
-    bytes)."""
+    bytes) as ``Content-Type: application/json`` (``headers`` add to or replace it)."""
     body = None
     if data is not None:
         body = data if isinstance(data, bytes) else json.dumps(data).encode()
-    req = urllib.request.Request(url, data=body, method=method or ("POST" if body else "GET"))
+    headers = {"Content-Type": "application/json", **(headers or {})}
+    req = urllib.request.Request(
+        url, data=body, method=method or ("POST" if body else "GET"), headers=headers
+    )
     try:
         with urllib.request.urlopen(req, timeout=60) as answer:
             status, text = answer.status, answer.read().decode()
