@@ -267,11 +267,12 @@ def parse_body(body: bytes):
         text = body.decode("utf-8") if body else "null"
     except UnicodeDecodeError as exc:
         raise BenchError(f"the request body is not JSON (not UTF-8: {exc})") from None
-    depth = nesting_depth(text)
+    depth, key = nesting_depth(text)
     if depth > MAX_DEPTH:
+        where = f"{key!r}: " if key is not None else ""
         raise BenchError(
-            f"the request body nests arrays or objects {depth} deep; the bench reads at most "
-            f"{MAX_DEPTH} (a change is one object of keys and values)"
+            f"{where}the request body nests arrays or objects {depth} deep; the bench reads at "
+            f"most {MAX_DEPTH} (a change is one object of keys and values)"
         )
     try:
         data = json.loads(text, parse_int=_read_integer)
@@ -283,20 +284,35 @@ def parse_body(body: bytes):
     return data
 
 
-def nesting_depth(text: str) -> int:
-    """The deepest nesting of ``[`` and ``{`` in JSON text (outside its strings)."""
-    bare = _STRINGS.sub('""', text)
+def nesting_depth(text: str) -> tuple[int, str | None]:
+    """The deepest nesting of ``[`` and ``{`` in JSON text (outside its strings), and the key
+    of the outer object under which it is (None: not under a key)."""
     depth = deepest = 0
-    for char in bare:
+    key = deepest_key = last_string = None
+    for token in _TOKENS.finditer(text):
+        char = token.group()
         if char in "[{":
             depth += 1
-            deepest = max(deepest, depth)
+            if depth > deepest:
+                deepest, deepest_key = depth, key
         elif char in "]}":
             depth -= 1
-    return deepest
+        elif char == ":" and depth == 1 and last_string is not None:
+            key = last_string
+        elif char.startswith('"'):
+            last_string = char
+            continue
+        last_string = None
+    if deepest_key is not None:
+        try:
+            deepest_key = json.loads(deepest_key)
+        except ValueError:
+            deepest_key = deepest_key[1:-1]
+    return deepest, deepest_key
 
 
-_STRINGS = re.compile(r'"(?:[^"\\]|\\.)*"', re.DOTALL)
+#: JSON strings, brackets and colons (what the depth and the keys are read from).
+_TOKENS = re.compile(r'"(?:[^"\\]|\\.)*"|[\[\]{}:]', re.DOTALL)
 
 
 class _LongInteger:

@@ -5,6 +5,7 @@ import os
 import re
 import subprocess
 import sys
+import tempfile
 import time
 import urllib.error
 import urllib.request
@@ -78,25 +79,34 @@ class BenchProcess:
         # first chunk loads it instead of compiling while the test waits for model time
         warm_up(("ports",))
         env = {**os.environ, "PYTHONPATH": str(ROOT)}
+        # its log (a line per request) goes to a file: a pipe nobody reads while the test
+        # runs fills at 64 KiB and then blocks the server mid-request
+        self.log = tempfile.TemporaryFile(mode="w+")
         self.process = subprocess.Popen(
             [sys.executable, "-m", "circuitsim", "bench", "--no-browser", "--port", "0",
              *options],
-            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=self.log, text=True,
         )  # fmt: skip
         deadline = time.monotonic() + PATIENCE
         self.url = None
         while time.monotonic() < deadline and self.url is None:
             line = self.process.stdout.readline()
             if not line:
-                raise AssertionError(f"bench exited: {self.process.stderr.read()}")
+                raise AssertionError(f"bench exited: {self.stderr()}")
             found = re.search(r" at (http://\S+/) ", line)
             self.url = found.group(1) if found else None
         if self.url is None:
             self.stop()
             raise AssertionError("bench did not print its address")
 
+    def stderr(self) -> str:
+        """What the bench wrote to stderr so far (its progress, warnings and request log)."""
+        self.log.seek(0)
+        return self.log.read()
+
     def stop(self) -> None:
         stop_process(self.process)
+        self.log.close()
 
 
 def stop_process(process: subprocess.Popen) -> None:
