@@ -13,6 +13,7 @@ the matrix is restamped, nothing restarts.
 from __future__ import annotations
 
 import copy
+import math
 
 import numpy as np
 
@@ -109,11 +110,24 @@ class RunningCircuit:
         Raises
         ------
         BenchError
-            A state without an integrator (nothing changed).
+            A state without an integrator, or a value whose node voltage would be past the
+            overload limit (or past any float, with ``overload = inf``); nothing changed.
         """
         missing = [name for name in values if name not in self.integrators]
         if missing:
             raise BenchError(f"no integrator holds state {', '.join(missing)}")
+        for name, value in values.items():
+            scale = self.scale_map.states[name]
+            volts = abs(value * scale.volts_per_unit)
+            if not (math.isfinite(volts) and volts <= self.overload):
+                raise BenchError(
+                    f"state {name!r} = {value:g} would put its node {scale.node} at {volts:.4g} V, "
+                    f"past the {self.overload:g} V overload limit (the bench's --overload): "
+                    f"push at most {self.overload / abs(scale.volts_per_unit):.4g}"
+                    if math.isfinite(self.overload)
+                    else f"state {name!r} = {value:g} is past any voltage its node {scale.node} "
+                    "can hold in the engine's numbers"
+                )
         self.state = self.state.with_voltages(
             {
                 self.integrators[name]: -value * self.scale_map.states[name].volts_per_unit

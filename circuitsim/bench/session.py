@@ -197,6 +197,11 @@ class BenchSession:
                     or not (math.isfinite(value))
                 ):
                     raise BenchError(f"knob {name!r} needs a finite number, got {value!r}")
+                if name == "freq" and not 0 <= value <= 0.5 / self.sample:  # the trace's Nyquist
+                    raise BenchError(
+                        f"knob 'freq' = {value:g} Hz is outside 0..{0.5 / self.sample:g} Hz (half "
+                        f"the rate of the trace's samples, every {self.sample:g} s)"
+                    )
                 parameters[knob.parameter] = float(value)
         return parameters, switches
 

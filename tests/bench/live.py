@@ -5,6 +5,7 @@ import os
 import re
 import subprocess
 import sys
+import tempfile
 import time
 import urllib.error
 import urllib.request
@@ -19,13 +20,18 @@ ROOT = Path(__file__).resolve().parents[2]
 PATIENCE = 240.0
 
 
-def request(url: str, data=None, method: str | None = None) -> tuple[int, object]:
+def request(
+    url: str, data=None, method: str | None = None, headers: dict | None = None
+) -> tuple[int, object]:
     """(status, decoded JSON or text) of a GET, or of a POST of ``data`` (JSON-encoded unless
-    bytes)."""
+    bytes) as ``Content-Type: application/json`` (``headers`` add to or replace it)."""
     body = None
     if data is not None:
         body = data if isinstance(data, bytes) else json.dumps(data).encode()
-    req = urllib.request.Request(url, data=body, method=method or ("POST" if body else "GET"))
+    headers = {"Content-Type": "application/json", **(headers or {})}
+    req = urllib.request.Request(
+        url, data=body, method=method or ("POST" if body else "GET"), headers=headers
+    )
     try:
         with urllib.request.urlopen(req, timeout=60) as answer:
             status, text = answer.status, answer.read().decode()
@@ -73,25 +79,34 @@ class BenchProcess:
         # first chunk loads it instead of compiling while the test waits for model time
         warm_up(("ports",))
         env = {**os.environ, "PYTHONPATH": str(ROOT)}
+        # its log (a line per request) goes to a file: a pipe nobody reads while the test
+        # runs fills at 64 KiB and then blocks the server mid-request
+        self.log = tempfile.TemporaryFile(mode="w+")
         self.process = subprocess.Popen(
             [sys.executable, "-m", "circuitsim", "bench", "--no-browser", "--port", "0",
              *options],
-            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=self.log, text=True,
         )  # fmt: skip
         deadline = time.monotonic() + PATIENCE
         self.url = None
         while time.monotonic() < deadline and self.url is None:
             line = self.process.stdout.readline()
             if not line:
-                raise AssertionError(f"bench exited: {self.process.stderr.read()}")
+                raise AssertionError(f"bench exited: {self.stderr()}")
             found = re.search(r" at (http://\S+/) ", line)
             self.url = found.group(1) if found else None
         if self.url is None:
             self.stop()
             raise AssertionError("bench did not print its address")
 
+    def stderr(self) -> str:
+        """What the bench wrote to stderr so far (its progress, warnings and request log)."""
+        self.log.seek(0)
+        return self.log.read()
+
     def stop(self) -> None:
         stop_process(self.process)
+        self.log.close()
 
 
 def stop_process(process: subprocess.Popen) -> None:
