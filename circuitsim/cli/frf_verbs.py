@@ -248,4 +248,108 @@ def _plot(path: str, responses: dict) -> None:
         print(f"wrote {target}", file=sys.stderr)
 
 
-COMMANDS = [_add_frf]
+def _add_stepped_sine(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "stepped-sine",
+        help="nonlinear response curves: forcing frequency stepped up then down, ODE and circuit",
+        description=(
+            "As on a shaker: the forcing frequency steps up through --freqs, each step "
+            "starting from the previous step's final state, then back down from the top's; "
+            "each step runs --settle + --record model seconds and its amplitude is max "
+            "|state| over the last --record seconds; on the ODE (direct solution) and on the "
+            "circuit (builtin engine, each step restamps the generators and starts from every "
+            "unknown the last run ended with). Prints the jump frequencies of each path and "
+            "direction (a step whose amplitude changes by more than 1.5 times) and the "
+            "circuit's largest amplitude difference. Writes stepped_sine.csv and "
+            "stepped_sine.png. See docs/frf.md."
+        ),
+    )
+    add_model_options(parser)
+    add_scenario_options(parser)
+    parser.add_argument(
+        "--freqs",
+        required=True,
+        metavar="START:STOP:STEP",
+        help="forcing frequencies, Hz of model time: START:STOP:STEP or an increasing list",
+    )
+    parser.add_argument(
+        "--settle", type=float, default=10.0, metavar="T",
+        help="model seconds each step runs before the amplitude is measured (default 10)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--record", type=float, default=2.0, metavar="T",
+        help="model seconds over which the amplitude is measured (default 2)",
+    )  # fmt: skip
+    parser.add_argument("--no-circuit", action="store_true", help="the ODE path only")
+    parser.add_argument("--json", action="store_true", help="print the summary as JSON")
+    parser.add_argument("--out", default=".", metavar="DIR", help="output folder (default .)")
+    parser.set_defaults(func=_run_stepped_sine)
+
+
+def _run_stepped_sine(args: argparse.Namespace) -> int:
+    from circuitsim.cli.common import check_scenario_options, prepare_output_folder
+    from circuitsim.cli.hunting_verbs import _Eta
+    from circuitsim.mechanics import load_model
+    from circuitsim.studies.hunting import speed_grid
+    from circuitsim.studies.hunting_result import HuntingError, HuntingSettings
+    from circuitsim.studies.stepped_sine import plot_response_curves, run_stepped_sine, summary
+
+    check_scenario_options(args)
+    require_positive("--settle", args.settle)
+    require_positive("--record", args.record)
+    if args.freq is not None:
+        raise UsageError("the forcing frequency is stepped (--freqs): do not fix it with --freq")
+    model = load_model(args.model)
+    if "freq" not in model.options:
+        raise UsageError(
+            f"model {model.name} maps no 'freq' in its [options] table: no forcing frequency "
+            "to step"
+        )
+    try:
+        frequencies = speed_grid(args.freqs, "--freqs")
+    except HuntingError as exc:
+        raise UsageError(str(exc)) from None
+    flanges = [True] if args.flange is None else [args.flange]
+    if not model.nonlinear_terms:
+        flanges = [False]
+
+    def system_at(frequency: float, flange: bool):
+        scenario = argparse.Namespace(**vars(args))
+        scenario.freq = frequency
+        scenario.flange = flange if model.nonlinear_terms else None
+        return scenario_system(scenario, model=model)
+
+    folder = prepare_output_folder("--out", args.out, "stepped_sine.csv", "stepped_sine.png")
+    settings = HuntingSettings(settle=args.settle, record=args.record, repush=0.0)
+    bar = _Eta()
+    try:
+        result = run_stepped_sine(
+            system_at, frequencies, settings, flanges, not args.no_circuit, bar,
+            args.state or model.default_state,
+        )  # fmt: skip
+    except HuntingError as exc:
+        raise UsageError(str(exc)) from None
+    finally:
+        bar.close()
+    from circuitsim.atomic import write_text_atomic
+
+    write_text_atomic(folder / "stepped_sine.csv", result.csv_text())
+    plot_response_curves(result, folder / "stepped_sine.png")
+    data = summary(result)
+    if args.json:
+        print(json.dumps(data, indent=1))
+    else:
+        for flange, entry in data["flange"].items():
+            print(f"piecewise-linear terms {flange}:")
+            for key, value in entry.items():
+                if key.endswith("_jumps_hz"):
+                    jumps = ", ".join(f"{v:.6g} Hz" for v in value) or "none"
+                    print(f"  {key[: -len('_jumps_hz')].replace('_', ' ')}: jumps at {jumps}")
+                elif not math.isnan(value):
+                    print(f"  {key.replace('_', ' ')}: {100 * value:.3g} % at most")
+    for name in ("stepped_sine.csv", "stepped_sine.png"):
+        print(f"wrote {folder / name}", file=sys.stderr if args.json else sys.stdout)
+    return 0
+
+
+COMMANDS = [_add_frf, _add_stepped_sine]

@@ -250,7 +250,8 @@ def run_hunting(
     ----------
     system_at : callable(speed, flange) -> System
         The free-response scenario at one speed with the piecewise-linear terms on or off;
-        its ``x0`` is the push (``state``'s start value must not be 0).
+        its ``x0`` is the push (``state``'s start value must not be 0 unless the system is
+        forced: a stepped sine, :mod:`circuitsim.studies.stepped_sine`).
     speeds : ndarray, shape (k,)
         Increasing; the down sweep runs them in reverse from the up sweep's final state.
     parameter, unit : str
@@ -290,7 +291,7 @@ def run_hunting(
     index = list(probe.states).index(state)
     state_unit = probe.units[index] if probe.units else ""
     push = 0.0 if probe.x0 is None else float(probe.x0[index])
-    if push == 0:
+    if push == 0 and not probe.forcing:
         started = [] if probe.x0 is None else [
             f"{s} = {v:g}" for s, v in zip(probe.states, probe.x0, strict=True) if v
         ]  # fmt: skip
@@ -299,10 +300,11 @@ def run_hunting(
             f"the push is 0: start {state} away from rest (e.g. --y0 0.005, --state {state}) "
             f"for a free response{where}"
         )
+    # a forced response (a stepped sine) may start from rest: no push sets the bounds then
     settings = replace(
         settings,
         threshold=settings.threshold or abs(push),
-        bound=settings.bound if math.isfinite(settings.bound) else 100 * abs(push),
+        bound=settings.bound if math.isfinite(settings.bound) or not push else 100 * abs(push),
     )
     settings.check()
     result = HuntingResult(parameter, unit, state, state_unit, push, settings, linear_critical)
