@@ -143,11 +143,13 @@ def read_text(
     what: str = "an input file",
     encoding: str = "utf-8",
     errors: str = "strict",
+    newline: str | None = None,
 ) -> str:
     """The text of ``path``, refused if more than ``limit`` bytes (see :func:`read_bytes`).
 
-    Decoded as ``open(path, encoding=encoding, errors=errors).read()`` would: universal
-    newlines (``\\r\\n`` and ``\\r`` become ``\\n``).
+    Decoded as ``open(path, encoding=encoding, errors=errors, newline=newline).read()``
+    would: by default universal newlines (``\\r\\n`` and ``\\r`` become ``\\n``);
+    ``newline=""`` keeps the line ends as written (what :mod:`csv` wants).
 
     Raises
     ------
@@ -157,5 +159,6 @@ def read_text(
         Not text in ``encoding`` (with ``errors="strict"``).
     """
     data = read_bytes(path, limit, what)
-    with io.TextIOWrapper(io.BytesIO(data), encoding=encoding, errors=errors) as text:
+    wrapper = io.TextIOWrapper(io.BytesIO(data), encoding=encoding, errors=errors, newline=newline)
+    with wrapper as text:
         return text.read()
