@@ -181,3 +181,80 @@ def test_trace_measures_do_not_depend_on_the_magnitude():
     assert nrmsd_percent(reference, 1e300 * reference) == pytest.approx(
         100 * (1e300 - 1) * np.sqrt(0.5) / 2.0, rel=1e-3
     )
+
+
+# --- raw files: a seeded mutation run -----------------------------------------------------
+
+
+def _raw_samples() -> list[bytes]:
+    """A binary, an ASCII, a complex and an LTspice-style raw file of 3 points."""
+    header = (
+        "Title: t\nDate: d\nPlotname: Transient Analysis\nFlags: {flags}\n"
+        "No. Variables: 2\nNo. Points: 3\nVariables:\n\t0\ttime\ttime\n\t1\tv(a)\tvoltage\n"
+    )
+    rows = np.array([[0.0, 1.0], [1e-3, 2.0], [2e-3, 3.0]])
+    binary = header.format(flags="real").encode() + b"Binary:\n" + rows.tobytes()
+    ascii_ = (
+        header.format(flags="real")
+        + "Values:\n"
+        + "".join(f" {k}\t{t!r}\n\t{v!r}\n" for k, (t, v) in enumerate(rows.tolist()))
+    )
+    complex_ = header.format(flags="complex").replace("time\ttime", "frequency\tfrequency")
+    complex_ += "Values:\n" + "".join(f" {k}\t{k + 1}.0,0.0\n\t1.0,-1.0\n" for k in range(3))
+    ltspice = header.format(flags="real forward").encode("utf_16_le") + "Binary:\n".encode(
+        "utf_16_le"
+    )
+    ltspice += b"".join(np.float64(t).tobytes() + np.float32(v).tobytes() for t, v in rows.tolist())
+    return [binary, ascii_.encode(), complex_.encode(), b"\xff\xfe" + ltspice]
+
+
+_HOSTILE_FIELDS = [b"-1", b"0", b"-0", b"1e3", b"99999999999999999999999", b"x", b"", b"2.5",
+                   b"1" * 5000, b"1000000000"]  # fmt: skip
+
+
+def _mutate(data: bytes, rng: np.random.Generator) -> bytes:
+    choice = rng.integers(6)
+    if choice == 0:  # a header count replaced
+        key = [b"No. Points: 3", b"No. Variables: 2"][rng.integers(2)]
+        if key in data:
+            return data.replace(key, key.split(b":")[0] + b": " + rng.choice(_HOSTILE_FIELDS))
+    if choice == 1:  # cut anywhere
+        return data[: rng.integers(len(data) + 1)]
+    if choice == 2 and data:  # bytes overwritten
+        out = bytearray(data)
+        for _ in range(rng.integers(1, 8)):
+            out[rng.integers(len(out))] = rng.integers(256)
+        return bytes(out)
+    if choice == 3:  # a value made huge or non-finite in the text
+        return data.replace(b"2.0", rng.choice([b"1e300", b"nan", b"inf", b"1" * 401, b"1e999"]))
+    if choice == 4:  # a line deleted or duplicated
+        lines = data.split(b"\n")
+        k = rng.integers(len(lines))
+        lines[k : k + 1] = [] if rng.integers(2) else [lines[k], lines[k]]
+        return b"\n".join(lines)
+    return data + bytes(rng.integers(256, size=rng.integers(1, 64), dtype=np.uint8))
+
+
+def test_mutated_raw_files_end_in_waveforms_or_a_named_error():
+    """600 seeded mutations: every one parses, or raises NgspiceError (never another error)."""
+    from circuitsim.interop.errors import NgspiceError
+    from circuitsim.interop.rawfile import parse_rawfile
+
+    rng = np.random.default_rng(43)
+    samples = _raw_samples()
+    for sample in samples:
+        assert len(parse_rawfile(sample).time) == 3
+    outcomes = {"parsed": 0, "named": 0}
+    for _ in range(600):
+        data = samples[rng.integers(len(samples))]
+        for _ in range(rng.integers(1, 3)):
+            data = _mutate(data, rng)
+        try:
+            waves = parse_rawfile(data)
+        except NgspiceError:
+            outcomes["named"] += 1
+            continue
+        outcomes["parsed"] += 1
+        for values in (waves.time, *waves.signals.values()):
+            assert np.all(np.isfinite(values))
+    assert outcomes["parsed"] > 0 and outcomes["named"] > 0

@@ -94,6 +94,8 @@ def parse_rawfile(data: bytes) -> Waveforms:
         table = table[:, 0::2] + 1j * table[:, 1::2] if is_complex else table
     else:
         table = _ascii_values(data[body:].decode("ascii", errors="replace"), points, count)
+        if np.iscomplexobj(table) and not is_complex:
+            raise NgspiceError("ngspice's rawfile has complex values (re,im) in a real plot")
     return _waveforms(names, kinds, table, is_complex, plotname)
 
 
@@ -120,6 +122,8 @@ def _parse_ltspice(data: bytes) -> Waveforms:
     if kind == "Values:\n":
         text = data[body:].decode("utf_16_le", errors="replace")
         table = _ascii_values(text, points, count)
+        if np.iscomplexobj(table):
+            raise NgspiceError("an LTspice rawfile with complex values (re,im) in a real plot")
     else:
         table = _ltspice_binary(data[body:], points, count, "double" in flags,
                                 "fastaccess" in flags)  # fmt: skip
