@@ -199,9 +199,10 @@ def refuse_unrealizable(system: System, options: SynthesisOptions) -> None:
     """Refuse, before any integration, coefficients no scaling can make buildable.
 
     ``options.time_scale`` must be set (K). Checked: every coefficient finite; each state's
-    own coefficient A_ii within [g_min, g_max] / K (or 0); the fastest mode (over every region
-    of the |x| terms when there are at most 2^8 of them, else of the linear part) at most
-    n (1 + T + P) g_max / K (see the module's docstring).
+    own coefficient A_ii at most g_max / K (a coefficient too small for any resistor costs
+    the scaling run nothing and is named by :func:`check_buildable`); the fastest mode (over
+    every region of the |x| terms when there are at most 2^8 of them, else of the linear
+    part) at most n (1 + T + P) g_max / K (see the module's docstring).
 
     Raises
     ------
@@ -213,19 +214,19 @@ def refuse_unrealizable(system: System, options: SynthesisOptions) -> None:
     states = system.states
     A = np.asarray(system.A, dtype=float)
     _refuse_non_finite(system, A)
-    g_min, g_max = integrator_gains(options)
+    _, g_max = integrator_gains(options)
     parts = (
         f"resistors of {options.r_min / HARD_RANGE:g}..{options.r_max * HARD_RANGE:g} ohm "
         f"and capacitors of {min(CAPACITOR_DECADES):g}..{max(CAPACITOR_DECADES):g} F"
     )
     for i, name in enumerate(states):
         gain = abs(A[i, i]) * K
-        if gain == 0 or g_min <= gain <= g_max:
+        if gain <= g_max:  # a gain below g_min: its resistor is named by check_buildable
             continue
         raise SynthesisError(
             f"not buildable: the coefficient of {name} in d{name}/dt, {A[i, i]:.3g} 1/s "
             f"({_largest_coefficient(system)}), makes its integrator's gain {gain:.3g} 1/s at "
-            f"time scale {K:g}; {parts} build {g_min:.3g}..{g_max:.3g} 1/s whatever the "
+            f"time scale {K:g}; {parts} build at most {g_max:.3g} 1/s whatever the "
             "amplitude scales: change the coefficient or the time scale (--time-scale)"
         )
     terms = [t for t in system.nonlinear if t.t_on is None or math.isfinite(t.t_on)]

@@ -153,7 +153,8 @@ def synthesize(
             f"ranges given for unknown state(s) {', '.join(unknown)}; "
             f"the model's states are {', '.join(system.states)}"
         )
-    refuse_unrealizable(system, options)  # before the direct solution below integrates
+    if options.scaling != "unity":  # unity: the paper's mapping, built as asked (see below)
+        refuse_unrealizable(system, options)  # before the direct solution below integrates
     needed = options.scaling != "unity" and len(options.ranges) < system.n
     if trajectory is None and (peaks or needed):
         trajectory = direct_solution(system, t_stop, options.scaling_wall_time)
