@@ -144,7 +144,12 @@ HOSTILE_SCALES = {
                 "states": {f"s{k}": {"node": "y", "volts_per_unit": 1} for k in range(100_001)},
             }
         ),
-        "states: 100,001 states, more than 10,000",
+        "states: 100,001 states, more than 2,000",
+    ),
+    "two states on one node": (
+        '{"time_scale": 1, "states": {"a": {"node": "y", "volts_per_unit": 1}, '
+        '"b": {"node": "Y", "volts_per_unit": 2}}}',
+        "states.b.node: y is also the node of states.a",
     ),
 }
 

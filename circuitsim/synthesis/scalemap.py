@@ -83,7 +83,8 @@ class ScaleMap:
 
         Refused: a missing key, a value of the wrong type, a number that is not finite (an
         integer of hundreds of digits included), a time scale that is not positive, a scale of
-        0, more than :data:`~circuitsim.inputfile.MAX_SCALE_STATES` states.
+        0, two states on one node, more than :data:`~circuitsim.inputfile.MAX_SCALE_STATES`
+        states.
         """
 
         def fail(key: str, problem: str) -> SynthesisError:
@@ -107,6 +108,7 @@ class ScaleMap:
                 "circuit generated here: each state is an integrator)",
             )
         states = {}
+        owners: dict[str, str] = {}  # node -> the state it carries
         for name, entry in entries.items():
             key = f"states.{_shown(name)}"
             if not isinstance(entry, dict):
@@ -123,7 +125,15 @@ class ScaleMap:
             volts = _number(entry["volts_per_unit"], f"{key}.volts_per_unit", fail)
             if volts == 0:
                 raise SynthesisError(f"{source}: {key}.volts_per_unit must be nonzero")
-            states[str(name)] = StateScale(node=str(node).lower(), volts_per_unit=volts, unit=unit)
+            node = str(node).lower()
+            if node in owners:  # a circuit carries each state on its own integrator's output
+                raise fail(
+                    f"{key}.node",
+                    f"{_shown(node)} is also the node of states.{_shown(owners[node])} (each "
+                    "state has a node of its own)",
+                )
+            owners[node] = str(name)
+            states[str(name)] = StateScale(node=node, volts_per_unit=volts, unit=unit)
         return cls(time_scale=time_scale, states=states)
 
     def to_text(self) -> str:
