@@ -326,3 +326,41 @@ def test_the_shipped_models_are_all_realizable(tmp_path, capsys):
     for name in ("wheelset", "bogie", "quarter_car", "wheelset_creep"):
         code = main(["generate", "--model", name, "-o", str(tmp_path / f"{name}.cir")])
         assert code in (0, 1), capsys.readouterr().err
+
+
+# --- CSV inputs: numbers past the float range ---------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "value, words",
+    [("1" * 401, "must be finite"), ("1e400", "must be finite"), ("nan", "must be finite")],
+    ids=["401 digits", "1e400", "nan"],
+)
+def test_a_time_series_value_past_the_float_range_is_named(value, words, tmp_path, capsys):
+    series = tmp_path / "u.csv"
+    series.write_text(f"time,value\n0,0\n0.5,{value}\n1,0\n")
+    assert main(["ode", "--input", f"track={series}", "--tstop", "0.1"]) == 2
+    _one_error_line(capsys.readouterr().err, "u.csv line 3")
+
+
+def test_a_time_series_finite_as_written_but_not_in_seconds_is_named(tmp_path, capsys):
+    """1e306 hours is finite as written; in seconds it is past the float range."""
+    (tmp_path / "u.csv").write_text("t_h,u\n0,0\n1e306,1\n")
+    model = _wheelset_with(
+        tmp_path,
+        'file = "track_irregularity.csv"\nspeed = "V"\nvalue_unit = "mm"',
+        'file = "u.csv"\ntime_unit = "h"\nvalue_unit = "mm"',
+    )
+    assert main(["ode", "--model", str(model), "--forcing", "irregularity", "--tstop", "0.1"]) == 2
+    _one_error_line(
+        capsys.readouterr().err,
+        "forcing.irregularity.file: u.csv line 3: a point beyond the float range in s and m",
+    )
+
+
+@pytest.mark.parametrize("value", ["1" * 401, "1e400", "9" * 5000], ids=["401", "1e400", "5000"])
+def test_a_grid_value_past_the_float_range_is_named(value, tmp_path, capsys):
+    grid = tmp_path / "g.csv"
+    grid.write_text(f"speed\n50\n{value}\n")
+    assert main(["sweep", "--grid", str(grid), "--tstop", "0.1", "--out", str(tmp_path)]) == 2
+    _one_error_line(capsys.readouterr().err, f"{grid}: line 3, column 1 (V)", "not a finite")
