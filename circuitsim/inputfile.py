@@ -52,9 +52,9 @@ GRID_BYTES = 16 * MiB
 few numbers each."""
 
 RAW_FILE_BYTES = 2048 * MiB
-"""Raw file (ngspice, LTspice): 2 GiB is 268 million float64 values, e.g. the wheelset's 4
-states and time at 50 million points; a file that large already needs several GiB of memory
-to compare."""
+"""Raw file (ngspice, LTspice) or results CSV: 268 million float64 values, e.g. the
+wheelset's 4 states and time at 50 million points; the file is held in memory with the table
+made of it."""
 
 BOM_BYTES = 16 * MiB
 """Bill of materials (CSV): the 64-mass TL074 chain's (3,200 parts) is 0.31 MiB."""
