@@ -143,9 +143,7 @@ def load_toml(path: Path, reader: TableReader) -> dict:
         raise reader.fail(None, "is a folder, not a model file") from None
     except tomllib.TOMLDecodeError as exc:
         raise reader.fail(None, f"not valid TOML: {exc}") from None
-    except UnicodeDecodeError as exc:
-        raise reader.fail(None, f"cannot read: {exc}") from None
-    except ValueError as exc:  # tomllib's own: an integer past Python's 4,300-digit limit
+    except ValueError as exc:  # not UTF-8, or tomllib's: an integer past the 4,300-digit limit
         if "digits" not in str(exc):
             raise reader.fail(None, f"not valid TOML: {exc}") from None
         line = _line_of_long_integer(data)
