@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 
 from circuitsim.cli import main
+from circuitsim.inputfile import NETLIST_BYTES
 from circuitsim.mechanics import load_model, solve
 from circuitsim.mechanics.tomlfile import builtin_path
 from circuitsim.synthesis.scalemap import ScaleMap
@@ -48,6 +49,16 @@ def _run(*argv: str, cwd: Path) -> subprocess.CompletedProcess:
         env=env,
         preexec_fn=_limited,
     )
+
+
+def _netlist_error(err: str, *words: str) -> None:
+    """A netlist's error: one ``error:`` line (the reader shows the offending line under it,
+    the ngspice path says first what it will run), no traceback."""
+    assert "Traceback" not in err, err
+    errors = [line for line in err.splitlines() if "error:" in line]
+    assert len(errors) == 1, err
+    for word in words:
+        assert word in errors[0], errors[0]
 
 
 def _one_error_line(err: str, *words: str) -> str:
@@ -100,13 +111,17 @@ def test_an_endless_fifo_as_the_model_is_refused(tmp_path):
     assert not writer.is_alive()
 
 
-def test_an_include_of_dev_zero_is_refused_on_both_engines(tmp_path):
-    """The builtin reader takes only regular files as includes; ngspice's deck reader too."""
-    netlist = tmp_path / "inc.cir"
-    netlist.write_text("t\n.include /dev/zero\nR1 a 0 1k\nV1 a 0 1\n.op\n.end\n")
-    for engine in ("builtin", "ngspice"):
-        code = main(["simulate", str(netlist), "--engine", engine])
-        assert code == 2
+@pytest.mark.parametrize("engine", ["builtin", "ngspice"])
+def test_an_include_past_the_limit_is_refused_on_both_engines(engine, tmp_path, capsys):
+    """A sparse file of 64 MiB and one byte (no disk used), and /dev/zero, as includes."""
+    big = tmp_path / "big.lib"
+    with open(big, "wb") as handle:
+        handle.truncate(NETLIST_BYTES + 1)
+    for target, words in ((big, "too large: 67,108,865 bytes"), ("/dev/zero", "/dev/zero")):
+        netlist = tmp_path / "inc.cir"
+        netlist.write_text(f"t\n.include {target}\nR1 a 0 1k\nV1 a 0 1\n.op\n.end\n")
+        assert main(["simulate", str(netlist), "--engine", engine]) == 2
+        _netlist_error(capsys.readouterr().err, words)
 
 
 # --- scale files --------------------------------------------------------------------------
