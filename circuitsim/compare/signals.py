@@ -18,8 +18,14 @@ def nrmsd_percent(reference: np.ndarray, candidate: np.ndarray) -> float:
     (no range to normalize by).
     """
     reference, candidate = np.asarray(reference, float), np.asarray(candidate, float)
-    rms = float(np.sqrt(np.mean((candidate - reference) ** 2)))
-    span = float(np.ptp(reference))
+    with np.errstate(over="ignore", invalid="ignore"):  # a difference past the float range
+        difference = candidate - reference
+        scale = float(np.max(np.abs(difference), initial=0.0))
+        if 0.0 < scale < np.inf:  # the RMS at unit peak: no square overflows
+            rms = scale * float(np.sqrt(np.mean((difference / scale) ** 2)))
+        else:
+            rms = scale
+        span = float(np.ptp(reference))
     if span == 0.0:
         return 0.0 if rms == 0.0 else float("inf")
     return 100.0 * rms / span
@@ -36,6 +42,18 @@ def peak_ratio(reference: np.ndarray, candidate: np.ndarray) -> float:
     if top == 0.0:
         return float("nan")
     return float(np.max(np.abs(candidate))) / top
+
+
+def _unit_peak(values: np.ndarray) -> np.ndarray:
+    """``values`` divided by their largest magnitude (unchanged if all zero or not finite).
+
+    Frequencies and correlations do not depend on a trace's scale, but their sums of squares
+    overflow for values past about 1e154 (a raw file's 1e300 V): measured at unit peak they
+    are exact for every finite trace.
+    """
+    values = np.asarray(values, float)
+    peak = float(np.max(np.abs(values), initial=0.0))
+    return values / peak if 0.0 < peak < np.inf else values
 
 
 def dominant_frequency(t: np.ndarray, values: np.ndarray, zero_pad: int = 8) -> float:
@@ -57,7 +75,7 @@ def dominant_frequency(t: np.ndarray, values: np.ndarray, zero_pad: int = 8) -> 
     zero_pad : int
         Transform length as a multiple of n.
     """
-    t, values = np.asarray(t, float), np.asarray(values, float)
+    t, values = np.asarray(t, float), _unit_peak(values)
     n = values.size
     dt = (t[-1] - t[0]) / (n - 1)
     from scipy import signal  # here, not at the top: importing it takes 0.5 s (sweeps need none)
@@ -112,8 +130,8 @@ def phase_lag(
         Seconds; NaN when either trace has no variation.
     """
     t = np.asarray(t, float)
-    r = np.asarray(reference, float)
-    c = np.asarray(candidate, float)
+    r = _unit_peak(reference)  # Pearson correlations do not depend on the scale
+    c = _unit_peak(candidate)
     n = t.size
     dt = (t[-1] - t[0]) / (n - 1)
     if np.ptp(r) == 0.0 or np.ptp(c) == 0.0:

@@ -48,6 +48,12 @@ import shutil
 import time
 from pathlib import Path
 
+from circuitsim.inputfile import (
+    NETLIST_BYTES,
+    RAW_FILE_BYTES,
+    InputTooLargeError,
+    read_bytes,
+)
 from circuitsim.interop.errors import NgspiceError, NgspiceTimeout
 from circuitsim.interop.ngspice_deck import TITLE, DeckLine, check_inert, decode, flatten_deck
 from circuitsim.interop.ngspice_files import STITCH_BLANKS, hide_included
@@ -162,7 +168,14 @@ def run_ngspice(
                 f"ngspice wrote no results (exit status {done.returncode})",
                 _tail(hide_included(log, found)),
             )
-        waves = parse_rawfile(raw.read_bytes())
+        try:
+            data = read_bytes(raw, RAW_FILE_BYTES, "a raw file")
+        except InputTooLargeError as exc:
+            raise NgspiceError(
+                f"ngspice's results are {exc.reason}; probe fewer signals (--probe) or ask "
+                "for a coarser output step"
+            ) from None
+        waves = parse_rawfile(data)
     waves.stats["wall_time_s"] = wall
     waves.stats["analysis"] = analysis
     if probes is not None:
@@ -194,7 +207,9 @@ def _deck_found(netlist: Circuit | str | os.PathLike) -> list[DeckLine]:
     else:
         path = Path(netlist)
         try:
-            text = decode(path.read_bytes())
+            text = decode(read_bytes(path, NETLIST_BYTES, "a netlist file"))
+        except InputTooLargeError as exc:
+            raise NgspiceError(f"cannot read the netlist {exc}") from None
         except OSError as exc:
             raise NgspiceError(f"cannot read the netlist {path}: {exc.strerror or exc}") from None
         found = flatten_deck(text, str(path), path.resolve().parent)

@@ -37,6 +37,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from circuitsim.inputfile import DECK_BYTES, NETLIST_BYTES, InputTooLargeError, read_bytes
 from circuitsim.interop.ngspice_files import refuse_file_names
 from circuitsim.netlist.errors import NetlistError
 
@@ -44,7 +45,7 @@ __all__ = ["DeckLine", "TITLE", "flatten_deck", "check_inert", "decode"]
 
 TITLE = "circuitsim deck for ngspice"
 _MAX_DEPTH = 32  # nested includes: deeper than any real library, shallower than the C stack
-_MAX_BYTES = 256 * 2**20  # all files of one deck together; large PDKs stay well below
+_MAX_BYTES = DECK_BYTES  # all files of one deck together
 
 
 @dataclass(frozen=True)
@@ -251,9 +252,13 @@ def _open(reading: _Reading, where: DeckLine, path: Path, section: str) -> list[
         size = path.stat().st_size
         if reading.size + size > _MAX_BYTES:
             raise _error(where, f"the included files pass {_MAX_BYTES // 2**20} MiB ('{path}')")
-        data = path.read_bytes()
+        data = read_bytes(path, NETLIST_BYTES, "a netlist file")
+    except InputTooLargeError as exc:
+        raise _error(where, f"cannot read '{path}': {exc.reason}") from None
     except OSError as exc:
         raise _error(where, f"cannot read '{path}': {exc.strerror or exc}") from None
+    if reading.size + len(data) > _MAX_BYTES:  # a file that grew since its size was asked
+        raise _error(where, f"the included files pass {_MAX_BYTES // 2**20} MiB ('{path}')")
     reading.size += len(data)
     return _physical_lines(decode(data))
 

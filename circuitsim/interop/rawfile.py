@@ -25,15 +25,19 @@ absolute value is taken), every other vector float32 unless ``Flags`` says ``dou
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
 import numpy as np
 
+from circuitsim.inputfile import RAW_FILE_BYTES, InputTooLargeError, read_bytes
 from circuitsim.interop.errors import NgspiceError
 from circuitsim.solver.waveforms import Waveforms
 
 _BINARY = b"Binary:\n"
 _VALUES = b"Values:\n"
+
+MAX_VARIABLES = 1_000_000
+"""Most vectors (``No. Variables``) a raw file may declare: the 64-mass TL074 chain, the
+largest circuit generated here, has 11,782 unknowns."""
 
 
 def read_rawfile(path: str | os.PathLike) -> Waveforms:
@@ -44,11 +48,16 @@ def read_rawfile(path: str | os.PathLike) -> Waveforms:
     Raises
     ------
     NgspiceError
-        Not a rawfile, or cut short (the message names the file).
+        Not a rawfile, cut short, counts that are negative or beyond any circuit
+        (:data:`MAX_VARIABLES`), a value that is not finite, or a file larger than
+        :data:`~circuitsim.inputfile.RAW_FILE_BYTES` (the message names the file).
     OSError
         The file cannot be read.
     """
-    data = Path(path).read_bytes()
+    try:
+        data = read_bytes(path, RAW_FILE_BYTES, "a raw file")
+    except InputTooLargeError as exc:
+        raise NgspiceError(str(exc)) from None
     try:
         return parse_rawfile(data)
     except NgspiceError as exc:
@@ -62,7 +71,7 @@ def parse_rawfile(data: bytes) -> Waveforms:
     Raises
     ------
     NgspiceError
-        Not a rawfile, or cut short.
+        Not a rawfile, cut short, bad counts, or a value that is not finite.
     """
     if _is_utf16(data):
         return _parse_ltspice(data)
@@ -85,6 +94,8 @@ def parse_rawfile(data: bytes) -> Waveforms:
         table = table[:, 0::2] + 1j * table[:, 1::2] if is_complex else table
     else:
         table = _ascii_values(data[body:].decode("ascii", errors="replace"), points, count)
+        if np.iscomplexobj(table) and not is_complex:
+            raise NgspiceError("ngspice's rawfile has complex values (re,im) in a real plot")
     return _waveforms(names, kinds, table, is_complex, plotname)
 
 
@@ -111,6 +122,8 @@ def _parse_ltspice(data: bytes) -> Waveforms:
     if kind == "Values:\n":
         text = data[body:].decode("utf_16_le", errors="replace")
         table = _ascii_values(text, points, count)
+        if np.iscomplexobj(table):
+            raise NgspiceError("an LTspice rawfile with complex values (re,im) in a real plot")
     else:
         table = _ltspice_binary(data[body:], points, count, "double" in flags,
                                 "fastaccess" in flags)  # fmt: skip
@@ -167,6 +180,13 @@ def _header(text: str) -> tuple[list[str], list[str], int, bool, str]:
         points = int(fields["no. points"])
     except (KeyError, ValueError):
         raise NgspiceError("ngspice's rawfile has no variable/point counts", text[:400]) from None
+    if not 1 <= count <= MAX_VARIABLES:
+        raise NgspiceError(
+            f"the rawfile's No. Variables: {fields['no. variables'][:40]} is not a count of "
+            f"vectors (1 to {MAX_VARIABLES:,}, the time or frequency axis included)"
+        )
+    if points < 0:
+        raise NgspiceError(f"the rawfile's No. Points: {fields['no. points'][:40]} is negative")
     names, kinds = [], []
     for line in lines[row + 1 : row + 1 + count]:
         parts = line.split()
@@ -181,7 +201,10 @@ def _header(text: str) -> tuple[list[str], list[str], int, bool, str]:
 
 
 def _ascii_values(text: str, points: int, count: int) -> np.ndarray:
-    # Each point is its index followed by one number per variable ("re,im" when complex).
+    # Each point is its index followed by one number per variable ("re,im" when complex);
+    # every number takes at least two characters (a digit and a separator).
+    if points * (count + 1) > (len(text) + 1) // 2:
+        raise _cut_short(points, count)
     tokens = text.split()[: points * (count + 1)]
     if len(tokens) < points * (count + 1):
         raise _cut_short(points, count)
@@ -199,6 +222,7 @@ def _ascii_values(text: str, points: int, count: int) -> np.ndarray:
 def _waveforms(
     names: list[str], kinds: list[str], table: np.ndarray, is_complex: bool, plotname: str
 ) -> Waveforms:
+    _refuse_non_finite(names, kinds, table)
     signals: dict[str, np.ndarray] = {}
     axis = np.zeros(1)
     for column, (name, kind) in enumerate(zip(names, kinds, strict=True)):
@@ -216,6 +240,22 @@ def _waveforms(
         axis = np.zeros(1)
     scale = "frequency" if "frequency" in (n.lower() for n in names) else "time"
     return Waveforms(time=axis, signals=signals, engine="ngspice", axis=scale)
+
+
+def _refuse_non_finite(names: list[str], kinds: list[str], table: np.ndarray) -> None:
+    """Refuse a table holding inf or NaN, naming the first such vector, point and time."""
+    finite = np.isfinite(table)
+    if finite.all():
+        return
+    point, column = (int(k) for k in np.argwhere(~finite)[0])
+    where = f"point {point}"
+    if column != 0 and np.isfinite(table[point, 0]):
+        where += f" ({names[0].lower()} {np.real(table[point, 0]):.6g})"
+    name, value = signal_name(names[column], kinds[column]), table[point, column]
+    raise NgspiceError(
+        f"the rawfile's {name} is {value} at {where}: a result that went non-finite cannot "
+        "be compared"
+    )
 
 
 def signal_name(name: str, kind: str) -> str:

@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 from importlib import resources
 from pathlib import Path
 
+from circuitsim.inputfile import CSV_INPUT_BYTES, InputTooLargeError, read_text
 from circuitsim.mechanics.errors import ModelError
 from circuitsim.mechanics.expressions import Item, parse
 
@@ -188,6 +189,10 @@ def series_points(reader, table: dict, key: str) -> tuple[tuple[float, float], .
     if len(raw) > MAX_POINTS:
         raise reader.fail(where, f"{len(raw)} points; at most {MAX_POINTS} are accepted")
     points = tuple((t * scale_t, v * scale_v) for t, v, _ in raw)
+    for (t, v), (_, _, line) in zip(points, raw, strict=True):
+        if not (math.isfinite(t) and math.isfinite(v)):  # finite as written, not in SI units
+            unit = table.get("unit", "") or "the forcing's unit"
+            raise reader.fail(where, f"{line}: a point beyond the float range in s and {unit}")
     for (t_a, _, _), (t_b, _, line) in zip(raw, raw[1:], strict=False):
         if t_b < t_a:
             raise reader.fail(where, f"{line}: time {t_b:g} is before the previous {t_a:g}")
@@ -307,7 +312,9 @@ def _csv_points(reader, value, key: str) -> list[tuple[float, float, str]]:
             reason = getattr(exc, "strerror", None) or str(exc)
             raise reader.fail(key, f"cannot read: {reason}") from None
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_text(path, CSV_INPUT_BYTES, "a time-series file")
+    except InputTooLargeError as exc:  # /dev/zero too: at most the limit is read
+        raise reader.fail(key, f"{str(path)[:200]}: {exc.reason}") from None
     except FileNotFoundError:
         raise reader.fail(key, f"{path}: file not found") from None
     except (OSError, UnicodeDecodeError, ValueError) as exc:

@@ -10,20 +10,21 @@ format): :mod:`circuitsim.mechanics.modelfile`.
 
 from __future__ import annotations
 
-import os
 import re
 import tomllib
 from importlib import resources
 from pathlib import Path
 
+from circuitsim.inputfile import MODEL_FILE_BYTES, InputTooLargeError, read_bytes
 from circuitsim.mechanics.errors import ModelError
 from circuitsim.mechanics.expressions import RESERVED, ExpressionError, Item, parse
 
 BUILTIN = "wheelset"
 
-MAX_FILE_BYTES = 16 * 2**20
-"""Largest model file read (16 MiB; a dense 1,000-state model is about 10 MiB): a bigger one is
-refused before it is read, not turned into a MemoryError halfway through."""
+MAX_FILE_BYTES = MODEL_FILE_BYTES
+"""Largest model file read (16 MiB; a dense 1,000-state model is about 10 MiB): a bigger one,
+or a device that never ends, is refused having read at most this much
+(:func:`circuitsim.inputfile.read_bytes`)."""
 
 
 def builtin_path(name: str = BUILTIN) -> Path:
@@ -131,16 +132,10 @@ def check_identifier(reader: TableReader, name: str, key: str) -> None:
 def load_toml(path: Path, reader: TableReader) -> dict:
     """The TOML document of ``path``; every way reading it can fail is a ModelError."""
     try:
-        with open(path, "rb") as handle:
-            size = os.fstat(handle.fileno()).st_size
-            if size > MAX_FILE_BYTES:
-                raise reader.fail(
-                    None, f"too large: {size:,} bytes (a model file is at most "
-                    f"{MAX_FILE_BYTES:,} bytes)"
-                )  # fmt: skip
-            return tomllib.load(handle)
-    except ModelError:  # the size check's
-        raise
+        data = read_bytes(path, MAX_FILE_BYTES, "a model file")
+        return tomllib.loads(data.decode("utf-8"))
+    except InputTooLargeError as exc:  # a device such as /dev/zero too: it is never read whole
+        raise reader.fail(None, exc.reason) from None
     except FileNotFoundError:
         shipped = ", ".join(shipped_models())
         raise reader.fail(None, f"model file not found (shipped models: {shipped})") from None
@@ -148,24 +143,22 @@ def load_toml(path: Path, reader: TableReader) -> dict:
         raise reader.fail(None, "is a folder, not a model file") from None
     except tomllib.TOMLDecodeError as exc:
         raise reader.fail(None, f"not valid TOML: {exc}") from None
-    except ValueError as exc:  # tomllib's own: an integer past Python's 4,300-digit limit
+    except ValueError as exc:  # not UTF-8, or tomllib's: an integer past the 4,300-digit limit
         if "digits" not in str(exc):
             raise reader.fail(None, f"not valid TOML: {exc}") from None
-        line = _line_of_long_integer(path)
+        line = _line_of_long_integer(data)
         raise reader.fail(
             None, f"not valid TOML: an integer of more than 4,300 digits{line}"
         ) from None
     except RecursionError:  # tomllib parses nested arrays and inline tables recursively
         raise reader.fail(None, "not valid TOML: arrays or tables nested too deeply") from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except OSError as exc:
         raise reader.fail(None, f"cannot read: {exc}") from None
 
 
-def _line_of_long_integer(path: Path) -> str:
-    """`` (line N)`` of the first run of more than 4,300 digits in ``path``, for the message
+def _line_of_long_integer(data: bytes) -> str:
+    """`` (line N)`` of the first run of more than 4,300 digits in ``data``, for the message
     (tomllib's own error has no position); empty if not found."""
-    with open(path, "rb") as handle:
-        data = handle.read(MAX_FILE_BYTES + 1)
     match = re.search(rb"\d{4301,}", data)
     if match is None:
         return ""

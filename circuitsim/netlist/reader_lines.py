@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from circuitsim.inputfile import NETLIST_BYTES, InputTooLargeError, read_text
 from circuitsim.netlist.errors import NetlistError
 from circuitsim.netlist.names import fold
 from circuitsim.netlist.reader_elements import Line
@@ -147,8 +148,14 @@ def include_target(line: Line, rest: str, what: str) -> tuple[str, str | None]:
 
 
 def read_file(line: Line | None, path: Path, file: str) -> str:
+    """The text of a netlist (``line`` None) or of the file ``line`` includes; at most
+    :data:`~circuitsim.inputfile.NETLIST_BYTES` of it is read (a device too)."""
     try:
-        return path.read_text(encoding="utf-8", errors="strict")
+        return read_text(path, NETLIST_BYTES, "a netlist file")
+    except InputTooLargeError as exc:
+        if line is None:
+            raise NetlistError(exc.reason, file=file) from None
+        raise line.error(f"cannot read {path}: {exc.reason}") from None
     except (OSError, UnicodeDecodeError) as exc:
         if line is None:
             raise NetlistError(f"cannot read netlist: {exc}", file=file) from None

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from circuitsim.atomic import write_atomic
+from circuitsim.inputfile import RAW_FILE_BYTES, read_text
 from circuitsim.netlist.names import fold
 
 
@@ -118,10 +119,11 @@ class Waveforms:
 
     @classmethod
     def from_csv(cls, path: str | os.PathLike, engine: str = "") -> Waveforms:
-        """Read a file written by :meth:`to_csv`."""
-        with open(path) as handle:
-            header = handle.readline().strip().split(",")
-        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+        """Read a file written by :meth:`to_csv` (at most
+        :data:`~circuitsim.inputfile.RAW_FILE_BYTES`, like a raw file of results)."""
+        text = read_text(path, RAW_FILE_BYTES, "a results file")
+        header = text.partition("\n")[0].strip().split(",")
+        data = np.loadtxt(io.StringIO(text), delimiter=",", skiprows=1, ndmin=2)
         return cls(
             time=data[:, 0],
             signals={name: data[:, i + 1] for i, name in enumerate(header[1:])},

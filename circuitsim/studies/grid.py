@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from circuitsim.inputfile import GRID_BYTES, InputTooLargeError, read_text
 from circuitsim.studies.errors import GridFileError, StudyError
 
 MAX_VARIANTS = 10_000
@@ -141,7 +142,9 @@ def read_grid_csv(
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8-sig")
+        text = read_text(path, GRID_BYTES, "a grid file", encoding="utf-8-sig")
+    except InputTooLargeError as exc:  # /dev/zero too: at most the limit is read
+        raise GridFileError(str(exc)) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise GridFileError(f"{path}: cannot read the grid file: {exc}") from None
     rows = [

@@ -24,6 +24,7 @@ import math
 import os
 
 from circuitsim.atomic import write_text_atomic
+from circuitsim.inputfile import BOM_BYTES, InputTooLargeError, read_text
 from circuitsim.netlist.circuit import Circuit
 from circuitsim.synthesis.blocks import BomEntry
 from circuitsim.synthesis.errors import SynthesisError
@@ -86,8 +87,11 @@ def save_bom(circuit: Circuit, entries: list[BomEntry], path: str | os.PathLike)
 
 def load_bom(path: str | os.PathLike) -> list[BomEntry]:
     """Read a file written by :func:`save_bom`; SynthesisError naming file and line if bad."""
-    with open(path, newline="") as handle:
-        return parse_bom(handle.read(), source=str(path))
+    try:  # newline="" as csv wants it: the text as written, line ends and all
+        text = read_text(path, BOM_BYTES, "a bill of materials", newline="")
+    except InputTooLargeError as exc:
+        raise SynthesisError(str(exc)) from None
+    return parse_bom(text, source=str(path))
 
 
 def parse_bom(text: str, source: str = "<bill of materials>") -> list[BomEntry]:

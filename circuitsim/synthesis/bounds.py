@@ -19,6 +19,18 @@ raise them), each change named in a warning:
 What still falls outside after the scales are set - a resistor beyond ``HARD_RANGE`` times the
 preferred range, a bias source beyond the rails - is refused by :func:`check_buildable` with
 the part, its value and what sets it.
+
+Some coefficients are beyond every scale: :func:`refuse_unrealizable` refuses them before the
+direct solution that sets the scales is integrated (a stiffness of 1e30 would otherwise keep
+it stepping until its step limit). Two quantities no amplitude scale changes bound what parts
+can build: a state's own coefficient A_ii (its integrator's gain K |A_ii| is one resistor and
+one capacitor whatever G is) and the spectral radius rho of the model's matrix in each region
+(the circuit's matrix is K D A D^-1 with D = diag(G), the same eigenvalues times K). An
+integrator input gains at most g_max = 1 / (R_lo C_lo) (the smallest resistor ``check_buildable``
+accepts, the smallest capacitor decade); every entry of the circuit's matrix is a sum of at
+most 1 + T + P such inputs (the A entry, T terms' linear parts, P |x| blocks, whose inputs
+gain at most 1 by :func:`fit_blocks`' alpha), so rho K <= n (1 + T + P) g_max for any
+buildable circuit of n states.
 """
 
 from __future__ import annotations
@@ -30,8 +42,9 @@ import numpy as np
 from circuitsim.mechanics.system import System
 from circuitsim.netlist.circuit import Circuit, Resistor, VoltageSource
 from circuitsim.synthesis.errors import SynthesisError
-from circuitsim.synthesis.eseries import floor_to_series
+from circuitsim.synthesis.eseries import CAPACITOR_DECADES, floor_to_series
 from circuitsim.synthesis.options import SWING_LIMIT, SynthesisOptions
+from circuitsim.synthesis.timestep import MAX_REGIONS, fastest_mode
 
 #: Block outputs are kept at or below this fraction of the swing (a clipped output sits just
 #: below the swing; the margin keeps the block's diodes and summer off the rail).
@@ -173,3 +186,113 @@ def check_buildable(circuit: Circuit, options: SynthesisOptions, roles: dict[str
                     f"{BUILDABLE_VOLTS:g} V a circuit on +-15 V rails allows (give the ranges "
                     "of the states of its block with --range STATE=PEAK)"
                 )
+
+
+def integrator_gains(options: SynthesisOptions) -> tuple[float, float]:
+    """(g_min, g_max): the integrator input gains (1/s of circuit time) parts can build, from
+    the resistors ``check_buildable`` accepts and the capacitor decades."""
+    r_low, r_high = options.r_min / HARD_RANGE, options.r_max * HARD_RANGE
+    return 1.0 / (r_high * max(CAPACITOR_DECADES)), 1.0 / (r_low * min(CAPACITOR_DECADES))
+
+
+def refuse_unrealizable(system: System, options: SynthesisOptions) -> None:
+    """Refuse, before any integration, coefficients no scaling can make buildable.
+
+    ``options.time_scale`` must be set (K). Checked: every coefficient finite; each state's
+    own coefficient A_ii at most g_max / K (a coefficient too small for any resistor costs
+    the scaling run nothing and is named by :func:`check_buildable`); the fastest mode (over
+    every region of the |x| terms when there are at most 2^8 of them, else of the linear
+    part) at most n (1 + T + P) g_max / K (see the module's docstring).
+
+    Raises
+    ------
+    SynthesisError
+        Naming the state equation's entry or the nonlinear term (``nonlinear.NAME``), the
+        value, the bound and what sets it.
+    """
+    K = float(options.time_scale or 1.0)
+    states = system.states
+    A = np.asarray(system.A, dtype=float)
+    _refuse_non_finite(system, A)
+    _, g_max = integrator_gains(options)
+    parts = (
+        f"resistors of {options.r_min / HARD_RANGE:g}..{options.r_max * HARD_RANGE:g} ohm "
+        f"and capacitors of {min(CAPACITOR_DECADES):g}..{max(CAPACITOR_DECADES):g} F"
+    )
+    for i, name in enumerate(states):
+        gain = abs(A[i, i]) * K
+        if gain <= g_max:  # a gain below g_min: its resistor is named by check_buildable
+            continue
+        raise SynthesisError(
+            f"not buildable: the coefficient of {name} in d{name}/dt, {A[i, i]:.3g} 1/s "
+            f"({_largest_coefficient(system)}), makes its integrator's gain {gain:.3g} 1/s at "
+            f"time scale {K:g}; {parts} build at most {g_max:.3g} 1/s whatever the "
+            "amplitude scales: change the coefficient or the time scale (--time-scale)"
+        )
+    terms = [t for t in system.nonlinear if t.t_on is None or math.isfinite(t.t_on)]
+    pieces = sum(1 for t in terms for piece in t.abs_terms if piece.gain != 0)
+    limit = system.n * (1 + len(terms) + pieces) * g_max
+    if pieces <= math.log2(MAX_REGIONS):  # every region exactly
+        try:
+            with np.errstate(over="ignore", invalid="ignore"):
+                rate, source = fastest_mode(system)
+        except (np.linalg.LinAlgError, ValueError):  # a region's sum past the float range
+            rate, source = math.inf, "mode with " + ", ".join(t.name for t in terms) + " on"
+    else:  # past that fastest_mode bounds the regions from above: the linear part only
+        rate, source = float(np.max(np.abs(np.linalg.eigvals(A)))), "mode of the linear part"
+    if rate * K <= limit:
+        return
+    if source == "mode of the linear part":
+        i, j = np.unravel_index(int(np.argmax(np.abs(A))), A.shape)
+        culprit = (
+            f"the largest entry: the coefficient of {states[j]} in d{states[i]}/dt, "
+            f"{A[i, j]:.3g}; {_largest_coefficient(system)}"
+        )
+    else:
+        named = [t.name for t in terms if t.name in source] or [t.name for t in terms]
+        culprit = "check " + ", ".join(f"nonlinear.{n}" for n in named)
+    raise SynthesisError(
+        f"not buildable: the model's fastest {source} is {rate:.3g} 1/s ({culprit}), "
+        f"{rate * K:.3g} 1/s of circuit time at time scale {K:g}, beyond the {limit:.3g} 1/s "
+        f"that {system.n} integrators of {parts} can reach whatever the amplitude scales: "
+        "change the coefficient or the time scale (--time-scale)"
+    )
+
+
+def _refuse_non_finite(system: System, A: np.ndarray) -> None:
+    """Refuse a coefficient that is inf or NaN (a value past the float range as computed)."""
+    if not np.all(np.isfinite(A)):
+        i, j = (int(k) for k in np.argwhere(~np.isfinite(A))[0])
+        raise SynthesisError(
+            f"not buildable: the coefficient of {system.states[j]} in d{system.states[i]}/dt "
+            f"is {A[i, j]} ({_largest_coefficient(system)})"
+        )
+    for term in system.nonlinear:
+        values = [term.direction, term.linear, term.constant]
+        for piece in term.abs_terms:
+            values += [piece.row, piece.gain, piece.offset]
+        if not all(np.all(np.isfinite(np.asarray(v, dtype=float))) for v in values):
+            raise SynthesisError(
+                f"not buildable: nonlinear.{term.name} has a coefficient that is not finite "
+                "as the model computes it (its enters, linear or abs entries, times the "
+                "inverse mass matrix)"
+            )
+        with np.errstate(over="ignore", invalid="ignore"):
+            slopes = [np.outer(term.direction, term.linear)] + [
+                piece.gain * np.outer(term.direction, piece.row) for piece in term.abs_terms
+            ]
+        if not all(np.all(np.isfinite(slope)) for slope in slopes):
+            raise SynthesisError(
+                f"not buildable: nonlinear.{term.name}'s slope (linear or abs part) overflows "
+                "the float range where it enters the state equations"
+            )
+
+
+def _largest_coefficient(system: System) -> str:
+    """``largest coefficient: coefficients.paper.k_y = 4.81e6`` (or of the model's matrices)."""
+    values = {k: v for k, v in system.coefficients.items() if isinstance(v, int | float)}
+    if not values:
+        return "from the model's matrices"
+    name = max(values, key=lambda k: abs(values[k]) if math.isfinite(values[k]) else math.inf)
+    where = f"coefficients.{system.coefficient_set}" if system.coefficient_set else "coefficients"
+    return f"largest coefficient: {where}.{name} = {values[name]:.3g}"

@@ -39,7 +39,7 @@ from circuitsim.netlist.circuit import (
 )
 from circuitsim.netlist.tidy import round_derived
 from circuitsim.synthesis.blocks import BomEntry, Builder
-from circuitsim.synthesis.bounds import HARD_RANGE, check_buildable
+from circuitsim.synthesis.bounds import HARD_RANGE, check_buildable, refuse_unrealizable
 from circuitsim.synthesis.errors import SynthesisError
 from circuitsim.synthesis.eseries import CAPACITOR_DECADES
 from circuitsim.synthesis.inputs import Generator, add_forcing
@@ -157,6 +157,8 @@ def synthesize(
             f"ranges given for unknown state(s) {', '.join(unknown)}; "
             f"the model's states are {', '.join(system.states)}"
         )
+    if options.scaling != "unity":  # unity: the paper's mapping, built as asked (see below)
+        refuse_unrealizable(system, options)  # before the direct solution below integrates
     needed = options.scaling != "unity" and len(options.ranges) < system.n
     if trajectory is None and (peaks or needed):
         trajectory = direct_solution(system, t_stop, options.scaling_wall_time)
