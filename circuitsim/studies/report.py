@@ -14,6 +14,7 @@ import platform
 from datetime import UTC, datetime
 
 from circuitsim.studies.agreement_report import number_cell, render_agreement
+from circuitsim.studies.frequency_report import render_frequency
 from circuitsim.studies.tolerance_report import render_tolerance
 
 # The reference results for the paper coefficient set (docs/model.md, "Reference results").
@@ -65,6 +66,7 @@ def render_report(result) -> str:
     _free(result, add)
     _hunting(result, add)
     render_tolerance(getattr(result, "tolerance", None), result.figures.get("tolerance"), add)
+    render_frequency(getattr(result, "frequency", None), result.figures, add)
     _forced(result, add)
     render_agreement(result, add)
     _drawing(result, add)
@@ -357,6 +359,7 @@ def reproduction_json(result) -> dict:
         "ode": result.ode_summary,
         "free_response_max_abs_y_9_10s_m": {f"{v:g}": p for v, p in result.free_summary.items()},
         "hunting": getattr(result, "hunting", None),
+        "frequency_response": getattr(result, "frequency", None),
         "tolerance": getattr(result, "tolerance", None),
         "rows": [
             {

@@ -86,6 +86,7 @@ class Reproduction:
     knob_netlist: str = ""
     schematic_problem: str | None = None
     tolerance: dict | None = None  # the Monte Carlo's summary (studies.tolerance_report)
+    frequency: dict | None = None  # FRF and stepped sine (studies.frequency_report)
 
 
 # --- the run -------------------------------------------------------------------------------
@@ -102,6 +103,8 @@ def reproduce(
     workers: int | None = None,
     hunting_speeds: tuple[float, ...] = HUNTING_SPEEDS,
     tolerance_samples: int = TOLERANCE_SAMPLES,
+    frequency_response: bool = True,
+    stepped_sine_frequencies: tuple[float, ...] | None = None,
     n_points: int = 4096,
     skip: dict[tuple[str, str], str] | None = None,
     ngspice_timeout: float | None = None,
@@ -126,6 +129,13 @@ def reproduce(
     tolerance_samples : int
         Circuits of the tolerance section (1 % resistors, 5 % capacitors, the first
         scenario: :mod:`circuitsim.studies.tolerance_report`); 0 to skip it.
+    frequency_response : bool
+        The frequency-response section (:mod:`circuitsim.studies.frequency_report`): the
+        FRF inside the clearance on every available engine and a stepped sine with the
+        flange on.
+    stepped_sine_frequencies : tuple of float, optional
+        Its stepped sine's frequencies, Hz (default ``STEPPED_SINE_FREQUENCIES``; empty:
+        the FRF alone).
     workers : int, optional
         Processes (default: every core).
     n_points : int
@@ -202,6 +212,22 @@ def reproduce(
                                     out / "figures" / "tolerance.png", workers)  # fmt: skip
         figures["tolerance"] = "figures/tolerance.png"
         say(f"tolerance: {tolerance_samples} circuits, {tolerance['wall_s']:.1f} s")
+    frequency = None
+    if frequency_response:
+        from circuitsim.studies.frequency_report import (
+            STEPPED_SINE_FREQUENCIES,
+            frequency_study,
+        )
+
+        steps = stepped_sine_frequencies
+        frequency = frequency_study(
+            model, available, out / "figures" / "frf.png", out / "figures" / "stepped-sine.png",
+            STEPPED_SINE_FREQUENCIES if steps is None else tuple(steps),
+        )  # fmt: skip
+        figures["frf"] = "figures/frf.png"
+        if "stepped_sine" in frequency:
+            figures["stepped_sine"] = "figures/stepped-sine.png"
+        say(f"frequency response: {frequency['wall_s']:.1f} s")
     _fig6_figures(out, scenarios, engines, outcomes.references, traces_by, figures)
     say("figures written")
 
@@ -233,6 +259,7 @@ def reproduce(
     result.kernel_warm_up_s = warm_up_s
     result.hunting = hunting
     result.tolerance = tolerance
+    result.frequency = frequency
     write_text_atomic(out / "metrics.json", json.dumps(reproduction_json(result), indent=1) + "\n")
     write_text_atomic(out / "report.md", render_report(result))
     result.wall_s = time.perf_counter() - started

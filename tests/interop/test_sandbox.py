@@ -342,6 +342,7 @@ def test_reproduce_passes_ngspice_timeout(tmp_path):
         engines=("ngspice",),
         free_speeds=(),
         hunting_speeds=(),
+        frequency_response=False,
         workers=1,
         ngspice_timeout=0.05,
     )

@@ -87,6 +87,7 @@ def test_reproduce_one_short_scenario_writes_report_figures_and_honest_rows(tmp_
         skip={("builtin", "tl074"): SKIP_REASON},
         hunting_speeds=(55.0, 56.0, 57.0),
         tolerance_samples=6,
+        stepped_sine_frequencies=(8.0, 9.0),
     )
     unknown = "not available: unknown engine 'no-such-engine' (choose builtin, ngspice)"
     statuses = [(r.variant.opamp, r.variant.engine, r.status) for r in result.rows]
@@ -123,8 +124,18 @@ def test_reproduce_one_short_scenario_writes_report_figures_and_honest_rows(tmp_
     tolerance = metrics["tolerance"]
     assert tolerance["samples"] == 6 and tolerance["summary"]["critical_speed"]["count"] == 6
     assert tolerance["summary"]["y"]["nrmsd_percent"]["count"] == 6
+    # the frequency response: the ideal circuit's FRF within the 0.1 dB / 1 degree of
+    # the model's on both engines; the stepped sine's circuit within 1 % of its ODE
+    assert "## Frequency response (docs/frf.md)" in report
+    frequency = metrics["frequency_response"]
+    for row in frequency["rows"]:
+        for engine in ("builtin", "ngspice"):
+            assert row[engine]["worst_db"] < 0.1 and row[engine]["worst_degrees"] < 1.0
+    curves = frequency["stepped_sine"]
+    assert curves["frequencies_hz"] == [8.0, 9.0]
+    assert curves["flange"]["on"]["circuit_vs_ode_up"] < 0.01
     for name in ("critical-speed", "fig4-f10-flange-on", "fig6-f10-flange-on", "hunting",
-                 "tolerance"):  # fmt: skip
+                 "tolerance", "frf", "stepped_sine"):  # fmt: skip
         png = tmp_path / result.figures[name]
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (tmp_path / "netlists" / "f10-flange-on-ideal-exact.cir").exists()
