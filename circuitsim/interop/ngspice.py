@@ -263,7 +263,12 @@ def _with_control(lines: list[str], analysis: str) -> str:
     }
     kept = [text for index, text in enumerate(lines) if index not in dropped]
     check_inert(kept)
-    block = [".control", "set filetype=binary", "run", f"setplot {analysis}1", "write out.raw"]
+    # "save all": a .save card in the netlist (the generator writes one of the state nodes)
+    # would otherwise keep every other vector out of the rawfile.
+    block = [
+        ".control", "set filetype=binary", "save all", "run", f"setplot {analysis}1",
+        "write out.raw",
+    ]  # fmt: skip
     return "\n".join([TITLE, *kept, *block, ".endc", ".end"]) + "\n"
 
 

@@ -8,8 +8,9 @@ characters; a token (a number, ``{expression}``) is never split.
 Order of the output: title (a ``*`` comment line, see :func:`title_line`), notes
 (``* circuitsim: ...`` comments about what a dialect could not take), ``.param``, ``.model``,
 ``.subckt`` definitions, elements, ``.ic``, ``.options`` (with the dialect's own, such as
-LTspice's ``plotwinsize=0``), analyses, ``.control`` blocks (ngspice only), ``.end``. The mega
-suffix is written ``Meg`` (spicelib reads ``meg`` as milli).
+LTspice's ``plotwinsize=0``), ``.save``/``.print`` of the outputs asked for, analyses,
+``.control`` blocks (ngspice only), ``.end``. The mega suffix is written ``Meg`` (spicelib
+reads ``meg`` as milli).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from __future__ import annotations
 import math
 import os
 import re
+from collections.abc import Sequence
 
 from circuitsim.atomic import write_text_atomic
 from circuitsim.netlist.circuit import (
@@ -67,21 +69,57 @@ from circuitsim.netlist.values import format_value
 NOTE = "* circuitsim: "
 
 
-def write_netlist(circuit: Circuit, dialect: str = "ngspice") -> str:
+def write_netlist(
+    circuit: Circuit,
+    dialect: str = "ngspice",
+    outputs: Sequence[str] = (),
+    drop_implied_ic: bool = False,
+) -> str:
     """The SPICE text of ``circuit`` in ``dialect`` (``ngspice``, ``ltspice``, ``multisim``).
+
+    Parameters
+    ----------
+    circuit : Circuit
+        What to write.
+    dialect : str
+        ``ngspice``, ``ltspice`` or ``multisim``.
+    outputs : sequence of str
+        Top-level nodes whose voltages a batch run should save: written as ``.save v(node)
+        ...`` and, where the dialect needs it for batch output (ngspice: ``ngspice -b FILE``
+        runs nothing without it; gnucap reads it too), ``.print tran v(node) ...`` before the
+        analyses. Our reader passes over both lines (with a NetlistWarning each), so they are
+        not part of the Circuit read back.
+    drop_implied_ic : bool
+        Leave out a top-level capacitor's ``IC=`` where the ``.ic`` line already says it: the
+        ``.tran`` has ``uic`` and the ``IC=`` value equals ``.ic``'s voltage of its first node
+        minus that of its second (0 V for ground or a node ``.ic`` leaves out, as ``uic``
+        starts every such node at 0 V). SPICE then starts the capacitor at the same voltage
+        (ngspice's manual: with ``uic``, the ``.ic`` voltages give the device initial
+        conditions, "equivalent to specifying the IC= parameter on each device line"), and
+        tools that refuse a capacitor's ``IC=`` (PySpice 1.5) read the netlist.
 
     Raises
     ------
     NetlistError
-        Unknown dialect, or a value no SPICE can read (NaN, an infinite value other than a
-        one-shot pulse's width).
+        Unknown dialect, an output that is not a node of the circuit, or a value no SPICE can
+        read (NaN, an infinite value other than a one-shot pulse's width).
     """
-    return _Writer(circuit, get_dialect(dialect)).text()
+    writer = _Writer(circuit, get_dialect(dialect))
+    writer.outputs = list(outputs)
+    writer.drop_implied_ic = drop_implied_ic
+    return writer.text()
 
 
-def save_netlist(circuit: Circuit, path: str | os.PathLike, dialect: str = "ngspice") -> None:
-    """Write ``circuit`` to ``path`` in ``dialect``, atomically (no half-written file)."""
-    write_text_atomic(path, write_netlist(circuit, dialect))
+def save_netlist(
+    circuit: Circuit,
+    path: str | os.PathLike,
+    dialect: str = "ngspice",
+    outputs: Sequence[str] = (),
+    drop_implied_ic: bool = False,
+) -> None:
+    """Write ``circuit`` to ``path`` in ``dialect``, atomically (no half-written file); the
+    other arguments as :func:`write_netlist`'s."""
+    write_text_atomic(path, write_netlist(circuit, dialect, outputs, drop_implied_ic))
 
 
 def title_line(title: str) -> str:
@@ -107,6 +145,9 @@ class _Writer:
         for old, new in self.renames.items():
             self.notes.append(f"node {old!r} renamed {new!r} ({dialect.name} node names)")
         self.lines: list[str] = []
+        self.outputs: list[str] = []
+        self.drop_implied_ic = False
+        self.top_level = {id(element) for element in circuit.elements}
 
     # --- the whole file ---
 
@@ -135,6 +176,7 @@ class _Writer:
         options += [f"{k}={v}" for k, v in self.dialect.options if fold(k) not in given]
         if any(options):
             self.emit([".options"] + [o for o in options if o])
+        self.output_requests()
         for analysis in circuit.analyses:
             self.emit(self.analysis(analysis))
         for block in circuit.control:
@@ -147,6 +189,33 @@ class _Writer:
         return "\n".join(head + body) + "\n"
 
     # --- pieces ---
+
+    def output_requests(self) -> None:
+        """``.save`` (and the dialect's ``.print tran``) of the output nodes' voltages."""
+        if not self.outputs:
+            return
+        known = set(_all_nodes(self.circuit)) - {"0"}
+        for node in self.outputs:
+            if node not in known:
+                raise NetlistError(f"cannot save the output {node!r}: no node of the circuit")
+        vectors = [f"v({self.node(node)})" for node in self.outputs]
+        self.emit([".save", *vectors])
+        if self.dialect.print_card and self.circuit.transient is not None:
+            self.emit([".print", "tran", *vectors])
+
+    def implied_by_ic(self, element: Capacitor) -> bool:
+        """Whether ``element``'s ``IC=`` says what ``.ic`` and ``uic`` already say."""
+        transient = self.circuit.transient
+        if not self.drop_implied_ic or transient is None or not transient.uic:
+            return False
+        if id(element) not in self.top_level:
+            return False  # a capacitor inside a subcircuit: .ic names top-level nodes
+        ic = self.circuit.initial_conditions
+        voltages = [0.0 if node == "0" else ic.get(node, 0.0) for node in element.nodes]
+        values = [element.ic, *voltages]
+        if any(isinstance(value, Expression) for value in values):
+            return False
+        return float(element.ic) == float(voltages[0]) - float(voltages[1])
 
     def emit(self, tokens: list[str]) -> None:
         """Append one logical line, broken onto ``+`` lines before the dialect's width."""
@@ -233,7 +302,8 @@ class _Writer:
         elif isinstance(element, Capacitor | Inductor):
             value = element.capacitance if isinstance(element, Capacitor) else element.inductance
             tokens.append(v(value))
-            if element.ic is not None:
+            implied = isinstance(element, Capacitor) and self.implied_by_ic(element)
+            if element.ic is not None and not implied:
                 tokens.append(f"IC={v(element.ic)}")
         elif isinstance(element, VoltageSource | CurrentSource):
             tokens += self.source(element)
