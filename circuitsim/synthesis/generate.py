@@ -136,12 +136,17 @@ def generate(
         series = (options or SynthesisOptions()).series_key
         value = float(system.parameters[knob.parameter])
         knobs = add_knobs(synthesis.circuit, synthesis.bom, system, knob, series, value)
-    # The state nodes saved (and printed, for ngspice -b and gnucap) and no capacitor IC= that
-    # the .ic line already says: the netlist runs as it is in batch mode and in PySpice.
+    # The state nodes saved (and printed, for ngspice -b and gnucap), no capacitor IC= that
+    # the .ic line already says, subcircuit defaults no instance changes folded in: the
+    # netlist runs as it is in batch mode, in gnucap and through PySpice's parser.
     state_nodes = [state.node for state in synthesis.scale_map.states.values()]
     texts = {
         netlist: write_netlist(
-            synthesis.circuit, dialect, outputs=state_nodes, drop_implied_ic=True
+            synthesis.circuit,
+            dialect,
+            outputs=state_nodes,
+            drop_implied_ic=True,
+            fold_subcircuit_defaults=True,
         ),
         scale_file: synthesis.scale_map.to_text(),
         bom_file: bom_text(synthesis.circuit, synthesis.bom),
