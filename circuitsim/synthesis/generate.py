@@ -136,16 +136,18 @@ def generate(
         series = (options or SynthesisOptions()).series_key
         value = float(system.parameters[knob.parameter])
         knobs = add_knobs(synthesis.circuit, synthesis.bom, system, knob, series, value)
-    # The state nodes saved (and printed, for ngspice -b and gnucap), no capacitor IC= that
-    # the .ic line already says, subcircuit defaults no instance changes folded in: the
-    # netlist runs as it is in batch mode, in gnucap and through PySpice's parser.
+    # The state nodes saved (and printed, for ngspice -b and gnucap), subcircuit defaults no
+    # instance changes folded in, and no capacitor IC= when every .ic value is 0: the netlist
+    # runs as it is in batch mode, in gnucap and through PySpice's parser (which refuses IC=).
+    # A nonzero start keeps its IC=: gnucap ignores .ic and would start at 0 V.
     state_nodes = [state.node for state in synthesis.scale_map.states.values()]
+    starts = synthesis.circuit.initial_conditions.values()
     texts = {
         netlist: write_netlist(
             synthesis.circuit,
             dialect,
             outputs=state_nodes,
-            drop_implied_ic=True,
+            drop_implied_ic=all(value == 0 for value in starts),
             fold_subcircuit_defaults=True,
         ),
         scale_file: synthesis.scale_map.to_text(),
