@@ -23,7 +23,7 @@ import pytest
 
 from circuitsim.interop.ngspice import run_ngspice
 from circuitsim.interop.rawfile import read_rawfile
-from circuitsim.netlist.circuit import Capacitor, Circuit, Switch
+from circuitsim.netlist.circuit import Capacitor, Circuit, Expression, Switch
 from circuitsim.netlist.reader import NetlistWarning, read_netlist
 from circuitsim.synthesis.scalemap import ScaleMap
 from tests.conftest import requires_ngspice
@@ -317,3 +317,79 @@ def test_a_nonzero_start_keeps_its_ic_for_gnucap(tmp_path):
     for state in _states(netlist):
         trace = _Trace(reference, state)
         assert _nrmsd_percent(table["time"][1:], table[state][1:], trace) < 0.1
+
+
+# --- the writer's options, one at a time ------------------------------------------------
+
+
+def _rc(uic: bool = True) -> Circuit:
+    from circuitsim.netlist.circuit import Resistor, Subcircuit, SubcircuitCall, Transient
+
+    circuit = Circuit(title="rc")
+    circuit.params = {"rbase": 2e3}
+    circuit.subcircuits = {
+        "load": Subcircuit(
+            "LOAD", ("a",), [Capacitor("C9", "a", "0", 1e-9, ic=0.0)], params={"r": 1e3}
+        ),
+        "tweak": Subcircuit(
+            "TWEAK",
+            ("a",),
+            [Resistor("R9", "a", "0", Expression("r*2 + rbase"))],
+            params={"r": Expression("rbase/4")},
+        ),
+    }
+    circuit.add(
+        Resistor("R1", "in", "n.1", 1e3),
+        Capacitor("C1", "n.1", "0", 1e-6, ic=0.5),
+        Capacitor("C2", "n.1", "in", 1e-6, ic=0.5),  # .ic: 0.5 - 0 V, as uic starts "in" at 0
+        Capacitor("C3", "n.1", "0", 1e-6, ic=0.25),  # not what .ic says
+        SubcircuitCall("X1", ("n.1",), "LOAD", {"r": 5.0}),
+        SubcircuitCall("X2", ("n.1",), "TWEAK"),
+    )
+    circuit.initial_conditions = {"n.1": 0.5}
+    circuit.analyses = [Transient(1e-6, 1e-3, uic=uic)]
+    return circuit
+
+
+def test_outputs_are_saved_and_printed_per_dialect():
+    from circuitsim.netlist.writer import write_netlist
+
+    ngspice = write_netlist(_rc(), "ngspice", outputs=["n.1", "in"]).splitlines()
+    assert ngspice[-4:] == [
+        ".print tran v(n.1) v(in)", ".tran 1u 1m uic", ".save v(n.1) v(in)", ".end",
+    ]  # fmt: skip
+    ltspice = write_netlist(_rc(), "ltspice", outputs=["n.1"])
+    assert ".save v(n.1)" in ltspice and ".print" not in ltspice
+    multisim = write_netlist(_rc(), "multisim", outputs=["n.1"])
+    assert ".save v(n_1)" in multisim and ".print" not in multisim  # the renamed node
+
+
+def test_an_output_that_is_no_node_is_refused():
+    from circuitsim.netlist.errors import NetlistError
+    from circuitsim.netlist.writer import write_netlist
+
+    with pytest.raises(NetlistError, match="cannot save the output 'nowhere'"):
+        write_netlist(_rc(), outputs=["nowhere"])
+
+
+def test_only_the_implied_top_level_ic_is_left_out():
+    from circuitsim.netlist.writer import write_netlist
+
+    text = write_netlist(_rc(), drop_implied_ic=True)
+    assert "C1 n.1 0 1u\n" in text and "C2 n.1 in 1u\n" in text
+    assert "C3 n.1 0 1u IC=0.25" in text  # differs from .ic: kept
+    assert "C9 a 0 1n IC=0" in text  # inside a subcircuit: .ic names top-level nodes
+    without_uic = write_netlist(_rc(uic=False), drop_implied_ic=True)
+    assert without_uic.count(" IC=") == 4  # without uic nothing is implied
+
+
+def test_defaults_are_folded_only_where_no_instance_sets_them():
+    from circuitsim.netlist.reader import parse_netlist
+    from circuitsim.netlist.writer import write_netlist
+
+    text = write_netlist(_rc(), fold_subcircuit_defaults=True)
+    assert ".subckt LOAD a params: r=1k" in text  # X1 sets r
+    assert ".subckt TWEAK a\nR9 a 0 3k\n" in text  # r = rbase/4 = 500; 2 r + rbase = 3k
+    read = parse_netlist(text)
+    assert read.subcircuits["tweak"].params == {}
+    assert read.subcircuits["tweak"].elements[0].resistance == 3e3
