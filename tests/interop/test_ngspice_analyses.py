@@ -133,7 +133,9 @@ def test_only_the_chosen_card_is_left_for_ngspice():
         ".end\n"
     )
     lines = _deck_lines(deck)
-    block = [".control", "set filetype=binary", "run", "write out.raw", ".endc", ".end"]
+    block = [
+        ".control", "set filetype=binary", "save all", "run", "write out.raw", ".endc", ".end",
+    ]  # fmt: skip
     assert (
         _with_control(lines, "op").splitlines()
         == [
@@ -142,9 +144,9 @@ def test_only_the_chosen_card_is_left_for_ngspice():
             ".options reltol=1e-4",
             ".Op",
             "R1 in 0 1k",  # after the deck's own control block, which is gone with its .tran
-            *block[:3],
+            *block[:4],
             "setplot op1",
-            *block[3:],
+            *block[4:],
         ]
     )
     for kept, analysis in ((".TRAN 1u 1m", "tran"), (".AC dec 5 10 100k", "ac")):
@@ -152,5 +154,5 @@ def test_only_the_chosen_card_is_left_for_ngspice():
         assert kept in out and "R1 in 0 1k" in out and ".Op" not in out
         tran_lines = {"+ 0 1u", "+ uic"} <= set(out)
         assert tran_lines == (analysis == "tran")
-        assert out[-7:] == [*block[:3], f"setplot {analysis}1", *block[3:]]
+        assert out[-8:] == [*block[:4], f"setplot {analysis}1", *block[4:]]
         assert ".tran 1u 2m" not in out
