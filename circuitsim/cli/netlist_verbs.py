@@ -129,6 +129,12 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         "frequency,vm(node),vp(node),...)",
     )
     parser.add_argument(
+        "--raw",
+        metavar="FILE.raw",
+        help="write the same columns as a binary rawfile in ngspice's layout (float64; read "
+        "by ngspice's load, spicelib's RawRead with dialect='ngspice', compare --raw)",
+    )
+    parser.add_argument(
         "--plot",
         metavar="FILE",
         help="save a figure in the format of its suffix (.png, .pdf, .svg ...)",
@@ -169,7 +175,9 @@ def _run_simulate(args: argparse.Namespace) -> int:
     require_positive("--ngspice-timeout", args.ngspice_timeout)
     require_count("--max-steps", args.max_steps, MAX_STEP_COUNT)
     require_positive("--max-wall-time", args.max_wall_time)
-    require_writable(args.csv, args.plot)
+    require_writable(args.csv, args.plot, args.raw)
+    if args.raw is not None and args.states is not None:
+        raise UsageError("--raw writes node voltages and currents; --states writes states")
     scale_map = None
     probes = args.probe
     if args.states is not None:
@@ -228,19 +236,32 @@ def _run_simulate(args: argparse.Namespace) -> int:
     if args.csv:
         waves.to_csv(args.csv)
         print(f"wrote {args.csv}")
+    if args.raw:
+        _write_raw(args, waves)
     if args.plot:
         from circuitsim.solver.plotting import plot_bode, plot_waveforms
 
         plot = plot_bode if waves.axis == "frequency" else plot_waveforms
         plot(waves, args.plot, title=Path(args.netlist).name)
         print(f"wrote {args.plot}")
-    if not args.csv and not args.plot:
+    if not args.csv and not args.plot and not args.raw:
         where = f"f = {waves.time[-1]:.6g} Hz" if waves.axis == "frequency" else "t = "
         if waves.axis != "frequency":
             where += f"{waves.time[-1]:.6g} s"
         for name in waves.names:
             print(f"  {name} = {waves[name][-1]:.6g}  (at {where})")
     return 0
+
+
+def _write_raw(args: argparse.Namespace, waves) -> None:
+    """``--raw``: the waveforms in ngspice's binary layout, titled with the netlist's title."""
+    from circuitsim.interop.rawwrite import write_rawfile
+
+    with open(args.netlist, encoding="utf-8", errors="replace") as handle:
+        title = handle.readline().strip()
+    operating_point = waves.stats.get("analysis") == "op"  # both engines say which they ran
+    write_rawfile(args.raw, waves, title, operating_point=operating_point)
+    print(f"wrote {args.raw}")
 
 
 def _builtin_signals(netlist: str, probes: list[str] | None) -> tuple[list[str] | None, str]:

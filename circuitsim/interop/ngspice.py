@@ -290,11 +290,14 @@ def _with_control(lines: list[str], analysis: str) -> str:
     kept = [text for index, text in enumerate(lines) if index not in dropped]
     check_inert(kept)
     # measoutfile is refused in the deck (ngspice_files); set here too, a global variable
-    # outranks the circuit's .options ones (cp_getvar), so .meas output stays in the folder
+    # outranks the circuit's .options ones (cp_getvar), so .meas output stays in the folder.
+    # "save all": a .save card in the netlist (the generator writes one of the state nodes)
+    # would otherwise keep every other vector out of the rawfile.
     block = [
         ".control",
         "set filetype=binary",
         "set measoutfile=meas.txt",
+        "save all",
         "run",
         f"setplot {analysis}1",
         "write out.raw",

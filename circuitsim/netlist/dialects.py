@@ -48,6 +48,12 @@ class Dialect:
     options : tuple of (str, str)
         ``.options`` the dialect always writes (unless the circuit sets them itself), such as
         LTspice's ``plotwinsize=0``, which turns off its lossy waveform compression.
+    print_card : bool
+        Whether the writer's output nodes also get a ``.print tran`` line beside ``.save``:
+        ngspice in batch mode (``ngspice -b FILE``, no ``-r``) runs no analysis without a
+        ``.print`` and prints its table; gnucap reads the same line. LTspice has no
+        ``.print`` (its help lists ``.save`` only); it and Multisim write a rawfile of the
+        saved vectors.
     """
 
     name: str
@@ -58,10 +64,11 @@ class Dialect:
     node_pattern: str = r"[A-Za-z0-9_.\-+:#!<>\[\]/]+"
     width: int = 80
     options: tuple[tuple[str, str], ...] = ()
+    print_card: bool = False
 
 
 DIALECTS: dict[str, Dialect] = {
-    "ngspice": Dialect(name="ngspice", power="**", control_blocks=True),
+    "ngspice": Dialect(name="ngspice", power="**", control_blocks=True, print_card=True),
     "ltspice": Dialect(
         name="ltspice",
         power="**",

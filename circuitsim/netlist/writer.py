@@ -8,15 +8,18 @@ characters; a token (a number, ``{expression}``) is never split.
 Order of the output: title (a ``*`` comment line, see :func:`title_line`), notes
 (``* circuitsim: ...`` comments about what a dialect could not take), ``.param``, ``.model``,
 ``.subckt`` definitions, elements, ``.ic``, ``.options`` (with the dialect's own, such as
-LTspice's ``plotwinsize=0``), analyses, ``.control`` blocks (ngspice only), ``.end``. The mega
-suffix is written ``Meg`` (spicelib reads ``meg`` as milli).
+LTspice's ``plotwinsize=0``), ``.print tran`` of the outputs asked for (ngspice), analyses,
+``.save`` of the outputs, ``.control`` blocks (ngspice only), ``.end``. The mega suffix is
+written ``Meg`` (spicelib reads ``meg`` as milli).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import re
+from collections.abc import Iterator, Sequence
 
 from circuitsim.atomic import write_text_atomic
 from circuitsim.netlist.circuit import (
@@ -61,27 +64,76 @@ from circuitsim.netlist.dialects import (
     rewrite_expression,
 )
 from circuitsim.netlist.errors import NetlistError
+from circuitsim.netlist.expressions import evaluate
 from circuitsim.netlist.names import fold
 from circuitsim.netlist.values import format_value
 
 NOTE = "* circuitsim: "
 
 
-def write_netlist(circuit: Circuit, dialect: str = "ngspice") -> str:
+def write_netlist(
+    circuit: Circuit,
+    dialect: str = "ngspice",
+    outputs: Sequence[str] = (),
+    drop_implied_ic: bool = False,
+    fold_subcircuit_defaults: bool = False,
+) -> str:
     """The SPICE text of ``circuit`` in ``dialect`` (``ngspice``, ``ltspice``, ``multisim``).
+
+    Parameters
+    ----------
+    circuit : Circuit
+        What to write.
+    dialect : str
+        ``ngspice``, ``ltspice`` or ``multisim``.
+    outputs : sequence of str
+        Top-level nodes whose voltages a batch run should save: written as ``.save v(node)
+        ...`` after the analyses and, where the dialect needs it for batch output (ngspice:
+        ``ngspice -b FILE`` runs nothing without it; gnucap reads it too), ``.print tran
+        v(node) ...`` before them. Our reader passes over both lines (with a NetlistWarning
+        each), so they are not part of the Circuit read back.
+    drop_implied_ic : bool
+        Leave out a top-level capacitor's ``IC=`` where the ``.ic`` line already says it: the
+        ``.tran`` has ``uic`` and the ``IC=`` value equals ``.ic``'s voltage of its first node
+        minus that of its second (0 V for ground or a node ``.ic`` leaves out, as ``uic``
+        starts every such node at 0 V). SPICE then starts the capacitor at the same voltage
+        (ngspice's manual: with ``uic``, the ``.ic`` voltages give the device initial
+        conditions, "equivalent to specifying the IC= parameter on each device line"), and
+        tools that refuse a capacitor's ``IC=`` (PySpice 1.5) read the netlist.
+    fold_subcircuit_defaults : bool
+        Write a top-level ``.subckt`` whose parameters no instance sets with its defaults
+        folded in: each ``{expression}`` of its body evaluated with the global ``.param``
+        values and its defaults, and no ``params:`` (a subcircuit with nested definitions, or
+        an expression that does not evaluate, is written as it is). Every instance then gets
+        the values its defaults gave; tools that drop a ``.subckt`` line's parameters
+        (PySpice 1.5's parser: "Undefined parameter [gain]" in ngspice) run it.
 
     Raises
     ------
     NetlistError
-        Unknown dialect, or a value no SPICE can read (NaN, an infinite value other than a
-        one-shot pulse's width).
+        Unknown dialect, an output that is not a node of the circuit, or a value no SPICE can
+        read (NaN, an infinite value other than a one-shot pulse's width).
     """
-    return _Writer(circuit, get_dialect(dialect)).text()
+    writer = _Writer(circuit, get_dialect(dialect))
+    writer.outputs = list(outputs)
+    writer.drop_implied_ic = drop_implied_ic
+    if fold_subcircuit_defaults:
+        writer.folded = _foldable_subcircuits(circuit)
+    return writer.text()
 
 
-def save_netlist(circuit: Circuit, path: str | os.PathLike, dialect: str = "ngspice") -> None:
-    """Write ``circuit`` to ``path`` in ``dialect``, atomically (no half-written file)."""
-    write_text_atomic(path, write_netlist(circuit, dialect))
+def save_netlist(
+    circuit: Circuit,
+    path: str | os.PathLike,
+    dialect: str = "ngspice",
+    outputs: Sequence[str] = (),
+    drop_implied_ic: bool = False,
+    fold_subcircuit_defaults: bool = False,
+) -> None:
+    """Write ``circuit`` to ``path`` in ``dialect``, atomically (no half-written file); the
+    other arguments as :func:`write_netlist`'s."""
+    text = write_netlist(circuit, dialect, outputs, drop_implied_ic, fold_subcircuit_defaults)
+    write_text_atomic(path, text)
 
 
 def title_line(title: str) -> str:
@@ -107,6 +159,11 @@ class _Writer:
         for old, new in self.renames.items():
             self.notes.append(f"node {old!r} renamed {new!r} ({dialect.name} node names)")
         self.lines: list[str] = []
+        self.outputs: list[str] = []
+        self.drop_implied_ic = False
+        self.top_level = {id(element) for element in circuit.elements}
+        self.folded: dict[str, dict[str, float]] = {}  # subcircuit (lower case) -> its values
+        self.scope_values: dict[str, float] | None = None  # while writing a folded one
 
     # --- the whole file ---
 
@@ -135,8 +192,15 @@ class _Writer:
         options += [f"{k}={v}" for k, v in self.dialect.options if fold(k) not in given]
         if any(options):
             self.emit([".options"] + [o for o in options if o])
+        vectors = self.output_vectors()
+        if vectors and self.dialect.print_card and circuit.transient is not None:
+            self.emit([".print", "tran", *vectors])
         for analysis in circuit.analyses:
             self.emit(self.analysis(analysis))
+        if vectors:
+            # after the analyses: gnucap stops reading a deck at a line it does not know
+            # ("? can't find"), and .save is one; ngspice and LTspice read it anywhere
+            self.emit([".save", *vectors])
         for block in circuit.control:
             if self.dialect.control_blocks:
                 body.extend(_control_lines(block))
@@ -147,6 +211,28 @@ class _Writer:
         return "\n".join(head + body) + "\n"
 
     # --- pieces ---
+
+    def output_vectors(self) -> list[str]:
+        """``v(node)`` of each output node (renamed as the dialect needs), checked to exist."""
+        known = set(_all_nodes(self.circuit)) - {"0"}
+        for node in self.outputs:
+            if node not in known:
+                raise NetlistError(f"cannot save the output {node!r}: no node of the circuit")
+        return [f"v({self.node(node)})" for node in self.outputs]
+
+    def implied_by_ic(self, element: Capacitor) -> bool:
+        """Whether ``element``'s ``IC=`` says what ``.ic`` and ``uic`` already say."""
+        transient = self.circuit.transient
+        if not self.drop_implied_ic or transient is None or not transient.uic:
+            return False
+        if id(element) not in self.top_level:
+            return False  # a capacitor inside a subcircuit: .ic names top-level nodes
+        ic = self.circuit.initial_conditions
+        voltages = [0.0 if node == "0" else ic.get(node, 0.0) for node in element.nodes]
+        values = [element.ic, *voltages]
+        if any(isinstance(value, Expression) for value in values):
+            return False
+        return float(element.ic) == float(voltages[0]) - float(voltages[1])
 
     def emit(self, tokens: list[str]) -> None:
         """Append one logical line, broken onto ``+`` lines before the dialect's width."""
@@ -160,6 +246,8 @@ class _Writer:
         self.lines.append(line)
 
     def value(self, value: Value) -> str:
+        if isinstance(value, Expression) and self.scope_values is not None:
+            value = evaluate(value.text, self.scope_values)  # checked to evaluate beforehand
         if isinstance(value, Expression):
             return "{" + rewrite_expression(value.text, self.dialect) + "}"
         number = float(value)
@@ -207,7 +295,8 @@ class _Writer:
 
     def subcircuit(self, sub: Subcircuit) -> None:
         header = [".subckt", sub.name] + [self.node(p) for p in sub.ports]
-        if sub.params:
+        self.scope_values = self.folded.get(fold(sub.name))
+        if sub.params and self.scope_values is None:
             header.append("params:")
             header += [f"{k}={self.value(v)}" for k, v in sub.params.items()]
         self.emit(header)
@@ -217,6 +306,7 @@ class _Writer:
             self.subcircuit(inner)
         for element in sub.elements:
             self.element(element)
+        self.scope_values = None
         self.lines.append(f".ends {sub.name}")
 
     def element(self, element: Element) -> None:
@@ -233,7 +323,8 @@ class _Writer:
         elif isinstance(element, Capacitor | Inductor):
             value = element.capacitance if isinstance(element, Capacitor) else element.inductance
             tokens.append(v(value))
-            if element.ic is not None:
+            implied = isinstance(element, Capacitor) and self.implied_by_ic(element)
+            if element.ic is not None and not implied:
                 tokens.append(f"IC={v(element.ic)}")
         elif isinstance(element, VoltageSource | CurrentSource):
             tokens += self.source(element)
@@ -390,6 +481,57 @@ def _control_lines(block: str) -> list[str]:
     if first.startswith(".control"):
         return lines
     return [".control", *lines, ".endc"]
+
+
+def _expressions(item: object) -> Iterator[Expression]:
+    """Every Expression inside ``item`` (dataclasses, dicts, lists and tuples looked into)."""
+    if isinstance(item, Expression):
+        yield item
+    elif dataclasses.is_dataclass(item) and not isinstance(item, type):
+        for spec in dataclasses.fields(item):
+            yield from _expressions(getattr(item, spec.name))
+    elif isinstance(item, dict):
+        for value in item.values():
+            yield from _expressions(value)
+    elif isinstance(item, list | tuple):
+        for value in item:
+            yield from _expressions(value)
+
+
+def _foldable_subcircuits(circuit: Circuit) -> dict[str, dict[str, float]]:
+    """Top-level subcircuits (lower-case names) whose defaults can be folded in, each with the
+    parameter values its expressions see: the global ``.param`` values, then its defaults."""
+    scopes: list[Circuit | Subcircuit] = [circuit]
+    calls: list[SubcircuitCall] = []
+    while scopes:
+        scope = scopes.pop()
+        calls += [e for e in scope.elements if isinstance(e, SubcircuitCall)]
+        scopes.extend(scope.subcircuits.values())
+    overridden = {fold(call.subcircuit) for call in calls if call.params}
+    values: dict[str, float] = {}
+    try:
+        for name, value in circuit.params.items():
+            values[fold(name)] = _number(value, values)
+    except ValueError:
+        return {}
+    folded = {}
+    for sub in circuit.subcircuits.values():
+        if not sub.params or sub.subcircuits or fold(sub.name) in overridden:
+            continue
+        own = dict(values)
+        try:
+            for name, value in sub.params.items():
+                own[fold(name)] = _number(value, own)
+            for expression in _expressions([sub.elements, list(sub.models.values())]):
+                evaluate(expression.text, own)
+        except ValueError:
+            continue
+        folded[fold(sub.name)] = own
+    return folded
+
+
+def _number(value: Value, values: dict[str, float]) -> float:
+    return evaluate(value.text, values) if isinstance(value, Expression) else float(value)
 
 
 def _all_nodes(circuit: Circuit) -> set[str]:

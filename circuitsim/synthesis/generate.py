@@ -14,12 +14,13 @@ file as it was, never a new netlist beside an old bill of materials.
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from circuitsim.atomic import check_writable, write_files_atomic
 from circuitsim.mechanics.system import System
-from circuitsim.netlist.reader import parse_netlist
+from circuitsim.netlist.reader import NetlistWarning, parse_netlist
 from circuitsim.netlist.writer import write_netlist
 from circuitsim.synthesis.bom import bom_text, order_text, parse_bom
 from circuitsim.synthesis.check import MappingReport, check_mapping
@@ -135,8 +136,20 @@ def generate(
         series = (options or SynthesisOptions()).series_key
         value = float(system.parameters[knob.parameter])
         knobs = add_knobs(synthesis.circuit, synthesis.bom, system, knob, series, value)
+    # The state nodes saved (and printed, for ngspice -b and gnucap), subcircuit defaults no
+    # instance changes folded in, and no capacitor IC= when every .ic value is 0: the netlist
+    # runs as it is in batch mode, in gnucap and through PySpice's parser (which refuses IC=).
+    # A nonzero start keeps its IC=: gnucap ignores .ic and would start at 0 V.
+    state_nodes = [state.node for state in synthesis.scale_map.states.values()]
+    starts = synthesis.circuit.initial_conditions.values()
     texts = {
-        netlist: write_netlist(synthesis.circuit, dialect),
+        netlist: write_netlist(
+            synthesis.circuit,
+            dialect,
+            outputs=state_nodes,
+            drop_implied_ic=all(value == 0 for value in starts),
+            fold_subcircuit_defaults=True,
+        ),
         scale_file: synthesis.scale_map.to_text(),
         bom_file: bom_text(synthesis.circuit, synthesis.bom),
         order_file: order_text(synthesis.circuit, synthesis.bom),
@@ -144,9 +157,12 @@ def generate(
     # Parsed from the very texts the files will hold, as read_netlist and the loaders would
     # (same names in messages, includes looked up beside the netlist): nothing of the
     # generator's memory enters the check, and nothing is on disk if the texts are unreadable.
-    circuit = parse_netlist(
-        texts[netlist], source=str(netlist), base_dir=str(netlist.resolve().parent)
-    )
+    with warnings.catch_warnings():
+        # the .save/.print lines written above, which the reader passes over with a warning
+        warnings.filterwarnings("ignore", r".*\.(save|print) ignored", NetlistWarning)
+        circuit = parse_netlist(
+            texts[netlist], source=str(netlist), base_dir=str(netlist.resolve().parent)
+        )
     scale_map = ScaleMap.from_text(texts[scale_file], source=str(scale_file))
     bom = parse_bom(texts[bom_file], source=str(bom_file))
     report = check_mapping(circuit, scale_map, system, bom=bom)

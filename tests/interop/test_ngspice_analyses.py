@@ -133,7 +133,7 @@ def test_only_the_chosen_card_is_left_for_ngspice():
         ".end\n"
     )
     lines = _deck_lines(deck)
-    block = [".control", "set filetype=binary", "set measoutfile=meas.txt", "run"]
+    block = [".control", "set filetype=binary", "set measoutfile=meas.txt", "save all", "run"]
     block += ["write out.raw", ".endc", ".end"]
     assert (
         _with_control(lines, "op").splitlines()

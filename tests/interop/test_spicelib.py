@@ -9,6 +9,7 @@ Circuit's, numbers through spicelib's own number parser.
 """
 
 import math
+import warnings
 from pathlib import Path
 
 import pytest
@@ -33,6 +34,7 @@ from circuitsim.netlist.circuit import (
     Vcvs,
     VoltageSource,
 )
+from circuitsim.netlist.reader import NetlistWarning, parse_netlist
 
 DIALECTS = ["ngspice", "ltspice", "multisim"]
 MODELS = Path(__file__).resolve().parents[1] / "synthesis" / "models"
@@ -162,7 +164,11 @@ def test_spicelib_reads_every_part_and_value(tmp_path, case, dialect):
     path = generated.netlist
     text = path.read_text()
     assert text.startswith("* ")  # the title is a comment: no tool reads it as a part
-    circuit: Circuit = generated.synthesis.circuit  # what the writer was given
+    # what the file holds as our reader reads it: the generator leaves out the capacitors'
+    # IC= that .ic says and folds unchanged subcircuit defaults in (writer.write_netlist)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", r".*\.(save|print) ignored", NetlistWarning)
+        circuit: Circuit = parse_netlist(text, source=str(path), base_dir=str(path.parent))
     editor = SpiceEditor(str(path))
     renames = _renames(text)
     count = _check_scope(editor, circuit.elements, renames)

@@ -77,7 +77,7 @@ def test_a_netlist_that_does_not_read_back_writes_nothing(tmp_path, system, monk
     # A writer that emits a line no reader takes (a resistor with one node)
     written = generate_module.write_netlist(generate_module.synthesize(system).circuit)
     broken = written.replace(".end\n", "RBROKEN a\n.end\n")
-    monkeypatch.setattr(generate_module, "write_netlist", lambda circuit, dialect: broken)
+    monkeypatch.setattr(generate_module, "write_netlist", lambda circuit, dialect, **_: broken)
     with pytest.raises(NetlistError, match="RBROKEN"):
         generate(system, netlist)
     assert snapshot(tmp_path) == before
