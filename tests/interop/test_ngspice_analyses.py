@@ -143,9 +143,9 @@ def test_only_the_chosen_card_is_left_for_ngspice():
             ".options reltol=1e-4",
             ".Op",
             "R1 in 0 1k",  # after the deck's own control block, which is gone with its .tran
-            *block[:4],
+            *block[:5],
             "setplot op1",
-            *block[4:],
+            *block[5:],
         ]
     )
     for kept, analysis in ((".TRAN 1u 1m", "tran"), (".AC dec 5 10 100k", "ac")):
@@ -153,5 +153,5 @@ def test_only_the_chosen_card_is_left_for_ngspice():
         assert kept in out and "R1 in 0 1k" in out and ".Op" not in out
         tran_lines = {"+ 0 1u", "+ uic"} <= set(out)
         assert tran_lines == (analysis == "tran")
-        assert out[-8:] == [*block[:4], f"setplot {analysis}1", *block[4:]]
+        assert out[-9:] == [*block[:5], f"setplot {analysis}1", *block[5:]]
         assert ".tran 1u 2m" not in out
