@@ -209,7 +209,7 @@ def test_sweep_verb_on_a_local_process_cluster_writes_the_in_process_csv(tmp_pat
         assert out.returncode == 0, out.stderr
         outputs[label] = (tmp_path / label / "sweep.csv").read_text()
         assert "Traceback" not in out.stderr
-    assert "(builtin, dask, 1 worker;" in out.stdout
+    assert "(builtin, dask, 1 worker, ports kernel;" in out.stdout
     assert "cluster: 3 batches of up to 1 variants on 1 workers" in out.stdout
     assert "dask, 1 worker: 3 of 3 variants" in out.stderr  # the progress lines
     assert outputs["alone"] == outputs["cluster"]
