@@ -1,26 +1,53 @@
-"""Direct solution of a System: scipy's solve_ivp, restarted at every kink.
+"""Direct solution of a System: scipy's Runge-Kutta (or implicit) steps, restarted at every kink.
 
 A piecewise-linear term is smooth except where one of its ``|row . x + offset|`` arguments
-crosses zero. A Runge-Kutta step that straddles such a kink loses its order there (and its
-error estimate lies), so each argument is a terminal event: integration stops exactly at the
-crossing and restarts from it. Between two crossings the field is affine (each ``|g|`` is
-``side * g``), and that affine piece is what is integrated, so every step, including the
-trial steps that reach past the next kink before the event cuts them back, sees one smooth
-vector field. Times at which a term switches on (``t_on``) end a segment the same way, and so
-do the corners of the inputs (each point of a time series or step, both ends of a bump): the
-forcing of a segment is its smooth piece, extended past the corner for the trial steps.
+crosses zero. A step that straddles such a kink loses its order there (and its error
+estimate lies), so integration stops exactly at each crossing and restarts from it. Between
+two crossings the field is affine (each ``|g|`` is ``side * g``), and that affine piece is
+what is integrated, so every step, including the trial steps that reach past the next kink
+before the crossing cuts them back, sees one smooth vector field. Times at which a term
+switches on (``t_on``) end a segment the same way, and so do the corners of the inputs (each
+point of a time series or step, both ends of a bump): the forcing of a segment is its smooth
+piece, extended past the corner for the trial steps.
 
-Like any event location, a crossing and re-crossing of the same kink within one step is not
-seen; ``max_step`` bounds how short such an excursion can be.
+What is guaranteed about kinks (the integrator's own trajectory, its dense output):
+
+- **No step spans a sign change undetected.** After every accepted step, each argument's
+  interpolant over the step (a polynomial in t of the method's dense-output degree: 7 for
+  DOP853, 4 for RK45, 3 for RK23 and Radau, at most 5 for BDF and 12 for LSODA) is sampled
+  at degree + 1 Chebyshev points. A bound on its Chebyshev coefficients clears most steps;
+  for the others the argument's lowest value on its side over the step is found exactly (end
+  points and the real roots of the derivative). An excursion beyond zero is found however
+  short the step's part of it, a graze entering and leaving within one step included, and
+  the crossing is located by Brent's method on the interpolant. A step is never cut for
+  this: only the evaluations at the Chebyshev points are added (the interpolant is already
+  built for the dense output).
+- **The side of a term at a restart is never the sign of a rounding-level value.** The kink
+  just crossed takes the side it crossed into; any other argument within the rounding level
+  of zero takes the side it moves into (its rate, or its curvature when the rate vanishes).
+  A crossing counts only when an argument goes beyond the rounding level on the other side,
+  so the crossing just handled cannot fire again at the restart point.
+- The rounding level of an argument is 16 machine epsilons of its scale (``|row| . |x| +
+  |offset|``) plus its change over the step times the step's relative time resolution.
+
+Not guaranteed: an excursion the integrator's trajectory does not make. A graze shallower
+than the integration error (about ``rtol`` times the states, accumulated over the run) may
+be found or missed, as by any solver at that tolerance; one shallower than the rounding level
+is ignored by design (the two sides' fields differ there by that much). LSODA's interpolant
+may have a degree above 12 bounds, where the sampled polynomial is an approximation.
+``max_step`` bounds the step, and with it the interpolation error of a graze's depth.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.integrate import solve_ivp
+from numpy.polynomial import chebyshev
+from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolution, Radau
+from scipy.optimize import brentq
 
 from circuitsim.mechanics.errors import IntegrationError
 from circuitsim.mechanics.limits import (
@@ -34,9 +61,16 @@ from circuitsim.mechanics.limits import (
 )
 from circuitsim.mechanics.system import Sinusoid, System
 
-# A restart that has not moved time forward more than this many times in a row means events
-# keep firing at the restart point: give up rather than loop forever.
+# A restart that has not moved time forward more than this many times in a row means a
+# kink keeps changing side at the restart point: give up rather than loop forever.
 _MAX_STALLS = 3
+
+_EPS = float(np.finfo(float).eps)
+_ROUNDING = 16.0 * _EPS
+"""Rounding level of a kink argument, per unit of its scale (see the module docstring)."""
+
+# degree in t of each method's dense output (BDF and LSODA: their highest order)
+_DENSE_DEGREE = ((DOP853, 7), (RK45, 4), (RK23, 3), (Radau, 3), (BDF, 5), (LSODA, 12))
 
 
 @dataclass
@@ -135,19 +169,95 @@ class OdeResult:
         return "\n".join(lines) + "\n"
 
 
+def _dense_form(method: type) -> tuple[int, str]:
+    """Degree in t of an OdeSolver class's dense output (7 for an unknown one), and the form
+    of its coefficients that :meth:`_Phase.crossing` can bound (``"dop853"``, ``"rk"``, or
+    ``""``: none, the interpolant is sampled)."""
+    degree = next((degree for base, degree in _DENSE_DEGREE if issubclass(method, base)), 7)
+    form = "dop853" if issubclass(method, DOP853) else ""
+    form = "rk" if issubclass(method, (RK23, RK45)) else form
+    return degree, form
+
+
+@dataclass(frozen=True)
+class _Chebyshev:
+    """Chebyshev sampling of a step's interpolant, for a polynomial of ``degree`` in t.
+
+    Attributes
+    ----------
+    points : ndarray, shape (degree + 1,)
+        Chebyshev-Lobatto points as fractions of the step, increasing from 0 to 1.
+    to_coefficients : ndarray, shape (degree + 1, degree + 1)
+        ``values @ to_coefficients.T`` gives the Chebyshev coefficients (on s in [-1, 1])
+        of the polynomial through ``values`` at ``points``.
+    grid : ndarray, shape (GRID + 1, degree + 1)
+        ``grid @ coefficients``: the polynomial at GRID + 1 evenly spaced s.
+    bend : ndarray, shape (degree + 1,)
+        ``bend @ |coefficients|`` bounds how far the polynomial falls below the chord
+        between two neighbouring grid points (spacing d: d^2 / 8 times the largest second
+        derivative, ``|T_i''| <= i^2 (i^2 - 1) / 3`` on [-1, 1]).
+    start_slope : ndarray, shape (degree + 1,)
+        ``start_slope @ coefficients``: the derivative at s = -1 (``T_i'(-1) = (-1)^(i+1)
+        i^2``), which with 4 ``bend`` bounds the first interval from its start alone.
+    """
+
+    points: np.ndarray
+    to_coefficients: np.ndarray
+    grid: np.ndarray
+    bend: np.ndarray
+    start_slope: np.ndarray
+
+    GRID = 32
+
+    @classmethod
+    @functools.cache
+    def of_degree(cls, degree: int) -> _Chebyshev:
+        """The sampling for polynomials of ``degree`` (cached)."""
+        s = -np.cos(np.pi * np.arange(degree + 1) / degree)
+        order = np.arange(degree + 1, dtype=float)
+        spacing = 2.0 / cls.GRID
+        return cls(
+            points=(s + 1.0) / 2.0,
+            to_coefficients=np.linalg.inv(chebyshev.chebvander(s, degree)),
+            grid=chebyshev.chebvander(np.linspace(-1.0, 1.0, cls.GRID + 1), degree),
+            bend=spacing**2 / 8.0 * order**2 * (order**2 - 1.0) / 3.0,
+            start_slope=(-1.0) ** (order + 1) * order**2,
+        )
+
+
 class _Phase:
     """One smooth piece of the vector field: fixed active terms and fixed kink sides.
 
     Between two kink crossings every ``|g_j|`` equals ``side_j * g_j``, so the field is affine:
     ``A_seg x + b_seg + forcing(t)``. Integrating that affine field (its smooth extension past
     the kink) instead of the abs() form means a trial step that reaches beyond the next kink
-    is still smooth, so it is not rejected over and over; the event then stops the segment at
-    the crossing and the part beyond is discarded. The trajectory is the same, with about half
-    the evaluations.
+    is still smooth, so it is not rejected over and over; :meth:`crossing` then finds where
+    the step left the piece, and the part beyond is discarded.
+
+    Parameters
+    ----------
+    system : System
+    t : float
+        Start of the phase, s.
+    x : ndarray, shape (n,)
+        State there.
+    previous : dict of (str, int) to float
+        Each kink's side in the phase before (empty at the start).
+    crossed : dict of (str, int) to float
+        Kinks known to have just crossed, with the side they crossed into.
+    dense_form : (int, str)
+        The integrator's dense output: its degree in t and the form of its coefficients
+        (:func:`_dense_form`).
     """
 
     def __init__(
-        self, system: System, t: float, x: np.ndarray, atol: np.ndarray, nudge: bool = False
+        self,
+        system: System,
+        t: float,
+        x: np.ndarray,
+        previous: dict[tuple[str, int], float],
+        crossed: dict[tuple[str, int], float],
+        dense_form: tuple[int, str],
     ):
         n = system.n
         active = [term for term in system.nonlinear if term.t_on is None or term.t_on <= t]
@@ -162,10 +272,13 @@ class _Phase:
                 offsets.append(kink.offset)
                 columns.append(term.direction * kink.gain)
                 labels.append((term.name, index))
-        R = np.array(rows, dtype=float).reshape(len(rows), n)
-        offsets = np.array(offsets, dtype=float)
+        self.R = np.array(rows, dtype=float).reshape(len(rows), n)
+        self.offsets = np.array(offsets, dtype=float)
         G = np.array(columns, dtype=float).reshape(len(columns), n).T
         self.labels = labels
+        self.scale_rows, self.scale_offsets = np.abs(self.R), np.abs(self.offsets)
+        degree, self.interpolant = dense_form
+        self.chebyshev = _Chebyshev.of_degree(degree)
         sines = [f for f in system.forcing if isinstance(f, Sinusoid)]
         self.F = np.array([f.direction for f in sines], dtype=float).reshape(-1, n).T
         self.amplitude = np.array([f.amplitude for f in sines], dtype=float)
@@ -179,10 +292,9 @@ class _Phase:
             if not isinstance(f, Sinusoid)
         ]
         self.forcing = self._forcing()
-        sides, biases = self._sides(A, b, R, offsets, G, t, x, atol, nudge)
-        self.A = A + G @ (sides[:, None] * R)
-        self.b = b + G @ (sides * offsets)
-        self.events = [_event(R[j], offsets[j] + biases[j], -sides[j]) for j in range(len(labels))]
+        self.sides = self._sides(A, b, G, t, x, previous, crossed)
+        self.A = A + G @ (self.sides[:, None] * self.R)
+        self.b = b + G @ (self.sides * self.offsets)
 
     def _forcing(self):
         """The forcing as a closure; a single sinusoid uses math.sin (numpy's per-call
@@ -213,35 +325,137 @@ class _Phase:
 
         return total
 
-    def _sides(self, A, b, R, offsets, G, t, x, atol, nudge):
-        """The side each kink argument is on (or, sitting on zero, about to move into).
+    def _sides(self, A, b, G, t, x, previous, crossed) -> np.ndarray:
+        """The side each kink argument is on or, within the rounding level of zero, moves into.
 
-        An argument on zero at the restart point gets its side from its rate (or its curvature
-        when the rate vanishes); its event looks only for a crossing away from that side, so
-        the crossing just handled cannot fire again at the restart point. When that was not
-        enough (the state rests on the kink, the argument stays exactly zero and scipy counts
-        0 -> 0 as a crossing), ``nudge`` also shifts such arguments onto their side by a margin
-        below the absolute tolerance.
+        A kink in ``crossed`` takes the side given there (the side it crossed into). Any
+        other argument within the rounding level of zero takes its side from its rate (the
+        direction of motion; the field is continuous across a kink, so the rate is the same
+        on both sides), or its curvature when the rate vanishes, or its side in ``previous``.
         """
         count = len(self.labels)
-        sides, biases = np.ones(count), np.zeros(count)
         if not count:
-            return sides, biases
+            return np.ones(0)
+        R, offsets = self.R, self.offsets
         g = R @ x + offsets
+        signs = np.sign(g)
         slope = A @ x + b + G @ np.abs(g)
         if self.forcing is not None:
             slope = slope + self.forcing(t)
         rate = R @ slope
-        curvature = R @ (A @ slope)
-        scale = np.abs(R) @ np.abs(x) + np.abs(offsets)
-        margin = 1e-12 * scale + np.abs(R) @ atol
-        for j in range(count):
-            if abs(g[j]) > margin[j]:
-                sides[j] = np.sign(g[j])
+        curvature = R @ ((A + G @ (signs[:, None] * R)) @ slope)
+        level = self.rounding(x, np.abs(rate) * abs(t))
+        sides = np.ones(count)
+        for j, label in enumerate(self.labels):
+            if label in crossed:
+                sides[j] = crossed[label]
+            elif abs(g[j]) > level[j]:
+                sides[j] = signs[j]
             else:
-                sides[j] = np.sign(rate[j]) or np.sign(curvature[j]) or 1.0
-                biases[j] = 2.0 * sides[j] * margin[j] if nudge else 0.0
-        return sides, biases
+                sides[j] = np.sign(rate[j]) or np.sign(curvature[j]) or previous.get(label, 1.0)
+        return sides
+
+    def rounding(self, x: np.ndarray, change: np.ndarray) -> np.ndarray:
+        """Rounding level of every argument at state ``x``, shape (k,), argument units.
+
+        ``change`` is how much each argument can move within the time resolution's worth
+        of steps (its rate times the time, or its change over a step times the step count
+        to reach t).
+        """
+        return _ROUNDING * (self.scale_rows @ np.abs(x) + self.scale_offsets + change)
+
+    def crossing(self, t_old: float, t_new: float, dense) -> tuple[float, int] | None:
+        """The first time in a step at which an argument leaves its side, if any.
+
+        Parameters
+        ----------
+        t_old, t_new : float
+            The step, s.
+        dense : callable
+            The step's interpolant, ``dense(t)`` of shape (n,) or (n, p).
+
+        Returns
+        -------
+        (float, int) or None
+            The crossing time (s; ``t_old`` when the argument is beyond its side from the
+            start) and the kink's index; None if every argument stays on its side.
+        """
+        if not self.labels:
+            return None
+        h = t_new - t_old
+        if self._clear(dense):
+            return None
+        basis = self.chebyshev
+        samples = dense(t_old + h * basis.points)
+        signed = self.sides[:, None] * (self.R @ samples + self.offsets[:, None])
+        coefficients = signed @ basis.to_coefficients.T
+        spread = np.abs(coefficients[:, 1:]).sum(axis=1)
+        level = self.rounding(samples[:, -1], spread * (1.0 + abs(t_new) / h))
+        first = None
+        for j in np.flatnonzero(coefficients[:, 0] - spread < -level):
+            # on a grid, each interval's chord less the bend bound: most near approaches
+            # are cleared here without the roots of the derivative
+            values = basis.grid @ coefficients[j]
+            bend = basis.bend @ np.abs(coefficients[j])
+            low = np.minimum(values[:-1], values[1:]) - bend
+            # the first interval also from the start: value, slope and curvature bound
+            # (a restart sits on the kink just crossed, moving away from it)
+            slope = basis.start_slope @ coefficients[j] * (2.0 / basis.GRID)
+            low[0] = max(low[0], values[0] + min(0.0, slope - 4.0 * bend))
+            if np.all(low > -level[j]):
+                continue
+            found = self._leaves(j, coefficients[j], level[j], t_old, h, dense)
+            if found is not None and (first is None or found < first[0]):
+                first = (found, int(j))
+        return first
+
+    def _clear(self, dense) -> bool:
+        """True when a bound on the step's interpolant keeps every argument on its side.
+
+        Only for the Runge-Kutta interpolants of scipy, whose coefficients bound the change
+        over the step at once: DOP853's ``y_old + x (F0 + (1 - x) (F1 + x (F2 + ...)))`` and
+        RK45's and RK23's ``y_old + h Q [x, x^2, ...]``, x in [0, 1], change at most
+        ``sum |F_i|`` and ``h sum |Q_i|``. False (sample the interpolant) otherwise, and
+        when an argument starts within that bound of zero.
+        """
+        if self.interpolant == "dop853":
+            change = np.abs(dense.F @ self.R.T).sum(axis=0)
+        elif self.interpolant == "rk":
+            change = dense.h * np.abs(self.R @ dense.Q).sum(axis=1)
+        else:
+            return False
+        return bool(np.all(self.sides * (self.R @ dense.y_old + self.offsets) > change))
+
+    def _leaves(self, j, coefficients, level, t_old, h, dense) -> float | None:
+        """When the signed argument ``j`` (Chebyshev ``coefficients`` over the step) first
+        goes below ``-level``, back to its last zero; None if it never does."""
+        critical = chebyshev.chebroots(chebyshev.chebder(coefficients))
+        critical = critical.real[(np.abs(critical.imag) < 1e-6) & (np.abs(critical.real) < 1.0)]
+        points = np.unique(np.concatenate(([-1.0, 1.0], critical)))
+        values = chebyshev.chebval(points, coefficients)
+        below = np.flatnonzero(values < -level)
+        if not below.size:
+            return None
+        positive = np.flatnonzero(values[: below[0]] > 0.0)
+        if not positive.size:
+            return t_old  # beyond its side from the start of the step
+        side, row, offset = self.sides[j], self.R[j], self.offsets[j]
+
+        def signed(t: float) -> float:
+            return side * (float(row @ dense(t)) + offset)
+
+        def time(point: float) -> float:
+            return t_old + h * (point + 1.0) / 2.0
+
+        # between two neighbouring critical points the argument is monotonic
+        a, b = time(points[positive[-1]]), time(points[positive[-1] + 1])
+        if signed(b) > 0.0:
+            b = time(points[below[0]])
+        if signed(a) <= 0.0:
+            return a
+        if signed(b) >= 0.0:
+            return b
+        return brentq(signed, a, b, xtol=4 * _EPS * h, rtol=4 * _EPS)
 
     def rhs(self, t: float, x: np.ndarray) -> np.ndarray:
         """dx/dt on this piece, shape (n,).
@@ -263,13 +477,43 @@ class _Phase:
         return dx
 
 
-def _event(row: np.ndarray, offset: float, direction: float):
-    def crossing(t: float, x: np.ndarray) -> float:
-        return float(row @ x) + offset
+@dataclass
+class _Segment:
+    """What one phase integrated: solver points, interpolants, and how it ended."""
 
-    crossing.terminal = True
-    crossing.direction = direction
-    return crossing
+    t: list[float]
+    x: list[np.ndarray]
+    interpolants: list
+    nfev: int
+    crossing: tuple[float, int] | None
+    full_step: float | None
+
+
+def _integrate(phase: _Phase, method: type, t: float, t_end: float, x: np.ndarray, options):
+    """Step ``phase`` from ``t`` to ``t_end`` or to the first crossing, whichever is first."""
+    if "first_step" in options:
+        options = {**options, "first_step": min(options["first_step"], t_end - t)}
+    solver = method(phase.rhs, t, x, t_end, **options)
+    segment = _Segment([t], [x], [], 0, None, None)
+    while solver.status == "running":
+        solver.step()
+        if solver.status == "failed":
+            raise IntegrationError(f"integration failed at t = {solver.t:.6g} s")
+        dense = solver.dense_output()
+        crossing = phase.crossing(solver.t_old, solver.t, dense)
+        if crossing is not None:
+            segment.crossing = crossing
+            if crossing[0] > segment.t[-1]:
+                segment.t.append(crossing[0])
+                segment.x.append(dense(crossing[0]))
+                segment.interpolants.append(dense)
+            break
+        segment.t.append(solver.t)
+        segment.x.append(np.array(solver.y, dtype=float))
+        segment.interpolants.append(dense)
+        segment.full_step = solver.t - solver.t_old
+    segment.nfev = solver.nfev
+    return segment
 
 
 def solve(
@@ -292,11 +536,11 @@ def solve(
     t_span : (float, float)
         Start and end time, s.
     rtol, atol : float
-        solve_ivp tolerances (atol in the states' units).
+        Integrator tolerances (atol in the states' units).
     method : str
-        Any explicit solve_ivp method (``"DOP853"``, ``"RK45"``, ``"Radau"`` ...).
+        Any solve_ivp method (``"DOP853"``, ``"RK45"``, ``"Radau"`` ...).
     max_step : float, optional
-        Largest step, s (default unbounded).
+        Largest step, s (positive and finite; default unbounded).
     x0 : array_like, shape (n,), optional
         Initial state (default ``system.x0``, or zeros).
     max_steps : int or None
@@ -314,11 +558,14 @@ def solve(
         A limit was reached: the message says at what model time and what to try. Also
         raised before the start when a forcing alone needs more than ``max_steps`` steps.
     IntegrationError
-        The integrator failed, or events kept firing without time advancing.
+        The integrator failed, ``max_step`` is not positive and finite, or a kink kept
+        changing side without time advancing.
     """
     t0, t1 = (float(v) for v in t_span)
     if not t1 > t0:
         raise IntegrationError(f"t_span must increase, got ({t0}, {t1})")
+    if max_step is not None and not (math.isfinite(max_step) and max_step > 0):
+        raise IntegrationError(f"max_step must be positive and finite, got {max_step}")
     n = system.n
     start = system.x0 if x0 is None else x0
     x = np.zeros(n) if start is None else np.array(start, dtype=float).reshape(-1)
@@ -333,54 +580,60 @@ def solve(
     atol_vector = np.broadcast_to(np.asarray(atol, dtype=float), (n,))
     refuse_unresolvable_forcing(system, (t0, t1), float(np.min(atol_vector)), max_steps)
     budget = Budget(max_steps, max_wall_time)
-    options = {"rtol": rtol, "atol": atol, "dense_output": True}
-    options["method"] = guarded_method(method, budget)
+    integrator = guarded_method(method, budget)
+    dense_form = _dense_form(integrator)
+    options = {"rtol": rtol, "atol": atol}
     if max_step is not None:
         options["max_step"] = max_step
 
     times, values, starts, pieces, kinks, labels = [], [], [], [], [], []
     nfev, stalls, t = 0, 0, t0
-    first_step = None
+    sides: dict[tuple[str, int], float] = {}
+    crossed: dict[tuple[str, int], float] = {}
     while t < t1:
-        phase = _Phase(system, t, x, atol_vector, nudge=stalls > 0)
+        phase = _Phase(system, t, x, sides, crossed, dense_form)
+        # a kink that changed side at the restart without being the one just crossed
+        # crossed too, within the rounding level of this point
+        for label, side in zip(phase.labels, phase.sides, strict=True):
+            if label in sides and label not in crossed and sides[label] != side:
+                kinks.append(t)
+                labels.append(label)
+        sides = dict(zip(phase.labels, phase.sides, strict=True))
         t_end = next((s for s in stops if s > t), t1)
-        events = phase.events
-        if first_step is not None:
-            options["first_step"] = min(first_step, t_end - t)
         try:
-            sol = solve_ivp(phase.rhs, (t, t_end), x, events=events or None, **options)
+            segment = _integrate(phase, integrator, t, t_end, x, options)
         except BudgetExhausted as exhausted:
             raise limit_error(exhausted, budget, t1) from None
-        nfev += sol.nfev
-        if sol.status == -1:
-            raise IntegrationError(f"integration failed at t = {sol.t[-1]:.6g} s: {sol.message}")
-        t_next, x_next = sol.t[-1], sol.y[:, -1]
-        if sol.status == 1:
-            hit = [(ev[0], k) for k, ev in enumerate(sol.t_events) if len(ev)]
-            t_next, k = min(hit)
-            x_next = sol.y_events[k][0]
-        if t_next <= t:
-            # an event at the restart point itself: retry with the arguments nudged
-            stalls += 1
-            if stalls > _MAX_STALLS:
-                raise IntegrationError(f"kink events keep firing without progress at t = {t:.6g} s")
-            continue
+        nfev += segment.nfev
+        crossed = {}
+        if segment.crossing is not None:
+            j = segment.crossing[1]
+            kinks.append(segment.t[-1])
+            labels.append(phase.labels[j])
+            crossed = {phase.labels[j]: -phase.sides[j]}
+            if segment.t[-1] <= t:
+                # the argument left its side at the restart point: change it and restart
+                stalls += 1
+                if stalls > _MAX_STALLS:
+                    raise IntegrationError(
+                        f"a kink keeps changing side without progress at t = {t:.6g} s"
+                    )
+                continue
         stalls = 0
         keep = slice(1, None) if times else slice(None)
-        times.append(sol.t[keep])
-        values.append(sol.y[:, keep])
+        times.append(np.array(segment.t)[keep])
+        values.append(np.array(segment.x).T[:, keep])
         starts.append(t)
-        pieces.append(sol.sol)
-        if len(sol.t) > 2:
+        pieces.append(
+            OdeSolution(segment.t, segment.interpolants, alt_segment=_alternate(integrator))
+        )
+        if segment.full_step is not None:
             # the last full step: a far better first step after the restart than scipy's
             # generic guess, which is often rejected several times in a row
-            first_step = float(sol.t[-2] - sol.t[-3])
-        if sol.status == 1:
-            kinks.append(t_next)
-            labels.append(phase.labels[k])
-            t, x = float(t_next), np.array(x_next, dtype=float)
-        else:
-            t, x = t_end, np.array(x_next, dtype=float)
+            options["first_step"] = segment.full_step
+        t, x = segment.t[-1], np.array(segment.x[-1], dtype=float)
+        if segment.crossing is None:
+            t = t_end
     return OdeResult(
         t=np.concatenate(times),
         x=np.concatenate(values, axis=1),
@@ -394,3 +647,8 @@ def solve(
         _starts=np.array(starts),
         _pieces=pieces,
     )
+
+
+def _alternate(method: type) -> bool:
+    """OdeSolution's ``alt_segment`` for a method (as solve_ivp sets it: BDF and LSODA)."""
+    return issubclass(method, (BDF, LSODA))
