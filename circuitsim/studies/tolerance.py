@@ -309,6 +309,7 @@ def run_tolerance(
     thresholds: Thresholds | None = None,
     workers: int | None = None,
     progress: Progress | None = None,
+    max_step: float | None = None,
 ) -> ToleranceResult:
     """Draw ``n`` circuits within ``tolerances`` and measure what they realize and simulate.
 
@@ -332,6 +333,9 @@ def run_tolerance(
     workers : int, optional
         Simulations at a time (threads).
     progress : callable(fraction, message), optional
+    max_step : float, optional
+        Largest step of the direct solution the circuits are compared with, model seconds
+        (default unbounded).
 
     Raises
     ------
@@ -363,7 +367,7 @@ def run_tolerance(
         return result
     result.thresholds = thresholds
     metrics, passed = _simulate_and_compare(samples.circuits, synthesis, system, thresholds,
-                                            workers, progress, timings)  # fmt: skip
+                                            workers, progress, timings, max_step)  # fmt: skip
     result.metrics, result.passed = metrics, passed
     return result
 
@@ -410,7 +414,9 @@ def within(values: dict, thresholds: Thresholds) -> bool:
     )
 
 
-def _simulate_and_compare(circuits, synthesis, system, thresholds, workers, progress, timings):
+def _simulate_and_compare(
+    circuits, synthesis, system, thresholds, workers, progress, timings, max_step=None
+):
     """Every circuit through :func:`~circuitsim.solver.variants.simulate_variants`, then its
     metrics against the ODE (one reference solution for all)."""
     from circuitsim.compare.case import reference_traces
@@ -423,7 +429,7 @@ def _simulate_and_compare(circuits, synthesis, system, thresholds, workers, prog
     if ready is not None:
         timings["kernels"] = ready
     started = time.perf_counter()
-    _, reference = reference_traces(system, synthesis.t_stop)
+    _, reference = reference_traces(system, synthesis.t_stop, max_step=max_step)
     timings["reference"] = time.perf_counter() - started
     probes = [f"v({synthesis.scale_map.states[s].node})" for s in states]
 
