@@ -69,6 +69,15 @@ _EPS = float(np.finfo(float).eps)
 _ROUNDING = 16.0 * _EPS
 """Rounding level of a kink argument, per unit of its scale (see the module docstring)."""
 
+# the largest |x^a (1 - x)^b| on [0, 1] multiplying DOP853's interpolant terms F_1 ... F_6
+# (term i carries a = ceil((i + 1) / 2) factors x and b = floor((i + 1) / 2) factors 1 - x)
+_DOP853_WEIGHTS = np.array(
+    [
+        (a**a * b**b) / (a + b) ** (a + b)
+        for a, b in ((math.ceil((i + 1) / 2), (i + 1) // 2) for i in range(1, 7))
+    ]
+)
+
 # degree in t of each method's dense output (BDF and LSODA: their highest order)
 _DENSE_DEGREE = ((DOP853, 7), (RK45, 4), (RK23, 3), (Radau, 3), (BDF, 5), (LSODA, 12))
 
@@ -393,42 +402,64 @@ class _Phase:
         level = self.rounding(samples[:, -1], spread * (1.0 + abs(t_new) / h))
         first = None
         for j in np.flatnonzero(coefficients[:, 0] - spread < -level):
-            # on a grid, each interval's chord less the bend bound: most near approaches
-            # are cleared here without the roots of the derivative
-            values = basis.grid @ coefficients[j]
-            bend = basis.bend @ np.abs(coefficients[j])
-            low = np.minimum(values[:-1], values[1:]) - bend
-            # the first interval also from the start: value, slope and curvature bound
-            # (a restart sits on the kink just crossed, moving away from it)
-            slope = basis.start_slope @ coefficients[j] * (2.0 / basis.GRID)
-            low[0] = max(low[0], values[0] + min(0.0, slope - 4.0 * bend))
-            if np.all(low > -level[j]):
-                continue
-            found = self._leaves(j, coefficients[j], level[j], t_old, h, dense)
+            found = self._exit(j, coefficients[j], level[j], t_old, h, dense)
             if found is not None and (first is None or found < first[0]):
                 first = (found, int(j))
         return first
+
+    def _exit(self, j, coefficients, level, t_old, h, dense) -> float | None:
+        """When the signed argument ``j`` (Chebyshev ``coefficients`` over the step) first
+        goes below ``-level``, back to its last zero; None if it never does.
+
+        On a grid, each interval's chord less the bend bound clears most near approaches;
+        a crossing inside an interval on which the argument is monotonic (its chord's slope
+        beyond what the bend bound lets the derivative vary by) is located there; anything
+        else goes to :meth:`_lowest`, the exact search.
+        """
+        basis = self.chebyshev
+        values = basis.grid @ coefficients
+        bend = basis.bend @ np.abs(coefficients)
+        low = np.minimum(values[:-1], values[1:]) - bend
+        # the first interval also from the start: value, slope and curvature bound (a
+        # restart sits on the kink just crossed, moving away from it)
+        slope = basis.start_slope @ coefficients * (2.0 / basis.GRID)
+        low[0] = max(low[0], values[0] + min(0.0, slope - 4.0 * bend))
+        suspect = np.flatnonzero(low <= -level)
+        if not suspect.size:
+            return None
+        i = suspect[0]
+        if values[i] > 0.0 and values[i + 1] < -level and values[i] - values[i + 1] > 8.0 * bend:
+            return self._root(
+                j, t_old + h * i / basis.GRID, t_old + h * (i + 1) / basis.GRID, dense
+            )
+        return self._lowest(j, coefficients, level, t_old, h, dense)
 
     def _clear(self, dense) -> bool:
         """True when a bound on the step's interpolant keeps every argument on its side.
 
         Only for the Runge-Kutta interpolants of scipy, whose coefficients bound the change
-        over the step at once: DOP853's ``y_old + x (F0 + (1 - x) (F1 + x (F2 + ...)))`` and
-        RK45's and RK23's ``y_old + h Q [x, x^2, ...]``, x in [0, 1], change at most
-        ``sum |F_i|`` and ``h sum |Q_i|``. False (sample the interpolant) otherwise, and
-        when an argument starts within that bound of zero.
+        over the step at once. DOP853's is ``y_old + x (F0 + (1 - x) (F1 + x (F2 + ...)))``
+        with x in [0, 1]: the first term moves one way, and ``F_i`` for i >= 1 is multiplied
+        by at most ``max x^a (1 - x)^b`` (``_DOP853_WEIGHTS``). RK45's and RK23's is
+        ``y_old + h Q [x, x^2, ...]``: the first column moves one way, the others at most
+        ``h |Q_i|``. False (sample the interpolant) otherwise, and when an argument may come
+        within that bound of zero.
         """
         if self.interpolant == "dop853":
-            change = np.abs(dense.F @ self.R.T).sum(axis=0)
+            terms = self.sides[:, None] * (self.R @ dense.F.T)  # (k, 7): signed, per term
+            weights = _DOP853_WEIGHTS
         elif self.interpolant == "rk":
-            change = dense.h * np.abs(self.R @ dense.Q).sum(axis=1)
+            terms = dense.h * self.sides[:, None] * (self.R @ dense.Q)
+            weights = np.ones(terms.shape[1] - 1)
         else:
             return False
-        return bool(np.all(self.sides * (self.R @ dense.y_old + self.offsets) > change))
+        start = self.sides * (self.R @ dense.y_old + self.offsets)
+        low = start + np.minimum(terms[:, 0], 0.0) - np.abs(terms[:, 1:]) @ weights
+        return bool(np.all(low > 0.0))
 
-    def _leaves(self, j, coefficients, level, t_old, h, dense) -> float | None:
-        """When the signed argument ``j`` (Chebyshev ``coefficients`` over the step) first
-        goes below ``-level``, back to its last zero; None if it never does."""
+    def _lowest(self, j, coefficients, level, t_old, h, dense) -> float | None:
+        """:meth:`_exit` exactly: the argument between the ends and the real roots of its
+        derivative, monotonic between two neighbours."""
         critical = chebyshev.chebroots(chebyshev.chebder(coefficients))
         critical = critical.real[(np.abs(critical.imag) < 1e-6) & (np.abs(critical.real) < 1.0)]
         points = np.unique(np.concatenate(([-1.0, 1.0], critical)))
@@ -439,23 +470,27 @@ class _Phase:
         positive = np.flatnonzero(values[: below[0]] > 0.0)
         if not positive.size:
             return t_old  # beyond its side from the start of the step
+        fraction = (points + 1.0) / 2.0
+        last = positive[-1]
+        return self._root(j, t_old + h * fraction[last], t_old + h * fraction[last + 1], dense,
+                          t_old + h * fraction[below[0]])  # fmt: skip
+
+    def _root(self, j, a: float, b: float, dense, beyond: float | None = None) -> float:
+        """The zero of argument ``j`` in [a, b] (s) by Brent's method on the interpolant;
+        ``beyond``, a time past b where it is surely beyond zero, widens a bracket that
+        rounding closed."""
         side, row, offset = self.sides[j], self.R[j], self.offsets[j]
 
         def signed(t: float) -> float:
             return side * (float(row @ dense(t)) + offset)
 
-        def time(point: float) -> float:
-            return t_old + h * (point + 1.0) / 2.0
-
-        # between two neighbouring critical points the argument is monotonic
-        a, b = time(points[positive[-1]]), time(points[positive[-1] + 1])
-        if signed(b) > 0.0:
-            b = time(points[below[0]])
+        if beyond is not None and signed(b) > 0.0:
+            b = beyond
         if signed(a) <= 0.0:
             return a
         if signed(b) >= 0.0:
             return b
-        return brentq(signed, a, b, xtol=4 * _EPS * h, rtol=4 * _EPS)
+        return brentq(signed, a, b, xtol=4 * _EPS * (b - a), rtol=4 * _EPS)
 
     def rhs(self, t: float, x: np.ndarray) -> np.ndarray:
         """dx/dt on this piece, shape (n,).
