@@ -1,4 +1,4 @@
-"""Direct solution of a System: scipy's Runge-Kutta (or implicit) steps, restarted at every kink.
+"""Direct solution of a System: scipy's integrators, stepped here and restarted at every kink.
 
 A piecewise-linear term is smooth except where one of its ``|row . x + offset|`` arguments
 crosses zero. A step that straddles such a kink loses its order there (and its error
@@ -10,45 +10,43 @@ switches on (``t_on``) end a segment the same way, and so do the corners of the 
 point of a time series or step, both ends of a bump): the forcing of a segment is its smooth
 piece, extended past the corner for the trial steps.
 
-What is guaranteed about kinks (the integrator's own trajectory, its dense output):
+What is guaranteed about kinks (for the integrator's own trajectory, its dense output):
 
-- **No step spans a sign change undetected.** After every accepted step, each argument's
-  interpolant over the step (a polynomial in t of the method's dense-output degree: 7 for
-  DOP853, 4 for RK45, 3 for RK23 and Radau, at most 5 for BDF and 12 for LSODA) is sampled
-  at degree + 1 Chebyshev points. A bound on its Chebyshev coefficients clears most steps;
-  for the others the argument's lowest value on its side over the step is found exactly (end
-  points and the real roots of the derivative). An excursion beyond zero is found however
-  short the step's part of it, a graze entering and leaving within one step included, and
-  the crossing is located by Brent's method on the interpolant. A step is never cut for
-  this: only the evaluations at the Chebyshev points are added (the interpolant is already
-  built for the dense output).
+- **No step spans a sign change undetected, a graze included.** After every accepted step,
+  each argument's interpolant over the step (a polynomial in t of the method's dense-output
+  degree: 7 for DOP853, 4 for RK45, 3 for RK23 and Radau, at most 5 for BDF and 12 for
+  LSODA) is checked against its side (:mod:`circuitsim.mechanics.crossings`): bounds clear
+  most steps, and for the others the argument's lowest value over the step is found exactly.
+  A contact that enters and leaves within one step is found however short it is, and each
+  crossing is located by Brent's method on the interpolant. No step is shortened for this.
 - **The side of a term at a restart is never the sign of a rounding-level value.** The kink
   just crossed takes the side it crossed into; any other argument within the rounding level
-  of zero takes the side it moves into (its rate, or its curvature when the rate vanishes).
-  A crossing counts only when an argument goes beyond the rounding level on the other side,
-  so the crossing just handled cannot fire again at the restart point.
-- The rounding level of an argument is 16 machine epsilons of its scale (``|row| . |x| +
-  |offset|``) plus its change over the step times the step's relative time resolution.
+  of zero takes the side it moves into (its rate, or its curvature when the rate vanishes:
+  the field is continuous across a kink, so both are the same on either side). A crossing
+  counts only when an argument goes beyond the rounding level on the other side, so the
+  crossing just handled cannot fire again at the restart point, and a state resting exactly
+  on a kink raises no events. A kink that changes side at a restart without being the one
+  just crossed is a crossing there too, and is recorded.
 
-Not guaranteed: an excursion the integrator's trajectory does not make. A graze shallower
-than the integration error (about ``rtol`` times the states, accumulated over the run) may
-be found or missed, as by any solver at that tolerance; one shallower than the rounding level
-is ignored by design (the two sides' fields differ there by that much). LSODA's interpolant
-may have a degree above 12 bounds, where the sampled polynomial is an approximation.
-``max_step`` bounds the step, and with it the interpolation error of a graze's depth.
+Not guaranteed: an excursion the integrator's trajectory does not make. Whether a trajectory
+grazes at all is decided to its integration error (about ``rtol`` times the states per
+step): a graze shallower than that may be found or missed, as by any solver at that
+tolerance. One shallower than the rounding level (16 machine epsilons of the argument's
+scale, plus its rate times the time's resolution) is ignored by design: the two sides'
+fields differ there by that much. LSODA's interpolant can be of a degree above 12, where the
+sampled polynomial is an approximation. ``max_step`` caps the step: kinks do not need it,
+but it bounds the interpolation error between solver points.
 """
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.polynomial import chebyshev
-from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolution, Radau
-from scipy.optimize import brentq
+from scipy.integrate import BDF, LSODA, OdeSolution
 
+from circuitsim.mechanics.crossings import KinkArguments, dense_form
 from circuitsim.mechanics.errors import IntegrationError
 from circuitsim.mechanics.limits import (
     MAX_STEPS,
@@ -64,22 +62,6 @@ from circuitsim.mechanics.system import Sinusoid, System
 # A restart that has not moved time forward more than this many times in a row means a
 # kink keeps changing side at the restart point: give up rather than loop forever.
 _MAX_STALLS = 3
-
-_EPS = float(np.finfo(float).eps)
-_ROUNDING = 16.0 * _EPS
-"""Rounding level of a kink argument, per unit of its scale (see the module docstring)."""
-
-# the largest |x^a (1 - x)^b| on [0, 1] multiplying DOP853's interpolant terms F_1 ... F_6
-# (term i carries a = ceil((i + 1) / 2) factors x and b = floor((i + 1) / 2) factors 1 - x)
-_DOP853_WEIGHTS = np.array(
-    [
-        (a**a * b**b) / (a + b) ** (a + b)
-        for a, b in ((math.ceil((i + 1) / 2), (i + 1) // 2) for i in range(1, 7))
-    ]
-)
-
-# degree in t of each method's dense output (BDF and LSODA: their highest order)
-_DENSE_DEGREE = ((DOP853, 7), (RK45, 4), (RK23, 3), (Radau, 3), (BDF, 5), (LSODA, 12))
 
 
 @dataclass
@@ -178,69 +160,13 @@ class OdeResult:
         return "\n".join(lines) + "\n"
 
 
-def _dense_form(method: type) -> tuple[int, str]:
-    """Degree in t of an OdeSolver class's dense output (7 for an unknown one), and the form
-    of its coefficients that :meth:`_Phase.crossing` can bound (``"dop853"``, ``"rk"``, or
-    ``""``: none, the interpolant is sampled)."""
-    degree = next((degree for base, degree in _DENSE_DEGREE if issubclass(method, base)), 7)
-    form = "dop853" if issubclass(method, DOP853) else ""
-    form = "rk" if issubclass(method, (RK23, RK45)) else form
-    return degree, form
-
-
-@dataclass(frozen=True)
-class _Chebyshev:
-    """Chebyshev sampling of a step's interpolant, for a polynomial of ``degree`` in t.
-
-    Attributes
-    ----------
-    points : ndarray, shape (degree + 1,)
-        Chebyshev-Lobatto points as fractions of the step, increasing from 0 to 1.
-    to_coefficients : ndarray, shape (degree + 1, degree + 1)
-        ``values @ to_coefficients.T`` gives the Chebyshev coefficients (on s in [-1, 1])
-        of the polynomial through ``values`` at ``points``.
-    grid : ndarray, shape (GRID + 1, degree + 1)
-        ``grid @ coefficients``: the polynomial at GRID + 1 evenly spaced s.
-    bend : ndarray, shape (degree + 1,)
-        ``bend @ |coefficients|`` bounds how far the polynomial falls below the chord
-        between two neighbouring grid points (spacing d: d^2 / 8 times the largest second
-        derivative, ``|T_i''| <= i^2 (i^2 - 1) / 3`` on [-1, 1]).
-    start_slope : ndarray, shape (degree + 1,)
-        ``start_slope @ coefficients``: the derivative at s = -1 (``T_i'(-1) = (-1)^(i+1)
-        i^2``), which with 4 ``bend`` bounds the first interval from its start alone.
-    """
-
-    points: np.ndarray
-    to_coefficients: np.ndarray
-    grid: np.ndarray
-    bend: np.ndarray
-    start_slope: np.ndarray
-
-    GRID = 32
-
-    @classmethod
-    @functools.cache
-    def of_degree(cls, degree: int) -> _Chebyshev:
-        """The sampling for polynomials of ``degree`` (cached)."""
-        s = -np.cos(np.pi * np.arange(degree + 1) / degree)
-        order = np.arange(degree + 1, dtype=float)
-        spacing = 2.0 / cls.GRID
-        return cls(
-            points=(s + 1.0) / 2.0,
-            to_coefficients=np.linalg.inv(chebyshev.chebvander(s, degree)),
-            grid=chebyshev.chebvander(np.linspace(-1.0, 1.0, cls.GRID + 1), degree),
-            bend=spacing**2 / 8.0 * order**2 * (order**2 - 1.0) / 3.0,
-            start_slope=(-1.0) ** (order + 1) * order**2,
-        )
-
-
 class _Phase:
     """One smooth piece of the vector field: fixed active terms and fixed kink sides.
 
     Between two kink crossings every ``|g_j|`` equals ``side_j * g_j``, so the field is affine:
     ``A_seg x + b_seg + forcing(t)``. Integrating that affine field (its smooth extension past
     the kink) instead of the abs() form means a trial step that reaches beyond the next kink
-    is still smooth, so it is not rejected over and over; :meth:`crossing` then finds where
+    is still smooth, so it is not rejected over and over; ``kinks.first_exit`` then finds where
     the step left the piece, and the part beyond is discarded.
 
     Parameters
@@ -254,9 +180,9 @@ class _Phase:
         Each kink's side in the phase before (empty at the start).
     crossed : dict of (str, int) to float
         Kinks known to have just crossed, with the side they crossed into.
-    dense_form : (int, str)
+    form : (int, str)
         The integrator's dense output: its degree in t and the form of its coefficients
-        (:func:`_dense_form`).
+        (:func:`~circuitsim.mechanics.crossings.dense_form`).
     """
 
     def __init__(
@@ -266,7 +192,7 @@ class _Phase:
         x: np.ndarray,
         previous: dict[tuple[str, int], float],
         crossed: dict[tuple[str, int], float],
-        dense_form: tuple[int, str],
+        form: tuple[int, str],
     ):
         n = system.n
         active = [term for term in system.nonlinear if term.t_on is None or term.t_on <= t]
@@ -281,13 +207,10 @@ class _Phase:
                 offsets.append(kink.offset)
                 columns.append(term.direction * kink.gain)
                 labels.append((term.name, index))
-        self.R = np.array(rows, dtype=float).reshape(len(rows), n)
-        self.offsets = np.array(offsets, dtype=float)
+        R = np.array(rows, dtype=float).reshape(len(rows), n)
+        self.kinks = KinkArguments(R, np.array(offsets, dtype=float), form)
         G = np.array(columns, dtype=float).reshape(len(columns), n).T
         self.labels = labels
-        self.scale_rows, self.scale_offsets = np.abs(self.R), np.abs(self.offsets)
-        degree, self.interpolant = dense_form
-        self.chebyshev = _Chebyshev.of_degree(degree)
         sines = [f for f in system.forcing if isinstance(f, Sinusoid)]
         self.F = np.array([f.direction for f in sines], dtype=float).reshape(-1, n).T
         self.amplitude = np.array([f.amplitude for f in sines], dtype=float)
@@ -301,9 +224,9 @@ class _Phase:
             if not isinstance(f, Sinusoid)
         ]
         self.forcing = self._forcing()
-        self.sides = self._sides(A, b, G, t, x, previous, crossed)
-        self.A = A + G @ (self.sides[:, None] * self.R)
-        self.b = b + G @ (self.sides * self.offsets)
+        sides = self.sides = self.kinks.sides = self._sides(A, b, G, t, x, previous, crossed)
+        self.A = A + G @ (sides[:, None] * R)
+        self.b = b + G @ (sides * self.kinks.offsets)
 
     def _forcing(self):
         """The forcing as a closure; a single sinusoid uses math.sin (numpy's per-call
@@ -345,7 +268,7 @@ class _Phase:
         count = len(self.labels)
         if not count:
             return np.ones(0)
-        R, offsets = self.R, self.offsets
+        R, offsets = self.kinks.R, self.kinks.offsets
         g = R @ x + offsets
         signs = np.sign(g)
         slope = A @ x + b + G @ np.abs(g)
@@ -353,7 +276,7 @@ class _Phase:
             slope = slope + self.forcing(t)
         rate = R @ slope
         curvature = R @ ((A + G @ (signs[:, None] * R)) @ slope)
-        level = self.rounding(x, np.abs(rate) * abs(t))
+        level = self.kinks.rounding(x, np.abs(rate) * abs(t))
         sides = np.ones(count)
         for j, label in enumerate(self.labels):
             if label in crossed:
@@ -363,134 +286,6 @@ class _Phase:
             else:
                 sides[j] = np.sign(rate[j]) or np.sign(curvature[j]) or previous.get(label, 1.0)
         return sides
-
-    def rounding(self, x: np.ndarray, change: np.ndarray) -> np.ndarray:
-        """Rounding level of every argument at state ``x``, shape (k,), argument units.
-
-        ``change`` is how much each argument can move within the time resolution's worth
-        of steps (its rate times the time, or its change over a step times the step count
-        to reach t).
-        """
-        return _ROUNDING * (self.scale_rows @ np.abs(x) + self.scale_offsets + change)
-
-    def crossing(self, t_old: float, t_new: float, dense) -> tuple[float, int] | None:
-        """The first time in a step at which an argument leaves its side, if any.
-
-        Parameters
-        ----------
-        t_old, t_new : float
-            The step, s.
-        dense : callable
-            The step's interpolant, ``dense(t)`` of shape (n,) or (n, p).
-
-        Returns
-        -------
-        (float, int) or None
-            The crossing time (s; ``t_old`` when the argument is beyond its side from the
-            start) and the kink's index; None if every argument stays on its side.
-        """
-        if not self.labels:
-            return None
-        h = t_new - t_old
-        if self._clear(dense):
-            return None
-        basis = self.chebyshev
-        samples = dense(t_old + h * basis.points)
-        signed = self.sides[:, None] * (self.R @ samples + self.offsets[:, None])
-        coefficients = signed @ basis.to_coefficients.T
-        spread = np.abs(coefficients[:, 1:]).sum(axis=1)
-        level = self.rounding(samples[:, -1], spread * (1.0 + abs(t_new) / h))
-        first = None
-        for j in np.flatnonzero(coefficients[:, 0] - spread < -level):
-            found = self._exit(j, coefficients[j], level[j], t_old, h, dense)
-            if found is not None and (first is None or found < first[0]):
-                first = (found, int(j))
-        return first
-
-    def _exit(self, j, coefficients, level, t_old, h, dense) -> float | None:
-        """When the signed argument ``j`` (Chebyshev ``coefficients`` over the step) first
-        goes below ``-level``, back to its last zero; None if it never does.
-
-        On a grid, each interval's chord less the bend bound clears most near approaches;
-        a crossing inside an interval on which the argument is monotonic (its chord's slope
-        beyond what the bend bound lets the derivative vary by) is located there; anything
-        else goes to :meth:`_lowest`, the exact search.
-        """
-        basis = self.chebyshev
-        values = basis.grid @ coefficients
-        bend = basis.bend @ np.abs(coefficients)
-        low = np.minimum(values[:-1], values[1:]) - bend
-        # the first interval also from the start: value, slope and curvature bound (a
-        # restart sits on the kink just crossed, moving away from it)
-        slope = basis.start_slope @ coefficients * (2.0 / basis.GRID)
-        low[0] = max(low[0], values[0] + min(0.0, slope - 4.0 * bend))
-        suspect = np.flatnonzero(low <= -level)
-        if not suspect.size:
-            return None
-        i = suspect[0]
-        if values[i] > 0.0 and values[i + 1] < -level and values[i] - values[i + 1] > 8.0 * bend:
-            return self._root(
-                j, t_old + h * i / basis.GRID, t_old + h * (i + 1) / basis.GRID, dense
-            )
-        return self._lowest(j, coefficients, level, t_old, h, dense)
-
-    def _clear(self, dense) -> bool:
-        """True when a bound on the step's interpolant keeps every argument on its side.
-
-        Only for the Runge-Kutta interpolants of scipy, whose coefficients bound the change
-        over the step at once. DOP853's is ``y_old + x (F0 + (1 - x) (F1 + x (F2 + ...)))``
-        with x in [0, 1]: the first term moves one way, and ``F_i`` for i >= 1 is multiplied
-        by at most ``max x^a (1 - x)^b`` (``_DOP853_WEIGHTS``). RK45's and RK23's is
-        ``y_old + h Q [x, x^2, ...]``: the first column moves one way, the others at most
-        ``h |Q_i|``. False (sample the interpolant) otherwise, and when an argument may come
-        within that bound of zero.
-        """
-        if self.interpolant == "dop853":
-            terms = self.sides[:, None] * (self.R @ dense.F.T)  # (k, 7): signed, per term
-            weights = _DOP853_WEIGHTS
-        elif self.interpolant == "rk":
-            terms = dense.h * self.sides[:, None] * (self.R @ dense.Q)
-            weights = np.ones(terms.shape[1] - 1)
-        else:
-            return False
-        start = self.sides * (self.R @ dense.y_old + self.offsets)
-        low = start + np.minimum(terms[:, 0], 0.0) - np.abs(terms[:, 1:]) @ weights
-        return bool(np.all(low > 0.0))
-
-    def _lowest(self, j, coefficients, level, t_old, h, dense) -> float | None:
-        """:meth:`_exit` exactly: the argument between the ends and the real roots of its
-        derivative, monotonic between two neighbours."""
-        critical = chebyshev.chebroots(chebyshev.chebder(coefficients))
-        critical = critical.real[(np.abs(critical.imag) < 1e-6) & (np.abs(critical.real) < 1.0)]
-        points = np.unique(np.concatenate(([-1.0, 1.0], critical)))
-        values = chebyshev.chebval(points, coefficients)
-        below = np.flatnonzero(values < -level)
-        if not below.size:
-            return None
-        positive = np.flatnonzero(values[: below[0]] > 0.0)
-        if not positive.size:
-            return t_old  # beyond its side from the start of the step
-        fraction = (points + 1.0) / 2.0
-        last = positive[-1]
-        return self._root(j, t_old + h * fraction[last], t_old + h * fraction[last + 1], dense,
-                          t_old + h * fraction[below[0]])  # fmt: skip
-
-    def _root(self, j, a: float, b: float, dense, beyond: float | None = None) -> float:
-        """The zero of argument ``j`` in [a, b] (s) by Brent's method on the interpolant;
-        ``beyond``, a time past b where it is surely beyond zero, widens a bracket that
-        rounding closed."""
-        side, row, offset = self.sides[j], self.R[j], self.offsets[j]
-
-        def signed(t: float) -> float:
-            return side * (float(row @ dense(t)) + offset)
-
-        if beyond is not None and signed(b) > 0.0:
-            b = beyond
-        if signed(a) <= 0.0:
-            return a
-        if signed(b) >= 0.0:
-            return b
-        return brentq(signed, a, b, xtol=4 * _EPS * (b - a), rtol=4 * _EPS)
 
     def rhs(self, t: float, x: np.ndarray) -> np.ndarray:
         """dx/dt on this piece, shape (n,).
@@ -535,7 +330,7 @@ def _integrate(phase: _Phase, method: type, t: float, t_end: float, x: np.ndarra
         if solver.status == "failed":
             raise IntegrationError(f"integration failed at t = {solver.t:.6g} s")
         dense = solver.dense_output()
-        crossing = phase.crossing(solver.t_old, solver.t, dense)
+        crossing = phase.kinks.first_exit(solver.t_old, solver.t, dense)
         if crossing is not None:
             segment.crossing = crossing
             if crossing[0] > segment.t[-1]:
@@ -616,7 +411,7 @@ def solve(
     refuse_unresolvable_forcing(system, (t0, t1), float(np.min(atol_vector)), max_steps)
     budget = Budget(max_steps, max_wall_time)
     integrator = guarded_method(method, budget)
-    dense_form = _dense_form(integrator)
+    form = dense_form(integrator)
     options = {"rtol": rtol, "atol": atol}
     if max_step is not None:
         options["max_step"] = max_step
@@ -626,7 +421,7 @@ def solve(
     sides: dict[tuple[str, int], float] = {}
     crossed: dict[tuple[str, int], float] = {}
     while t < t1:
-        phase = _Phase(system, t, x, sides, crossed, dense_form)
+        phase = _Phase(system, t, x, sides, crossed, form)
         # a kink that changed side at the restart without being the one just crossed
         # crossed too, within the rounding level of this point
         for label, side in zip(phase.labels, phase.sides, strict=True):

@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 from scipy.integrate import DOP853, RK23, RK45
 
 from circuitsim.mechanics import load_model, solve
-from circuitsim.mechanics.solve import _dense_form, _Phase
+from circuitsim.mechanics.crossings import KinkArguments, dense_form
 
 GRAZING = """
 [model]
@@ -174,14 +174,12 @@ def test_interpolant_bound_never_clears_a_step_that_leaves_its_side(method):
         for _ in range(rng.integers(1, 6)):
             solver.step()
         dense = solver.dense_output()
-        phase = object.__new__(_Phase)  # only the kink rows, offsets and sides are needed
-        phase.R, phase.offsets = rng.normal(size=(3, 2)), rng.normal(size=3)
-        phase.interpolant = _dense_form(method)[1]
-        g = phase.R @ dense(np.linspace(solver.t_old, solver.t, 4001)) + phase.offsets[:, None]
-        phase.sides = np.sign(g[:, 0])
-        if phase._clear(dense):
+        kinks = KinkArguments(rng.normal(size=(3, 2)), rng.normal(size=3), dense_form(method))
+        g = kinks.R @ dense(np.linspace(solver.t_old, solver.t, 4001)) + kinks.offsets[:, None]
+        kinks.sides = np.sign(g[:, 0])
+        if kinks._clear(dense):
             cleared += 1
-            assert np.min(phase.sides[:, None] * g) > 0.0
+            assert np.min(kinks.sides[:, None] * g) > 0.0
     assert cleared > 20  # the bound does clear steps
 
 
