@@ -7,6 +7,9 @@ closed form (``FlangeOrbit``): free flight x = a sin(w t') up to x = c, a harmon
 the shifted centre kf c / (k + kf) inside the flange, back at x = c with the opposite
 velocity, and the free flight resumed. A graze of depth ``delta`` (a = c (1 + delta)) lasts
 about 2 sqrt(2 delta) / w: far shorter than a step for small ``delta``.
+
+A second model, two damped masses with the flange on the first, is checked against plain
+scipy with events on the same equations typed again (steps of at most 1 ms).
 """
 
 import math
@@ -202,3 +205,119 @@ def test_no_kink_missed_at_any_grazing_depth(model, depth, start, stiffness):
     t_end = 2.5 * orbit.period
     result = solve(system, t_span=(0.0, t_end), rtol=1e-13, atol=1e-16)
     assert_follows(result, orbit, shift, t_end)
+
+
+TWO_MASSES = """
+[model]
+name = "two_masses_flange"
+kind = "second_order"
+
+[coordinates]
+names = ["x1", "x2"]
+units = ["m", "m"]
+
+[parameters]
+m1 = 1.0
+m2 = 0.5
+k1 = 40.0
+k2 = 10.0
+k12 = 15.0
+d1 = 0.2
+d2 = 0.1
+kf = 4000.0
+c = 0.01
+
+[matrices]
+M = [["m1", 0], [0, "m2"]]
+C = [["d1", 0], [0, "d2"]]
+K = [["k1 + k12", "-k12"], ["-k12", "k2 + k12"]]
+
+[nonlinear.flange]
+enters = { x1 = 1 }
+linear = { x1 = "kf/2" }
+constant = "-kf*c/2"
+abs = [{ gain = "kf/2", row = { x1 = 1 }, offset = "-c" }]
+"""
+
+TWO_MASSES_PARAMETERS = dict(m1=1.0, m2=0.5, k1=40.0, k2=10.0, k12=15.0, d1=0.2, d2=0.1, kf=4000.0)
+TWO_MASSES_START = np.array([0.0, 0.0, 0.1, -0.05])  # x1, x2, x1', x2'
+
+
+def two_masses_field(y, contact: bool, c: float):
+    """The two-mass equations typed again: the flange spring acts on x1 beyond c."""
+    p = TWO_MASSES_PARAMETERS
+    x1, x2, v1, v2 = y
+    flange = p["kf"] * (x1 - c) if contact else 0.0
+    a1 = (-p["k1"] * x1 - p["k12"] * (x1 - x2) - p["d1"] * v1 - flange) / p["m1"]
+    a2 = (-p["k2"] * x2 - p["k12"] * (x2 - x1) - p["d2"] * v2) / p["m2"]
+    return np.array([v1, v2, a1, a2])
+
+
+def two_masses_reference(c: float, t_end: float):
+    """Events-based plain scipy: one smooth piece at a time, each ended by x1 = c; steps of
+    at most 1 ms, so a contact of 10 ms or more cannot hide inside one."""
+    from scipy.integrate import solve_ivp
+
+    def crossing(t, y, contact, c):
+        return y[0] - c
+
+    crossing.terminal = True
+    t, y, contact, kinks, pieces = 0.0, TWO_MASSES_START.copy(), False, [], []
+    while t < t_end:
+        # only the crossing out of the present piece (into contact: upwards)
+        crossing.direction = -1.0 if contact else 1.0
+        sol = solve_ivp(
+            lambda t, y, contact, c: two_masses_field(y, contact, c), (t, t_end), y,
+            method="DOP853", rtol=1e-12, atol=1e-15, max_step=1e-3, events=crossing,
+            args=(contact, c), dense_output=True,
+        )  # fmt: skip
+        pieces.append((t, sol.sol))
+        if sol.status != 1:
+            break
+        t, y = float(sol.t_events[0][0]), sol.y_events[0][0]
+        kinks.append(t)
+        contact = not contact
+
+    def state(times):
+        starts = np.array([start for start, _ in pieces])
+        index = np.searchsorted(starts, times, side="right") - 1
+        return np.array([pieces[i][1](time) for i, time in zip(index, times, strict=True)]).T
+
+    return np.array(kinks), state
+
+
+def first_peak() -> float:
+    """The first maximum of x1 with no flange (plain scipy, to 1e-13)."""
+    from scipy.integrate import solve_ivp
+
+    def turning(t, y):
+        return y[2]
+
+    turning.terminal, turning.direction = True, -1
+    sol = solve_ivp(lambda t, y: two_masses_field(y, False, 0.0), (0.0, 10.0),
+                    TWO_MASSES_START, method="DOP853", rtol=1e-13, atol=1e-16,
+                    events=turning)  # fmt: skip
+    return float(sol.y_events[0][0][0])
+
+
+@pytest.mark.parametrize("depth", [3e-4, 1e-3])
+def test_two_masses_graze_against_events_based_scipy(tmp_path, depth):
+    # a clearance just below the first peak of x1: a contact of about 10 ms at its first
+    # peak (and what follows), against plain scipy with events and 1 ms steps
+    path = tmp_path / "two_masses.toml"
+    path.write_text(textwrap.dedent(TWO_MASSES))
+    c = first_peak() * (1.0 - depth)
+    names = ("x1", "x2", "x1_dot", "x2_dot")
+    system = load_model(path).system(
+        parameters={"c": c}, x0=dict(zip(names, TWO_MASSES_START, strict=True))
+    )
+    t_end = 6.0
+    result = solve(system, t_span=(0.0, t_end))
+    kinks, reference = two_masses_reference(c, t_end)
+    assert len(kinks) >= 2
+    assert len(result.kinks) == len(kinks), (result.kinks, kinks)
+    assert np.max(np.abs(result.kinks - kinks)) < 1e-6
+    t = np.linspace(0.0, t_end, 3001)
+    expected = reference(t)
+    span = np.ptp(expected, axis=1)
+    assert np.all(np.max(np.abs(result.sol(t) - expected), axis=1) < 1e-6 * span)
