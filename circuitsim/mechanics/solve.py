@@ -47,7 +47,7 @@ import numpy as np
 from scipy.integrate import BDF, LSODA, OdeSolution
 
 from circuitsim.mechanics.crossings import KinkArguments, dense_form
-from circuitsim.mechanics.errors import IntegrationError
+from circuitsim.mechanics.errors import IntegrationError, IntegrationLimitError
 from circuitsim.mechanics.limits import (
     MAX_STEPS,
     MAX_WALL_TIME,
@@ -386,7 +386,8 @@ def solve(
     ------
     IntegrationLimitError
         A limit was reached: the message says at what model time and what to try. Also
-        raised before the start when a forcing alone needs more than ``max_steps`` steps.
+        raised before the start when a forcing alone, or ``max_step`` over the span, needs
+        more than ``max_steps`` steps.
     IntegrationError
         The integrator failed, ``max_step`` is not positive and finite, or a kink kept
         changing side without time advancing.
@@ -409,6 +410,16 @@ def solve(
     stops = sorted({s for s in corners if t0 < s < t1} | set(switches))
     atol_vector = np.broadcast_to(np.asarray(atol, dtype=float), (n,))
     refuse_unresolvable_forcing(system, (t0, t1), float(np.min(atol_vector)), max_steps)
+    if max_step is not None and max_steps is not None and (t1 - t0) / max_step > max_steps:
+        needed = f"{(t1 - t0) / max_step:.3g}" if (t1 - t0) / max_step < 1e300 else "1e300"
+        raise IntegrationLimitError(
+            f"not started: max_step {max_step:g} s needs at least {needed} steps over "
+            f"{t1 - t0:g} s, more than the limit of {max_steps:,} steps; try a "
+            "larger max_step (--max-step) or raise the step limit (max_steps; --max-steps)",
+            time=t0,
+            steps=0,
+            limit="steps",
+        )
     budget = Budget(max_steps, max_wall_time)
     integrator = guarded_method(method, budget)
     form = dense_form(integrator)

@@ -121,3 +121,12 @@ def test_hunting_solves_every_step_with_max_step(monkeypatch, tmp_path, capsys):
             "--no-circuit", "--max-step", "0.003", "--out", str(tmp_path)]  # fmt: skip
     assert main(argv) == 0, capsys.readouterr().err
     assert steps and set(steps) == {0.003}
+
+
+def test_a_max_step_needing_more_steps_than_the_limit_is_refused_at_once(capsys):
+    # 1 ns over 5 s is 5e9 steps: refused before the start (exit 3), not after 500,000
+    assert main(["ode", "--max-step", "1e-9"]) == 3
+    err = capsys.readouterr().err
+    assert "not started: max_step 1e-09 s needs at least 5e+09 steps" in err
+    assert main(["ode", "--max-step", "1e-320"]) == 3
+    assert "needs at least 1e300 steps" in capsys.readouterr().err
