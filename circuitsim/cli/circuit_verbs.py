@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 from circuitsim.cli.common import (
     UsageError,
     add_jobs_option,
+    add_max_step,
     add_model_options,
     add_ngspice_timeout,
     add_scenario_options,
@@ -188,6 +189,7 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:
         help=TSTOP_HELP,
     )
     add_time_scale(parser)
+    add_max_step(parser)
     given = parser.add_argument_group(
         "a circuit or results made elsewhere (instead of generating the circuit)"
     )
@@ -261,6 +263,7 @@ def _check_compare(args: argparse.Namespace) -> None:
     require_positive("--max-nrmsd", args.max_nrmsd)
     require_positive("--tolerance", args.tolerance)
     require_positive("--ngspice-timeout", args.ngspice_timeout)
+    require_positive("--max-step", args.max_step)
     require_figure_path("--plot", args.plot)
     if args.write_netlist is not None:
         from circuitsim.synthesis.generate import companion_paths
@@ -350,6 +353,7 @@ def _run_compare(args: argparse.Namespace) -> int:
         args.write_netlist,
         label=label,
         ngspice_timeout=args.ngspice_timeout,
+        max_step=args.max_step,
     )
     _print_warnings(case.synthesis)
     _print_fits(system, sys.stderr if args.json else sys.stdout)
@@ -392,6 +396,7 @@ def _compare_given(args: argparse.Namespace, thresholds) -> int:
             thresholds,
             label=label,
             ngspice_timeout=args.ngspice_timeout,
+            max_step=args.max_step,
         )
     else:
         from circuitsim.interop.errors import NgspiceError
@@ -402,7 +407,10 @@ def _compare_given(args: argparse.Namespace, thresholds) -> int:
         except NgspiceError as exc:  # a file that is not a rawfile: the user's input
             raise UsageError(str(exc)) from None
         label = f"{waves.engine or 'raw'}, {Path(source).name}"
-        case = compare_waveforms(system, waves, scale_map, thresholds, waves.engine, label=label)
+        case = compare_waveforms(
+            system, waves, scale_map, thresholds, waves.engine, label=label,
+            max_step=args.max_step,
+        )  # fmt: skip
     _print_fits(system, sys.stderr if args.json else sys.stdout)
     return _print_case(args, case, label, model.time_unit)
 

@@ -253,6 +253,18 @@ def add_ngspice_timeout(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_max_step(parser: argparse.ArgumentParser) -> None:
+    """``--max-step``: the largest step of the direct ODE solution (mechanics.solve)."""
+    parser.add_argument(
+        "--max-step",
+        type=float,
+        metavar="SECONDS",
+        help="largest step of the direct ODE solution, in the model's time unit (s for the "
+        "wheelset), positive and finite (default: unbounded, the tolerance sets the step; "
+        "kinks and grazing contacts are found at any step)",
+    )
+
+
 def progress(message: str) -> None:
     """Progress callback handed to long-running library calls: one line on stderr."""
     print(message, file=sys.stderr, flush=True)

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 from circuitsim.cli.common import (
     UsageError,
+    add_max_step,
     add_model_options,
     add_scenario_options,
     check_scenario_options,
@@ -97,6 +98,7 @@ def _add_hunting(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--no-circuit", action="store_true", help="the ODE path only (no circuit runs)"
     )
+    add_max_step(parser)
     parser.add_argument(
         "--out", default=".", metavar="DIR", help="output folder (default .)"
     )  # fmt: skip
@@ -171,6 +173,7 @@ def _run_hunting(args: argparse.Namespace) -> int:
     check_scenario_options(args)
     for option in ("settle", "record", "threshold", "bound"):
         require_positive(f"--{option}", getattr(args, option))
+    require_positive("--max-step", args.max_step)
     if not (math.isfinite(args.repush) and 0 <= args.repush < 1):
         raise UsageError(f"--repush must be in [0, 1), got {args.repush:g}")
     model = with_inputs(args, load_model(args.model))
@@ -210,7 +213,7 @@ def _run_hunting(args: argparse.Namespace) -> int:
     prepare_output_folder("--out", args.out, "hunting.csv", "hunting.png")
     settings = HuntingSettings(
         settle=args.settle, record=args.record, threshold=args.threshold or 0.0,
-        bound=args.bound or math.inf, repush=args.repush,
+        bound=args.bound or math.inf, repush=args.repush, max_step=args.max_step,
     )  # fmt: skip
     state = _pushed_state(model, args, lambda: system_at(float(speeds[0]), flanges[0]))
     bar = _Eta()

@@ -8,6 +8,7 @@ import math
 from circuitsim.cli.common import (
     MAX_STEP_COUNT,
     UsageError,
+    add_max_step,
     add_model_options,
     add_scenario_options,
     check_scenario_options,
@@ -237,6 +238,7 @@ def _add_ode(sub: argparse._SubParsersAction) -> None:
         metavar="SECONDS",
         help="stop with an error after this much wall time, > 0 (default 300 s)",
     )
+    add_max_step(parser)
     parser.add_argument(
         "--rtol",
         type=float,
@@ -284,6 +286,7 @@ def _check_ode(args: argparse.Namespace) -> None:
     require_fraction("--rtol", args.rtol)
     require_count("--max-steps", args.max_steps, MAX_STEP_COUNT)
     require_positive("--max-wall-time", args.max_wall_time)
+    require_positive("--max-step", args.max_step)
     require_figure_path("--plot", args.plot)
     require_writable(args.csv, args.plot)
 
@@ -309,7 +312,11 @@ def _run_ode(args: argparse.Namespace) -> int:
     model, system = scenario_system(args, with_model=True)
     t_stop = args.tstop or float(model.circuit.get("t_stop", DEFAULT_T_STOP))
     _check_csv_rows(args, t_stop)
-    limits = {"max_steps": args.max_steps, "max_wall_time": args.max_wall_time}
+    limits = {
+        "max_steps": args.max_steps,
+        "max_wall_time": args.max_wall_time,
+        "max_step": args.max_step,
+    }
     limits = {name: value for name, value in limits.items() if value is not None}
     result = solve(system, t_span=(0.0, t_stop), rtol=args.rtol, atol=1e-12, **limits)
     if args.csv:

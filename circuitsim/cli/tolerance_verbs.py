@@ -11,6 +11,7 @@ from circuitsim.cli.common import (
     KERNEL_WORDS,
     UsageError,
     add_jobs_option,
+    add_max_step,
     add_model_options,
     add_scenario_options,
     check_scenario_options,
@@ -132,6 +133,7 @@ def _add_tolerance(sub: argparse._SubParsersAction) -> None:
         help="the realized critical speeds only (no simulation, no yield)",
     )  # fmt: skip
     parser.add_argument("--tstop", type=float, metavar="T", help=TSTOP_HELP)
+    add_max_step(parser)
     add_jobs_option(parser, "simulations at a time (threads; default: every core)", None)
     parser.add_argument(
         "--out", default="tolerance", metavar="FOLDER",
@@ -149,6 +151,7 @@ def _run_tolerance(args: argparse.Namespace) -> int:
     check_scenario_options(args)
     require_count("--samples", args.samples, 1_000_000)
     require_positive("--tstop", args.tstop)
+    require_positive("--max-step", args.max_step)
     if args.jobs is None:
         args.jobs = os.cpu_count() or 1
     require_jobs(args)
@@ -181,7 +184,7 @@ def _run_tolerance(args: argparse.Namespace) -> int:
 
     result = run_tolerance(
         system, tolerances, args.samples, args.seed, options, args.simulate,
-        workers=args.jobs, progress=progress,
+        workers=args.jobs, progress=progress, max_step=args.max_step,
     )  # fmt: skip
     json_path, png_path = folder / "tolerance.json", folder / "tolerance.png"
     from circuitsim.atomic import write_text_atomic

@@ -87,8 +87,12 @@ def run_engine(
     return simulate(circuit)
 
 
-def reference_traces(system: System, t_stop: float, rate: float = REFERENCE_RATE):
+def reference_traces(
+    system: System, t_stop: float, rate: float = REFERENCE_RATE, max_step: float | None = None
+):
     """Solve the model directly and sample it densely.
+
+    ``max_step`` (model seconds, default unbounded) is the direct solution's largest step.
 
     Returns
     -------
@@ -99,7 +103,7 @@ def reference_traces(system: System, t_stop: float, rate: float = REFERENCE_RATE
     """
     from circuitsim.mechanics import solve
 
-    result = solve(system, t_span=(0.0, t_stop))
+    result = solve(system, t_span=(0.0, t_stop), max_step=max_step)
     t = np.linspace(0.0, t_stop, int(round(rate * t_stop)) + 1)
     x = result.sol(t)
     return result, {state: (t, x[i]) for i, state in enumerate(result.states)}
@@ -146,6 +150,7 @@ def run_case(
     n_points: int = 4096,
     label: str = "",
     ngspice_timeout: float | None = None,
+    max_step: float | None = None,
 ) -> CaseResult:
     """Generate the circuit of ``system``, simulate it with ``engine``, compare with the ODE.
 
@@ -166,6 +171,8 @@ def run_case(
     label : str
     ngspice_timeout : float, optional
         Seconds before ngspice is stopped (default 300).
+    max_step : float, optional
+        Largest step of the direct solution, model seconds (default unbounded).
 
     Raises
     ------
@@ -205,7 +212,7 @@ def run_case(
     circuit = map_waveforms(waves, synthesis.scale_map, list(system.states))
 
     started = time.perf_counter()
-    _, reference = reference_traces(system, synthesis.t_stop)
+    _, reference = reference_traces(system, synthesis.t_stop, max_step=max_step)
     timings["reference"] = time.perf_counter() - started
 
     started = time.perf_counter()

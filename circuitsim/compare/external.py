@@ -37,6 +37,7 @@ def compare_waveforms(
     n_points: int = 4096,
     label: str = "",
     timings: dict[str, float] | None = None,
+    max_step: float | None = None,
 ) -> CaseResult:
     """Compare any engine's transient ``waves`` with the direct solution of ``system``.
 
@@ -52,6 +53,8 @@ def compare_waveforms(
         Default: those of ideal op-amps.
     engine : str
         Who made ``waves`` (for the result).
+    max_step : float, optional
+        Largest step of the direct solution, model seconds (default unbounded).
 
     Raises
     ------
@@ -69,7 +72,7 @@ def compare_waveforms(
     circuit = map_waveforms(waves, scale_map, list(system.states))
     t_stop = float(scale_map.model_time(float(waves.time[-1])))
     started = time.perf_counter()
-    _, reference = reference_traces(system, t_stop)
+    _, reference = reference_traces(system, t_stop, max_step=max_step)
     timings["reference"] = time.perf_counter() - started
     started = time.perf_counter()
     units = dict(zip(system.states, system.units, strict=False))
@@ -87,11 +90,13 @@ def run_netlist_case(
     n_points: int = 4096,
     label: str = "",
     ngspice_timeout: float | None = None,
+    max_step: float | None = None,
 ) -> CaseResult:
     """Simulate the netlist file with ``engine`` and compare it with ``system``'s solution.
 
     ngspice runs the file itself (stopped after ``ngspice_timeout`` seconds, default 300);
-    the builtin engine the circuit our reader makes of it.
+    the builtin engine the circuit our reader makes of it. ``max_step``: the direct
+    solution's largest step (model seconds; default unbounded).
 
     Raises
     ------
@@ -112,7 +117,7 @@ def run_netlist_case(
     waves = run_engine(engine, circuit, netlist, ngspice_timeout)
     timings["simulation"] = time.perf_counter() - started
     result = compare_waveforms(
-        system, waves, scale_map, thresholds, engine, n_points, label, timings
+        system, waves, scale_map, thresholds, engine, n_points, label, timings, max_step
     )
     result.netlist = netlist
     return result

@@ -1,17 +1,41 @@
-"""Direct solution of a System: scipy's solve_ivp, restarted at every kink.
+"""Direct solution of a System: scipy's integrators, stepped here and restarted at every kink.
 
 A piecewise-linear term is smooth except where one of its ``|row . x + offset|`` arguments
-crosses zero. A Runge-Kutta step that straddles such a kink loses its order there (and its
-error estimate lies), so each argument is a terminal event: integration stops exactly at the
-crossing and restarts from it. Between two crossings the field is affine (each ``|g|`` is
-``side * g``), and that affine piece is what is integrated, so every step, including the
-trial steps that reach past the next kink before the event cuts them back, sees one smooth
-vector field. Times at which a term switches on (``t_on``) end a segment the same way, and so
-do the corners of the inputs (each point of a time series or step, both ends of a bump): the
-forcing of a segment is its smooth piece, extended past the corner for the trial steps.
+crosses zero. A step that straddles such a kink loses its order there (and its error
+estimate lies), so integration stops exactly at each crossing and restarts from it. Between
+two crossings the field is affine (each ``|g|`` is ``side * g``), and that affine piece is
+what is integrated, so every step, including the trial steps that reach past the next kink
+before the crossing cuts them back, sees one smooth vector field. Times at which a term
+switches on (``t_on``) end a segment the same way, and so do the corners of the inputs (each
+point of a time series or step, both ends of a bump): the forcing of a segment is its smooth
+piece, extended past the corner for the trial steps.
 
-Like any event location, a crossing and re-crossing of the same kink within one step is not
-seen; ``max_step`` bounds how short such an excursion can be.
+What is guaranteed about kinks (for the integrator's own trajectory, its dense output):
+
+- **No step spans a sign change undetected, a graze included.** After every accepted step,
+  each argument's interpolant over the step (a polynomial in t of the method's dense-output
+  degree: 7 for DOP853, 4 for RK45, 3 for RK23 and Radau, at most 5 for BDF and 12 for
+  LSODA) is checked against its side (:mod:`circuitsim.mechanics.crossings`): bounds clear
+  most steps, and for the others the argument's lowest value over the step is found exactly.
+  A contact that enters and leaves within one step is found however short it is, and each
+  crossing is located by Brent's method on the interpolant. No step is shortened for this.
+- **The side of a term at a restart is never the sign of a rounding-level value.** The kink
+  just crossed takes the side it crossed into; any other argument within the rounding level
+  of zero takes the side it moves into (its rate, or its curvature when the rate vanishes:
+  the field is continuous across a kink, so both are the same on either side). A crossing
+  counts only when an argument goes beyond the rounding level on the other side, so the
+  crossing just handled cannot fire again at the restart point, and a state resting exactly
+  on a kink raises no events. A kink that changes side at a restart without being the one
+  just crossed is a crossing there too, and is recorded.
+
+Not guaranteed: an excursion the integrator's trajectory does not make. Whether a trajectory
+grazes at all is decided to its integration error (about ``rtol`` times the states per
+step): a graze shallower than that may be found or missed, as by any solver at that
+tolerance. One shallower than the rounding level (16 machine epsilons of the argument's
+scale, plus its rate times the time's resolution) is ignored by design: the two sides'
+fields differ there by that much. LSODA's interpolant can be of a degree above 12, where the
+sampled polynomial is an approximation. ``max_step`` caps the step: kinks do not need it,
+but it bounds the interpolation error between solver points.
 """
 
 from __future__ import annotations
@@ -20,9 +44,10 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.integrate import solve_ivp
+from scipy.integrate import BDF, LSODA, OdeSolution
 
-from circuitsim.mechanics.errors import IntegrationError
+from circuitsim.mechanics.crossings import KinkArguments, dense_form
+from circuitsim.mechanics.errors import IntegrationError, IntegrationLimitError
 from circuitsim.mechanics.limits import (
     MAX_STEPS,
     MAX_WALL_TIME,
@@ -34,8 +59,8 @@ from circuitsim.mechanics.limits import (
 )
 from circuitsim.mechanics.system import Sinusoid, System
 
-# A restart that has not moved time forward more than this many times in a row means events
-# keep firing at the restart point: give up rather than loop forever.
+# A restart that has not moved time forward more than this many times in a row means a
+# kink keeps changing side at the restart point: give up rather than loop forever.
 _MAX_STALLS = 3
 
 
@@ -141,13 +166,33 @@ class _Phase:
     Between two kink crossings every ``|g_j|`` equals ``side_j * g_j``, so the field is affine:
     ``A_seg x + b_seg + forcing(t)``. Integrating that affine field (its smooth extension past
     the kink) instead of the abs() form means a trial step that reaches beyond the next kink
-    is still smooth, so it is not rejected over and over; the event then stops the segment at
-    the crossing and the part beyond is discarded. The trajectory is the same, with about half
-    the evaluations.
+    is still smooth, so it is not rejected over and over; ``kinks.first_exit`` then finds where
+    the step left the piece, and the part beyond is discarded.
+
+    Parameters
+    ----------
+    system : System
+    t : float
+        Start of the phase, s.
+    x : ndarray, shape (n,)
+        State there.
+    previous : dict of (str, int) to float
+        Each kink's side in the phase before (empty at the start).
+    crossed : dict of (str, int) to float
+        Kinks known to have just crossed, with the side they crossed into.
+    form : (int, str)
+        The integrator's dense output: its degree in t and the form of its coefficients
+        (:func:`~circuitsim.mechanics.crossings.dense_form`).
     """
 
     def __init__(
-        self, system: System, t: float, x: np.ndarray, atol: np.ndarray, nudge: bool = False
+        self,
+        system: System,
+        t: float,
+        x: np.ndarray,
+        previous: dict[tuple[str, int], float],
+        crossed: dict[tuple[str, int], float],
+        form: tuple[int, str],
     ):
         n = system.n
         active = [term for term in system.nonlinear if term.t_on is None or term.t_on <= t]
@@ -163,7 +208,7 @@ class _Phase:
                 columns.append(term.direction * kink.gain)
                 labels.append((term.name, index))
         R = np.array(rows, dtype=float).reshape(len(rows), n)
-        offsets = np.array(offsets, dtype=float)
+        self.kinks = KinkArguments(R, np.array(offsets, dtype=float), form)
         G = np.array(columns, dtype=float).reshape(len(columns), n).T
         self.labels = labels
         sines = [f for f in system.forcing if isinstance(f, Sinusoid)]
@@ -179,10 +224,9 @@ class _Phase:
             if not isinstance(f, Sinusoid)
         ]
         self.forcing = self._forcing()
-        sides, biases = self._sides(A, b, R, offsets, G, t, x, atol, nudge)
+        sides = self.sides = self.kinks.sides = self._sides(A, b, G, t, x, previous, crossed)
         self.A = A + G @ (sides[:, None] * R)
-        self.b = b + G @ (sides * offsets)
-        self.events = [_event(R[j], offsets[j] + biases[j], -sides[j]) for j in range(len(labels))]
+        self.b = b + G @ (sides * self.kinks.offsets)
 
     def _forcing(self):
         """The forcing as a closure; a single sinusoid uses math.sin (numpy's per-call
@@ -213,35 +257,35 @@ class _Phase:
 
         return total
 
-    def _sides(self, A, b, R, offsets, G, t, x, atol, nudge):
-        """The side each kink argument is on (or, sitting on zero, about to move into).
+    def _sides(self, A, b, G, t, x, previous, crossed) -> np.ndarray:
+        """The side each kink argument is on or, within the rounding level of zero, moves into.
 
-        An argument on zero at the restart point gets its side from its rate (or its curvature
-        when the rate vanishes); its event looks only for a crossing away from that side, so
-        the crossing just handled cannot fire again at the restart point. When that was not
-        enough (the state rests on the kink, the argument stays exactly zero and scipy counts
-        0 -> 0 as a crossing), ``nudge`` also shifts such arguments onto their side by a margin
-        below the absolute tolerance.
+        A kink in ``crossed`` takes the side given there (the side it crossed into). Any
+        other argument within the rounding level of zero takes its side from its rate (the
+        direction of motion; the field is continuous across a kink, so the rate is the same
+        on both sides), or its curvature when the rate vanishes, or its side in ``previous``.
         """
         count = len(self.labels)
-        sides, biases = np.ones(count), np.zeros(count)
         if not count:
-            return sides, biases
+            return np.ones(0)
+        R, offsets = self.kinks.R, self.kinks.offsets
         g = R @ x + offsets
+        signs = np.sign(g)
         slope = A @ x + b + G @ np.abs(g)
         if self.forcing is not None:
             slope = slope + self.forcing(t)
         rate = R @ slope
-        curvature = R @ (A @ slope)
-        scale = np.abs(R) @ np.abs(x) + np.abs(offsets)
-        margin = 1e-12 * scale + np.abs(R) @ atol
-        for j in range(count):
-            if abs(g[j]) > margin[j]:
-                sides[j] = np.sign(g[j])
+        curvature = R @ ((A + G @ (signs[:, None] * R)) @ slope)
+        level = self.kinks.rounding(x, np.abs(rate) * abs(t))
+        sides = np.ones(count)
+        for j, label in enumerate(self.labels):
+            if label in crossed:
+                sides[j] = crossed[label]
+            elif abs(g[j]) > level[j]:
+                sides[j] = signs[j]
             else:
-                sides[j] = np.sign(rate[j]) or np.sign(curvature[j]) or 1.0
-                biases[j] = 2.0 * sides[j] * margin[j] if nudge else 0.0
-        return sides, biases
+                sides[j] = np.sign(rate[j]) or np.sign(curvature[j]) or previous.get(label, 1.0)
+        return sides
 
     def rhs(self, t: float, x: np.ndarray) -> np.ndarray:
         """dx/dt on this piece, shape (n,).
@@ -263,13 +307,43 @@ class _Phase:
         return dx
 
 
-def _event(row: np.ndarray, offset: float, direction: float):
-    def crossing(t: float, x: np.ndarray) -> float:
-        return float(row @ x) + offset
+@dataclass
+class _Segment:
+    """What one phase integrated: solver points, interpolants, and how it ended."""
 
-    crossing.terminal = True
-    crossing.direction = direction
-    return crossing
+    t: list[float]
+    x: list[np.ndarray]
+    interpolants: list
+    nfev: int
+    crossing: tuple[float, int] | None
+    full_step: float | None
+
+
+def _integrate(phase: _Phase, method: type, t: float, t_end: float, x: np.ndarray, options):
+    """Step ``phase`` from ``t`` to ``t_end`` or to the first crossing, whichever is first."""
+    if "first_step" in options:
+        options = {**options, "first_step": min(options["first_step"], t_end - t)}
+    solver = method(phase.rhs, t, x, t_end, **options)
+    segment = _Segment([t], [x], [], 0, None, None)
+    while solver.status == "running":
+        solver.step()
+        if solver.status == "failed":
+            raise IntegrationError(f"integration failed at t = {solver.t:.6g} s")
+        dense = solver.dense_output()
+        crossing = phase.kinks.first_exit(solver.t_old, solver.t, dense)
+        if crossing is not None:
+            segment.crossing = crossing
+            if crossing[0] > segment.t[-1]:
+                segment.t.append(crossing[0])
+                segment.x.append(dense(crossing[0]))
+                segment.interpolants.append(dense)
+            break
+        segment.t.append(solver.t)
+        segment.x.append(np.array(solver.y, dtype=float))
+        segment.interpolants.append(dense)
+        segment.full_step = solver.t - solver.t_old
+    segment.nfev = solver.nfev
+    return segment
 
 
 def solve(
@@ -292,11 +366,11 @@ def solve(
     t_span : (float, float)
         Start and end time, s.
     rtol, atol : float
-        solve_ivp tolerances (atol in the states' units).
+        Integrator tolerances (atol in the states' units).
     method : str
-        Any explicit solve_ivp method (``"DOP853"``, ``"RK45"``, ``"Radau"`` ...).
+        Any solve_ivp method (``"DOP853"``, ``"RK45"``, ``"Radau"`` ...).
     max_step : float, optional
-        Largest step, s (default unbounded).
+        Largest step, s (positive and finite; default unbounded).
     x0 : array_like, shape (n,), optional
         Initial state (default ``system.x0``, or zeros).
     max_steps : int or None
@@ -312,13 +386,17 @@ def solve(
     ------
     IntegrationLimitError
         A limit was reached: the message says at what model time and what to try. Also
-        raised before the start when a forcing alone needs more than ``max_steps`` steps.
+        raised before the start when a forcing alone, or ``max_step`` over the span, needs
+        more than ``max_steps`` steps.
     IntegrationError
-        The integrator failed, or events kept firing without time advancing.
+        The integrator failed, ``max_step`` is not positive and finite, or a kink kept
+        changing side without time advancing.
     """
     t0, t1 = (float(v) for v in t_span)
     if not t1 > t0:
         raise IntegrationError(f"t_span must increase, got ({t0}, {t1})")
+    if max_step is not None and not (math.isfinite(max_step) and max_step > 0):
+        raise IntegrationError(f"max_step must be positive and finite, got {max_step}")
     n = system.n
     start = system.x0 if x0 is None else x0
     x = np.zeros(n) if start is None else np.array(start, dtype=float).reshape(-1)
@@ -332,55 +410,71 @@ def solve(
     stops = sorted({s for s in corners if t0 < s < t1} | set(switches))
     atol_vector = np.broadcast_to(np.asarray(atol, dtype=float), (n,))
     refuse_unresolvable_forcing(system, (t0, t1), float(np.min(atol_vector)), max_steps)
+    if max_step is not None and max_steps is not None and (t1 - t0) / max_step > max_steps:
+        needed = f"{(t1 - t0) / max_step:.3g}" if (t1 - t0) / max_step < 1e300 else "1e300"
+        raise IntegrationLimitError(
+            f"not started: max_step {max_step:g} s needs at least {needed} steps over "
+            f"{t1 - t0:g} s, more than the limit of {max_steps:,} steps; try a "
+            "larger max_step (--max-step) or raise the step limit (max_steps; --max-steps)",
+            time=t0,
+            steps=0,
+            limit="steps",
+        )
     budget = Budget(max_steps, max_wall_time)
-    options = {"rtol": rtol, "atol": atol, "dense_output": True}
-    options["method"] = guarded_method(method, budget)
+    integrator = guarded_method(method, budget)
+    form = dense_form(integrator)
+    options = {"rtol": rtol, "atol": atol}
     if max_step is not None:
         options["max_step"] = max_step
 
     times, values, starts, pieces, kinks, labels = [], [], [], [], [], []
     nfev, stalls, t = 0, 0, t0
-    first_step = None
+    sides: dict[tuple[str, int], float] = {}
+    crossed: dict[tuple[str, int], float] = {}
     while t < t1:
-        phase = _Phase(system, t, x, atol_vector, nudge=stalls > 0)
+        phase = _Phase(system, t, x, sides, crossed, form)
+        # a kink that changed side at the restart without being the one just crossed
+        # crossed too, within the rounding level of this point
+        for label, side in zip(phase.labels, phase.sides, strict=True):
+            if label in sides and label not in crossed and sides[label] != side:
+                kinks.append(t)
+                labels.append(label)
+        sides = dict(zip(phase.labels, phase.sides, strict=True))
         t_end = next((s for s in stops if s > t), t1)
-        events = phase.events
-        if first_step is not None:
-            options["first_step"] = min(first_step, t_end - t)
         try:
-            sol = solve_ivp(phase.rhs, (t, t_end), x, events=events or None, **options)
+            segment = _integrate(phase, integrator, t, t_end, x, options)
         except BudgetExhausted as exhausted:
             raise limit_error(exhausted, budget, t1) from None
-        nfev += sol.nfev
-        if sol.status == -1:
-            raise IntegrationError(f"integration failed at t = {sol.t[-1]:.6g} s: {sol.message}")
-        t_next, x_next = sol.t[-1], sol.y[:, -1]
-        if sol.status == 1:
-            hit = [(ev[0], k) for k, ev in enumerate(sol.t_events) if len(ev)]
-            t_next, k = min(hit)
-            x_next = sol.y_events[k][0]
-        if t_next <= t:
-            # an event at the restart point itself: retry with the arguments nudged
-            stalls += 1
-            if stalls > _MAX_STALLS:
-                raise IntegrationError(f"kink events keep firing without progress at t = {t:.6g} s")
-            continue
+        nfev += segment.nfev
+        crossed = {}
+        if segment.crossing is not None:
+            j = segment.crossing[1]
+            kinks.append(segment.t[-1])
+            labels.append(phase.labels[j])
+            crossed = {phase.labels[j]: -phase.sides[j]}
+            if segment.t[-1] <= t:
+                # the argument left its side at the restart point: change it and restart
+                stalls += 1
+                if stalls > _MAX_STALLS:
+                    raise IntegrationError(
+                        f"a kink keeps changing side without progress at t = {t:.6g} s"
+                    )
+                continue
         stalls = 0
         keep = slice(1, None) if times else slice(None)
-        times.append(sol.t[keep])
-        values.append(sol.y[:, keep])
+        times.append(np.array(segment.t)[keep])
+        values.append(np.array(segment.x).T[:, keep])
         starts.append(t)
-        pieces.append(sol.sol)
-        if len(sol.t) > 2:
+        pieces.append(
+            OdeSolution(segment.t, segment.interpolants, alt_segment=_alternate(integrator))
+        )
+        if segment.full_step is not None:
             # the last full step: a far better first step after the restart than scipy's
             # generic guess, which is often rejected several times in a row
-            first_step = float(sol.t[-2] - sol.t[-3])
-        if sol.status == 1:
-            kinks.append(t_next)
-            labels.append(phase.labels[k])
-            t, x = float(t_next), np.array(x_next, dtype=float)
-        else:
-            t, x = t_end, np.array(x_next, dtype=float)
+            options["first_step"] = segment.full_step
+        t, x = segment.t[-1], np.array(segment.x[-1], dtype=float)
+        if segment.crossing is None:
+            t = t_end
     return OdeResult(
         t=np.concatenate(times),
         x=np.concatenate(values, axis=1),
@@ -394,3 +488,8 @@ def solve(
         _starts=np.array(starts),
         _pieces=pieces,
     )
+
+
+def _alternate(method: type) -> bool:
+    """OdeSolution's ``alt_segment`` for a method (as solve_ivp sets it: BDF and LSODA)."""
+    return issubclass(method, (BDF, LSODA))

@@ -156,7 +156,7 @@ def ode_branch(
     x = start
     for system, speed in zip(systems, speeds, strict=True):
         pushed.append(x is None)
-        result = solve(system, span, x0=x)
+        result = solve(system, span, x0=x, max_step=settings.max_step)
         middle = settings.settle + settings.record / 2  # peaks from the dense output
         amplitude, status = classify(
             result.max_abs(state, settings.settle, middle),

@@ -38,6 +38,8 @@ class HuntingSettings:
     repush : float
         A step whose amplitude is below ``repush * push`` hands the push to the next step
         (0: strict continuation).
+    max_step : float or None
+        Largest step of the direct solution, model seconds (None: unbounded).
     """
 
     settle: float = 3.0
@@ -45,6 +47,7 @@ class HuntingSettings:
     threshold: float = 0.0
     bound: float = math.inf
     repush: float = 0.01
+    max_step: float | None = None
 
     def check(self) -> None:
         """Raise HuntingError naming the setting that is not a usable number."""
@@ -59,6 +62,9 @@ class HuntingSettings:
             )
         if not (math.isfinite(self.repush) and 0 <= self.repush < 1):
             raise HuntingError(f"repush must be in [0, 1), got {self.repush!r}")
+        step = self.max_step
+        if step is not None and not (math.isfinite(step) and step > 0):
+            raise HuntingError(f"max_step must be a positive number of seconds, got {step!r}")
 
 
 @dataclass

@@ -314,6 +314,7 @@ def run_tolerance(
     thresholds: Thresholds | None = None,
     workers: int | None = None,
     progress: Progress | None = None,
+    max_step: float | None = None,
 ) -> ToleranceResult:
     """Draw ``n`` circuits within ``tolerances`` and measure what they realize and simulate.
 
@@ -337,6 +338,9 @@ def run_tolerance(
     workers : int, optional
         Simulations at a time (threads).
     progress : callable(fraction, message), optional
+    max_step : float, optional
+        Largest step of the direct solution the circuits are compared with, model seconds
+        (default unbounded).
 
     Raises
     ------
@@ -368,7 +372,7 @@ def run_tolerance(
         return result
     result.thresholds = thresholds
     metrics, passed, kernel = _simulate_and_compare(
-        samples.circuits, synthesis, system, thresholds, workers, progress, timings
+        samples.circuits, synthesis, system, thresholds, workers, progress, timings, max_step
     )
     result.metrics, result.passed, result.kernel = metrics, passed, kernel
     return result
@@ -416,7 +420,9 @@ def within(values: dict, thresholds: Thresholds) -> bool:
     )
 
 
-def _simulate_and_compare(circuits, synthesis, system, thresholds, workers, progress, timings):
+def _simulate_and_compare(
+    circuits, synthesis, system, thresholds, workers, progress, timings, max_step=None
+):
     """Every circuit through :func:`~circuitsim.solver.variants.simulate_variants` on the
     kernel ``simulate`` chooses for the nominal circuit, then its metrics against the ODE (one
     reference solution for all); returns (metrics, passed, kernel)."""
@@ -431,7 +437,7 @@ def _simulate_and_compare(circuits, synthesis, system, thresholds, workers, prog
     if ready is not None:
         timings["kernels"] = ready
     started = time.perf_counter()
-    _, reference = reference_traces(system, synthesis.t_stop)
+    _, reference = reference_traces(system, synthesis.t_stop, max_step=max_step)
     timings["reference"] = time.perf_counter() - started
     probes = [f"v({synthesis.scale_map.states[s].node})" for s in states]
 
