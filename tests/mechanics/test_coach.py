@@ -179,13 +179,9 @@ def test_the_hunting_case_grows_into_a_flange_limited_cycle_as_scipy_solves_it(c
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="issue 45 item 1: at V = 98.5 m/s wheelset 1 touches its flange 54 um deep for "
-    "8 ms (3.9739-3.9822 s); one step of the direct solution (3.9735-3.9867 s) spans the "
-    "whole contact and misses it (worst state 0.77 % NRMSD, y4_dot)",
-)
 def test_a_shallow_flange_contact_is_not_missed(coach):
+    """At V = 98.5 m/s wheelset 1 touches its flange 54 um deep for 8 ms (3.9739-3.9822 s),
+    inside one step of the direct solution: the crossing check inside each step finds it."""
     V, t_stop = 98.5, 6.0
     ours = solve(coach.system(parameters={"V": V}), (0, t_stop))
     assert worst_nrmsd_percent(ours, scipy_solution(V, t_stop), t_stop) < 1e-4
