@@ -28,7 +28,7 @@ import signal
 import subprocess
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -192,8 +192,22 @@ class TimeLimitExceeded(Exception):
         super().__init__("time limit exceeded")
 
 
-def run_with_limit(args: list[str], cwd: Path, env: dict[str, str], timeout: float) -> Finished:
+WATCH_SECONDS = 1.0
+"""A watched program is looked at about this often (``run_with_limit``'s ``watch``), s."""
+
+
+def run_with_limit(
+    args: list[str],
+    cwd: Path,
+    env: dict[str, str],
+    timeout: float,
+    watch: Callable[[int, float], None] | None = None,
+) -> Finished:
     """Run ``args`` in ``cwd`` with ``env``; kill it (and its children) after ``timeout`` s.
+
+    ``watch``, if given, is called about every :data:`WATCH_SECONDS` while the program runs,
+    with its process id and the seconds since its start; an exception it raises kills the
+    program and propagates.
 
     Raises
     ------
@@ -213,7 +227,7 @@ def run_with_limit(args: list[str], cwd: Path, env: dict[str, str], timeout: flo
     )
     try:
         (cwd / _CHILD).write_text(str(process.pid))  # for remove_stale_folders, should we die
-        out, err = process.communicate(timeout=timeout)
+        out, err = _communicate(process, timeout, watch)
     except subprocess.TimeoutExpired:
         _kill(process)
         out, err = process.communicate()
@@ -227,6 +241,24 @@ def run_with_limit(args: list[str], cwd: Path, env: dict[str, str], timeout: flo
             _kill(process)
             process.wait()
     return Finished(process.returncode, _text(out), _text(err))
+
+
+def _communicate(process: subprocess.Popen, timeout: float, watch) -> tuple[bytes, bytes]:
+    """``process.communicate(timeout=timeout)``, calling ``watch`` in between (no output is
+    lost by a ``communicate`` that timed out and is called again)."""
+    if watch is None:
+        return process.communicate(timeout=timeout)
+    started = time.monotonic()
+    interval = 0.1 * WATCH_SECONDS  # the first look soon after the start
+    while True:
+        left = timeout - (time.monotonic() - started)
+        try:
+            return process.communicate(timeout=max(min(left, interval), 0.0))
+        except subprocess.TimeoutExpired:
+            if time.monotonic() - started >= timeout:
+                raise
+            watch(process.pid, time.monotonic() - started)
+            interval = WATCH_SECONDS
 
 
 def _kill(process: subprocess.Popen) -> None:
