@@ -168,7 +168,7 @@ class MemoryBudgetError(RunLimitError):
             where += f" after {steps} time points" if steps is not None else ""
         SolverError.__init__(
             self,
-            f"{what} reached {size_text(held)}, past the memory budget of {size_text(value)}"
+            f"{what} reached {size_text(held)}, and the memory budget is {size_text(value)}"
             f"{where}. {remedies[0].upper()}{remedies[1:]}",
         )
 

@@ -10,6 +10,7 @@ never inside a Newton iteration.
 
 from __future__ import annotations
 
+import mmap
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -19,6 +20,25 @@ from circuitsim.solver.errors import MemoryBudgetError, NonFiniteError
 
 CHECK_VALUES = 1 << 18
 """Values checked at a time (2 MB): the check's temporaries stay in the cache."""
+
+LAZY_TABLE_BYTES = 1 << 20
+"""A table from this size on is mapped memory of its own (:func:`zero_table`)."""
+
+
+def zero_table(shape: int | tuple[int, ...]) -> np.ndarray:
+    """A zero float64 array of ``shape`` whose memory costs only the pages written.
+
+    From :data:`LAZY_TABLE_BYTES` on it is an anonymous memory map of its own (the kernel's
+    zero pages until written, returned to the system when the array goes): ``np.zeros`` of
+    the same size may come from the C heap, zeroed there page by page and kept by the heap
+    after it is freed (glibc raises its mapping threshold after a large block is freed),
+    which doubled a recording run's peak.
+    """
+    count = int(np.prod(shape))
+    if count * BYTES_PER_VALUE < LAZY_TABLE_BYTES:
+        return np.zeros(shape)
+    mapped = mmap.mmap(-1, count * BYTES_PER_VALUE)
+    return np.frombuffer(mapped, dtype=np.float64).reshape(shape)
 
 
 def first_non_finite(table: np.ndarray, start: int = 0, stop: int | None = None) -> int | None:
@@ -55,6 +75,13 @@ def non_finite_error(
     finite = np.flatnonzero(np.isfinite(history))
     last = float(history[finite[-1]]) if finite.size else None
     return NonFiniteError(names[column], float(times[row]), float(values[column]), last)
+
+
+def diverged_iterate(system, x: np.ndarray, time: float) -> NonFiniteError:
+    """The error of a step whose last Newton iterate ``x`` (every unknown) is not finite
+    at ``time`` (s): the solution diverged there (the step was not accepted)."""
+    index = int(np.argmax(~np.isfinite(x)))
+    return NonFiniteError(system.layout.unknowns[index], time, float(x[index]))
 
 
 def check_finite(signals: Mapping[str, np.ndarray], times: np.ndarray) -> None:

@@ -24,11 +24,22 @@ from circuitsim.solver.context import StepContext
 from circuitsim.solver.dc import initial_condition_solution, operating_point_solution
 from circuitsim.solver.devices.base import DeviceFamily
 from circuitsim.solver.devices.switch import transition_retry
-from circuitsim.solver.errors import CircuitInputError, ConvergenceError, RunLimitError
+from circuitsim.solver.errors import (
+    CircuitInputError,
+    ConvergenceError,
+    RunLimitError,
+    SolverError,
+)
 from circuitsim.solver.integration import METHODS, truncation_step
 from circuitsim.solver.layout import with_ground
 from circuitsim.solver.newton import newton
-from circuitsim.solver.recording import budget_rows, memory_error, non_finite_error, row_bytes
+from circuitsim.solver.recording import (
+    budget_rows,
+    diverged_iterate,
+    memory_error,
+    non_finite_error,
+    row_bytes,
+)
 from circuitsim.solver.system import MnaSystem
 
 HISTORY = 4  # accepted points kept: order 2 truncation needs t_n+1 and three before
@@ -430,7 +441,11 @@ def _raise_non_finite(system, rows, out_t, out_x, t, kept) -> None:
     raise non_finite_error(names, np.array([*out_t, t]), table, len(out_t))
 
 
-def _failure(system, message, time, step, ctx: StepContext, x_new) -> ConvergenceError:
+def _failure(system, message, time, step, ctx: StepContext, x_new) -> SolverError:
+    """The ConvergenceError of a failed step, or the NonFiniteError when its last Newton
+    iterate is not finite (the solution diverged)."""
+    if not np.all(np.isfinite(x_new)):
+        return diverged_iterate(system, x_new, time)
     previous = ctx.x_previous
     node = None
     if previous is not None and np.all(np.isfinite(x_new)):

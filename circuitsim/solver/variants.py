@@ -220,7 +220,15 @@ def _one(circuit: Circuit, probes: list[str], k: int, reduce: Reduce | None):
     tran = circuit.transient
     stats: dict = {"analysis": "tran", "newton_iterations": 0}
     times, values = run_ports(
-        system, tran.tstep, tran.tstop, tran.tstart, tran.tmax, tran.uic, None, stats, rows=rows,
+        system,
+        tran.tstep,
+        tran.tstop,
+        tran.tstart,
+        tran.tmax,
+        tran.uic,
+        None,
+        stats,
+        rows=rows,
         fixed_pauses=True,
     )
     stats["factorizations"] = system.factorizations
@@ -242,4 +250,3 @@ def _waveforms(system, times, values, probes, index, stats, started) -> Waveform
     stats["method"] = system.options.method
     stats["wall_time_s"] = _time.perf_counter() - started
     return Waveforms(time=times, signals=signals, engine="builtin", stats=stats)
-

@@ -65,6 +65,7 @@ from circuitsim.solver.recording import (
     memory_error,
     non_finite_error,
     row_bytes,
+    zero_table,
 )
 from circuitsim.solver.system import MnaSystem
 from circuitsim.solver.transient import recorded, run_transient, start_transient, wall_deadline
@@ -320,7 +321,7 @@ def _loop_state(kind, start: PortsStart, plan, rows, capacity, constant=None, ea
         from circuitsim.solver.compiled.port_state import initial_port_state
 
         rows = np.arange(start.system.size) if rows is None else np.asarray(rows, dtype=np.int64)
-        state = initial_port_state(plan, start.families, start.x, start.q0.copy(), capacity, rows)
+        state = initial_port_state(plan, start.families, start.x, start.q0.copy(), 1, rows)
     else:
         devices = device_states(start.families)
         terms = terminal_state(start.families["terminals"], plan.terms)
@@ -329,12 +330,14 @@ def _loop_state(kind, start: PortsStart, plan, rows, capacity, constant=None, ea
                                   search=earlier.search)  # fmt: skip
         for other in others:  # the other column orders' (tried when a pivot gets small)
             earlier.keep(other)
-        state = initial_state(plan, start.families, start.x, start.q0.copy(), capacity, lu)
+        state = initial_state(plan, start.families, start.x, start.q0.copy(), 1, lu)
         if rows is not None:  # only these are recorded (the loop's MidStep.rows)
             rows = np.asarray(rows, dtype=np.int64)
-            out_x = np.zeros((capacity, rows.size))
-            out_x[0] = start.x[rows]
-            state = state._replace(out_x=out_x)
+            state = state._replace(out_x=start.x[rows][None, :])
+    # the recorded table, lazily zero (recording.zero_table): it costs what the run writes
+    out_x = zero_table((capacity, state.out_x.shape[1]))
+    out_x[0] = state.out_x[0]
+    state = state._replace(out_t=zero_table(capacity), out_x=out_x)
     from circuitsim.solver.compiled import newton as nw
 
     state = state._replace(
@@ -595,8 +598,8 @@ def _grown(st, most_points: int | None = None, max_memory=None, tstop: float = 0
 
         held = size * row_bytes(st.out_x.shape[1])
         raise memory_error(max_memory, float(st.fs[nw.T]), tstop, size, held)
-    out_t = np.zeros(2 * size)
+    out_t = zero_table(2 * size)
     out_t[:size] = st.out_t
-    out_x = np.zeros((2 * size, st.out_x.shape[1]))
+    out_x = zero_table((2 * size, st.out_x.shape[1]))
     out_x[:size] = st.out_x
     return st._replace(out_t=out_t, out_x=out_x)
