@@ -137,7 +137,8 @@ class RunSize:
         if max_memory is not None and self.recorded_bytes > max_memory:
             return "max_memory", (
                 f"the recorded results need at least {size_text(self.recorded_bytes)} "
-                f"({self.points:.3g} time points x {self.signals} signals and the time, "
+                f"({self.points:.3g} time points x {self.signals} "
+                f"signal{'s' if self.signals != 1 else ''} and the time, "
                 f"{BYTES_PER_VALUE} bytes each), above the memory budget of "
                 f"{size_text(max_memory)}: {remedies or MEMORY_REMEDIES}"
             )
