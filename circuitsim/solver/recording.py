@@ -21,8 +21,10 @@ from circuitsim.solver.errors import MemoryBudgetError, NonFiniteError
 CHECK_VALUES = 1 << 18
 """Values checked at a time (2 MB): the check's temporaries stay in the cache."""
 
-LAZY_TABLE_BYTES = 1 << 20
-"""A table from this size on is mapped memory of its own (:func:`zero_table`)."""
+LAZY_TABLE_BYTES = 16 << 20
+"""A table from this size on (16 MiB) is mapped memory of its own (:func:`zero_table`);
+below it, ``np.zeros``: a fresh mapping costs a page fault per page written, which a heap
+block used before does not (runs repeated in one process: docs/robustness.md)."""
 
 
 def zero_table(shape: int | tuple[int, ...]) -> np.ndarray:
@@ -32,7 +34,7 @@ def zero_table(shape: int | tuple[int, ...]) -> np.ndarray:
     zero pages until written, returned to the system when the array goes): ``np.zeros`` of
     the same size may come from the C heap, zeroed there page by page and kept by the heap
     after it is freed (glibc raises its mapping threshold after a large block is freed),
-    which doubled a recording run's peak.
+    which doubled a recording run's peak. (Above 32 MiB glibc maps every block anyway.)
     """
     count = int(np.prod(shape))
     if count * BYTES_PER_VALUE < LAZY_TABLE_BYTES:

@@ -98,3 +98,32 @@ def test_ngspice_is_stopped_within_its_budget(tmp_path):
     # ngspice's address space is capped at its size at the start (about 200 MB, mostly
     # libraries and reserved heap) plus the budget (ngspice_limits.RunWatch)
     assert peak < 250 * MB + 250 * MB
+
+
+@pytest.mark.slow
+def test_large_tl074_chain_with_a_fine_step_is_refused_at_once(tmp_path):
+    # the 64-mass TL074 chain (benchmarks/bench_scaling.py's largest): the step limit
+    # allows 2e6 steps, which at every signal would record about 166 GB
+    import re
+
+    from circuitsim.mechanics import load_model
+    from circuitsim.mechanics.chain import chain_model_text
+    from circuitsim.synthesis.generate import generate
+    from circuitsim.synthesis.options import SynthesisOptions
+
+    model_file = tmp_path / "chain64.toml"
+    model_file.write_text(chain_model_text(64, 5.0))
+    model = load_model(model_file)
+    system = model.system(nonlinear={group: True for group in model.nonlinear_terms})
+    netlist = tmp_path / "chain64.cir"
+    generate(system, netlist, SynthesisOptions(opamp="tl074", series="exact", t_stop=5.0))
+    lines = netlist.read_text().splitlines()
+    lines = [".tran 1u 2 0 1u uic" if ln.lower().startswith(".tran") else ln for ln in lines]
+    netlist.write_text("\n".join(lines) + "\n")
+    code, peak, err = peak_run(["simulate", str(netlist), "--max-memory", "4G"], tmp_path)
+    assert code == 3 and "above the memory budget of 4 GB" in err, err
+    found = re.search(r"need at least ([\d.]+) GB \(2e\+06 time points x (\d+) signals", err)
+    signals = int(found[2])
+    assert signals > 10_000  # 64 masses of TL074 blocks
+    assert float(found[1]) == pytest.approx((2e6 + 1) * (signals + 1) * 8 / 1e9, rel=1e-2)
+    assert peak < 4 * 1e9  # refused before any of it is recorded
