@@ -122,6 +122,10 @@ class RunSizeError(RunLimitError):
     def __init__(self, limit: str, value: float, tstop: float, message: str):
         self.limit, self.value, self.time, self.tstop, self.steps = limit, value, 0.0, tstop, 0
         SolverError.__init__(self, f"refused before the start: {message}")
+        self._message = message
+
+    def __reduce__(self):  # rebuilt from its own arguments in a parent process
+        return (type(self), (self.limit, self.value, self.tstop, self._message))
 
 
 class MemoryBudgetError(RunLimitError):
@@ -162,6 +166,7 @@ class MemoryBudgetError(RunLimitError):
             "max_memory", value, time, tstop, steps
         )  # fmt: skip
         self.held = held
+        self._arguments = (value, time, tstop, steps, held, remedies, what)
         where = ""
         if time is not None:
             where = f": stopped at t = {time:.6g} s of {tstop:.6g} s"
@@ -171,6 +176,9 @@ class MemoryBudgetError(RunLimitError):
             f"{what} reached {size_text(held)}, and the memory budget is {size_text(value)}"
             f"{where}. {remedies[0].upper()}{remedies[1:]}",
         )
+
+    def __reduce__(self):  # rebuilt from its own arguments in a parent process
+        return (type(self), self._arguments)
 
 
 class NonFiniteError(SolverError):
@@ -197,3 +205,6 @@ class NonFiniteError(SolverError):
             "the circuit has no bounded solution from there (a loop with positive feedback "
             "and no limit), or its values overflow"
         )
+
+    def __reduce__(self):  # rebuilt from its own arguments in a parent process
+        return (type(self), (self.signal, self.time, self.value, self.last))

@@ -155,3 +155,16 @@ def test_cli_max_memory_refuses_and_is_validated(tmp_path, capsys):
     assert "above the memory budget of 10 MB" in capsys.readouterr().err
     assert main(["simulate", str(netlist), "--max-memory", "lots"]) == 2
     assert "--max-memory" in capsys.readouterr().err
+
+
+def test_guard_errors_survive_a_trip_between_processes():
+    import pickle
+
+    errors = [
+        RunSizeError("max_memory", 1e9, 20.0, "the recorded results need at least 39.5 GB"),
+        MemoryBudgetError(3e7, 3.6, 20.0, 32800, 2.7e7, "record fewer signals"),
+        NonFiniteError("v(a)", 0.7092, float("inf"), 1.65e308),
+    ]
+    for error in errors:
+        again = pickle.loads(pickle.dumps(error))
+        assert type(again) is type(error) and str(again) == str(error)
