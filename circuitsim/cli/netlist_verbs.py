@@ -9,6 +9,7 @@ from circuitsim.cli.common import (
     MAX_STEP_COUNT,
     UsageError,
     add_ngspice_timeout,
+    progress,
     progress_after,
     read_netlist_reporting_warnings,
     require_count,
@@ -156,7 +157,8 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         "--max-steps",
         type=int,
         metavar="N",
-        help="builtin engine: stop with an error after N attempted time steps (default 2000000)",
+        help="stop with an error after N attempted time steps (default 2000000); both "
+        "engines refuse at once a .tran that needs more (TSTOP / TMAX)",
     )
     parser.add_argument(
         "--max-wall-time",
@@ -165,7 +167,41 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         help="builtin engine: stop with an error after this much wall time in the transient "
         "loop (default 600)",
     )
+    parser.add_argument(
+        "--max-memory",
+        metavar="SIZE",
+        help="memory budget of the recorded results, bytes or with a suffix k, M, G, T "
+        "(powers of 1000; default: half the physical memory): a .tran whose results need "
+        "more at least is refused before it starts, a run that records more stops with an "
+        "error (ngspice: when its resident memory passes it)",
+    )
     parser.set_defaults(func=_run_simulate)
+
+
+_SIZE_SUFFIXES = {"": 1.0, "k": 1e3, "m": 1e6, "g": 1e9, "t": 1e12}
+
+
+def memory_size(option: str, text: str | None) -> float | None:
+    """``text`` (``"2G"``, ``"500M"``, ``"1e9"``, an optional trailing B) as bytes > 0.
+
+    Raises
+    ------
+    UsageError
+        Naming ``option``: not a size, or not above 0.
+    """
+    if text is None:
+        return None
+    body = text.strip().lower().removesuffix("b")
+    suffix = body[-1:] if body[-1:] in _SIZE_SUFFIXES else ""
+    try:
+        value = float(body[: len(body) - len(suffix)]) * _SIZE_SUFFIXES[suffix]
+    except ValueError:
+        value = float("nan")
+    if not (value >= 1 and value < float("inf")):
+        raise UsageError(
+            f"{option} must be a size of at least 1 byte (such as 2G or 500M), got {text[:40]!r}"
+        )
+    return value
 
 
 def _run_simulate(args: argparse.Namespace) -> int:
@@ -178,6 +214,7 @@ def _run_simulate(args: argparse.Namespace) -> int:
     require_writable(args.csv, args.plot, args.raw)
     if args.raw is not None and args.states is not None:
         raise UsageError("--raw writes node voltages and currents; --states writes states")
+    max_memory = memory_size("--max-memory", args.max_memory)
     scale_map = None
     probes = args.probe
     if args.states is not None:
@@ -188,7 +225,7 @@ def _run_simulate(args: argparse.Namespace) -> int:
         scale_map = ScaleMap.load(args.states)
         probes = [state.node for state in scale_map.states.values()]
     if args.engine == "ngspice":
-        waves = _simulate_ngspice(args, probes)
+        waves = _simulate_ngspice(args, probes, max_memory)
     else:
         from circuitsim.solver import SimulationOptions, simulate
         from circuitsim.solver.errors import SolverError
@@ -199,6 +236,7 @@ def _run_simulate(args: argparse.Namespace) -> int:
             for key, value in (
                 ("max_steps", args.max_steps),
                 ("max_wall_time", args.max_wall_time),
+                ("max_memory", max_memory),
             )
             if value is not None
         }
@@ -210,6 +248,7 @@ def _run_simulate(args: argparse.Namespace) -> int:
                 progress=progress_after(1.0),
                 probes=probes,
                 analysis=args.analysis,
+                size_report=progress,
             )
         except SolverError as exc:  # about the circuit ("D1: no .model ..."): say which file
             exc.args = (f"{args.netlist}: {exc}",)
@@ -255,19 +294,23 @@ def _run_simulate(args: argparse.Namespace) -> int:
 
 def _write_raw(args: argparse.Namespace, waves) -> None:
     """``--raw``: the waveforms in ngspice's binary layout, titled with the netlist's title."""
+    from circuitsim.inputfile import NETLIST_BYTES, read_bytes
     from circuitsim.interop.rawwrite import write_rawfile
 
-    with open(args.netlist, encoding="utf-8", errors="replace") as handle:
-        title = handle.readline().strip()
+    data = read_bytes(args.netlist, NETLIST_BYTES, "a netlist file")  # read before: fits
+    title = data.decode("utf-8", errors="replace").partition("\n")[0].strip()
     operating_point = waves.stats.get("analysis") == "op"  # both engines say which they ran
     write_rawfile(args.raw, waves, title, operating_point=operating_point)
     print(f"wrote {args.raw}")
 
 
-def _builtin_signals(netlist: str, probes: list[str] | None) -> tuple[list[str] | None, str]:
+def _builtin_signals(
+    netlist: str, probes: list[str] | None
+) -> tuple[list[str] | None, str, int | None]:
     """The signals the builtin engine writes for ``netlist`` (``probes`` checked against
     them, a CircuitInputError naming an unknown one), or None and why for a netlist only
-    ngspice can take (a vendor model with POLY sources, say)."""
+    ngspice can take (a vendor model with POLY sources, say); and the number of all its
+    signals (None for such a netlist)."""
     import warnings
 
     from circuitsim.netlist.errors import NetlistError
@@ -280,31 +323,48 @@ def _builtin_signals(netlist: str, probes: list[str] | None) -> tuple[list[str] 
             warnings.simplefilter("ignore")  # ngspice reads the file itself; its log tells
             system = build_system(read_netlist(netlist), None)
     except (NetlistError, SolverError) as exc:
-        return None, str(exc)
-    return probe_names(system, probes), ""
+        return None, str(exc), None
+    return probe_names(system, probes), "", system.size
 
 
-def _simulate_ngspice(args: argparse.Namespace, probes: list[str] | None):
-    """ngspice's waveforms with the builtin engine's columns, probes checked before the run."""
+def _simulate_ngspice(args: argparse.Namespace, probes: list[str] | None, max_memory):
+    """ngspice's waveforms with the builtin engine's columns, probes checked before the run,
+    and the builtin engine's run guards (``--max-steps``, ``--max-memory``)."""
     from pathlib import Path
 
     from circuitsim.interop.errors import NgspiceError
-    from circuitsim.interop.ngspice import run_ngspice
+    from circuitsim.interop.ngspice import RunLimits, run_ngspice
+    from circuitsim.solver.errors import SolverError
 
-    names, why = _builtin_signals(args.netlist, probes)
-    if names is None:
-        print(
-            f"{args.netlist}: ngspice's own columns (the builtin engine cannot take this "
-            f"netlist: {why}); probes are checked after the run",
-            file=sys.stderr,
-        )
-        return run_ngspice(
+    names, why, signals = _builtin_signals(args.netlist, probes)
+    limits = RunLimits(signals=signals, progress=progress)
+    if args.max_steps is not None:
+        limits.max_steps = args.max_steps
+    if max_memory is not None:
+        limits.max_memory = max_memory
+    try:
+        if names is None:
+            print(
+                f"{args.netlist}: ngspice's own columns (the builtin engine cannot take this "
+                f"netlist: {why}); probes are checked after the run",
+                file=sys.stderr,
+            )
+            return run_ngspice(
+                Path(args.netlist),
+                probes=probes,
+                timeout=args.ngspice_timeout,
+                analysis=args.analysis,
+                limits=limits,
+            )
+        waves = run_ngspice(
             Path(args.netlist),
-            probes=probes,
             timeout=args.ngspice_timeout,
             analysis=args.analysis,
+            limits=limits,
         )
-    waves = run_ngspice(Path(args.netlist), timeout=args.ngspice_timeout, analysis=args.analysis)
+    except SolverError as exc:  # the builtin engine's guards: say which file
+        exc.args = (f"{args.netlist}: {exc}",)
+        raise
     if waves.axis == "frequency":  # magnitude and phase of each signal, as ours writes them
         names = [n[0] + part + n[1:] for n in names for part in "mp"]
     missing = [name for name in names if name not in waves]

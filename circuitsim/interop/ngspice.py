@@ -57,6 +57,7 @@ from circuitsim.inputfile import (
 from circuitsim.interop.errors import NgspiceError, NgspiceTimeout
 from circuitsim.interop.ngspice_deck import TITLE, DeckLine, check_inert, decode, flatten_deck
 from circuitsim.interop.ngspice_files import STITCH_BLANKS, hide_included
+from circuitsim.interop.ngspice_limits import RunLimits
 from circuitsim.interop.rawfile import parse_ascii_raw, parse_rawfile
 from circuitsim.interop.sandbox import (
     TimeLimitExceeded,
@@ -67,6 +68,7 @@ from circuitsim.interop.sandbox import (
 
 __all__ = [
     "DEFAULT_TIMEOUT",
+    "RunLimits",
     "ngspice_available",
     "run_ngspice",
     "parse_rawfile",
@@ -74,6 +76,7 @@ __all__ = [
 ]
 from circuitsim.netlist.circuit import Circuit
 from circuitsim.netlist.errors import shorten
+from circuitsim.solver.recording import check_finite
 from circuitsim.solver.waveforms import Waveforms
 
 DEFAULT_TIMEOUT = 300.0  # seconds; the paper's slowest case takes a few seconds
@@ -98,6 +101,7 @@ def run_ngspice(
     probes: list[str] | None = None,
     timeout: float = DEFAULT_TIMEOUT,
     analysis: str | None = None,
+    limits: RunLimits | None = None,
 ) -> Waveforms:
     """Run ``ngspice -b -n`` on ``netlist`` in a private folder and return its waveforms.
 
@@ -138,6 +142,12 @@ def run_ngspice(
         ngspice is not installed, reported errors, wrote no output, the deck has no
         ``.tran``/``.op``/``.ac`` (or not the one asked for), or a probe is not among the
         results.
+    CircuitInputError, RunSizeError
+        The ``.tran`` refused before ngspice starts, as the builtin engine refuses it.
+    MemoryBudgetError
+        ngspice's resident memory passed ``limits.max_memory``; it was stopped.
+    NonFiniteError
+        A result is inf or NaN (ngspice diverged without saying so).
     """
     found = _deck_found(netlist)
     lines = [line.text for line in found]
@@ -146,13 +156,15 @@ def run_ngspice(
     binary = shutil.which("ngspice")
     if binary is None:
         raise NgspiceError("ngspice is not installed or not on PATH (apt-get install -y ngspice)")
+    limits = limits if limits is not None else RunLimits()
+    watch = limits.before_run(lines if analysis == "tran" else [])
     with private_folder(FOLDER_PREFIX) as folder:
         raw = folder / "out.raw"
         (folder / "deck.cir").write_bytes(deck.encode("utf-8", errors="surrogateescape"))
         started = time.perf_counter()
         try:
             done = run_with_limit(
-                [binary, "-b", "-n", "deck.cir"], folder, bare_environment(folder), timeout
+                [binary, "-b", "-n", "deck.cir"], folder, bare_environment(folder), timeout, watch
             )
         except TimeLimitExceeded as exc:
             raise NgspiceTimeout(timeout, _tail(hide_included(exc.output, found))) from None
@@ -160,6 +172,8 @@ def run_ngspice(
             raise NgspiceError(f"cannot start ngspice ({binary}): {exc}") from None
         wall = time.perf_counter() - started
         log = done.stdout + "\n" + done.stderr
+        if (memory := watch.allocation_failure(log)) is not None:
+            raise memory
         if _error_lines(log):
             shown = hide_included(log, found)  # no line of an included file quoted
             raise NgspiceError("ngspice reported errors", _error_lines(shown) or _tail(shown))
@@ -176,6 +190,8 @@ def run_ngspice(
                 "for a coarser output step"
             ) from None
         waves = parse_rawfile(data)
+    check_finite(waves.signals, waves.time)
+    waves.stats["peak_memory_bytes"] = watch.peak
     waves.stats["wall_time_s"] = wall
     waves.stats["analysis"] = analysis
     if probes is not None:

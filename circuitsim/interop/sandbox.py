@@ -30,7 +30,7 @@ import signal
 import subprocess
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -202,13 +202,24 @@ class TimeLimitExceeded(Exception):
         super().__init__("time limit exceeded")
 
 
+WATCH_SECONDS = 1.0
+"""A watched program is looked at about this often (``run_with_limit``'s ``watch``), s."""
+
+
 def run_with_limit(
-    args: list[str], cwd: Path, env: dict[str, str], timeout: float, confine: bool = True
+    args: list[str],
+    cwd: Path,
+    env: dict[str, str],
+    timeout: float,
+    watch: Callable[[int, float], None] | None = None,
+    confine: bool = True,
 ) -> Finished:
     """Run ``args`` in ``cwd`` with ``env``; kill it (and its children) after ``timeout`` s.
 
-    With ``confine`` (the default) the program may change the file system beneath ``cwd``
-    only and open no TCP connection, where the kernel has Landlock
+    ``watch``, if given, is called about every :data:`WATCH_SECONDS` while the program runs,
+    with its process id and the seconds since its start; an exception it raises kills the
+    program and propagates. With ``confine`` (the default) the program may change the file
+    system beneath ``cwd`` only and open no TCP connection, where the kernel has Landlock
     (:func:`~circuitsim.interop.confine.write_confinement`; :func:`confined` says whether).
 
     Raises
@@ -242,7 +253,7 @@ def run_with_limit(
             os.close(ruleset)
     try:
         (cwd / _CHILD).write_text(str(process.pid))  # for remove_stale_folders, should we die
-        out, err = process.communicate(timeout=timeout)
+        out, err = _communicate(process, timeout, watch)
     except subprocess.TimeoutExpired:
         _kill(process)
         out, err = process.communicate()
@@ -261,6 +272,24 @@ def run_with_limit(
 def confined() -> bool:
     """True where :func:`run_with_limit` confines a program's writes (the kernel has Landlock)."""
     return landlock_abi() >= 1
+
+
+def _communicate(process: subprocess.Popen, timeout: float, watch) -> tuple[bytes, bytes]:
+    """``process.communicate(timeout=timeout)``, calling ``watch`` in between (no output is
+    lost by a ``communicate`` that timed out and is called again)."""
+    if watch is None:
+        return process.communicate(timeout=timeout)
+    started = time.monotonic()
+    interval = 0.1 * WATCH_SECONDS  # the first look soon after the start
+    while True:
+        left = timeout - (time.monotonic() - started)
+        try:
+            return process.communicate(timeout=max(min(left, interval), 0.0))
+        except subprocess.TimeoutExpired:
+            if time.monotonic() - started >= timeout:
+                raise
+            watch(process.pid, time.monotonic() - started)
+            interval = WATCH_SECONDS
 
 
 def _kill(process: subprocess.Popen) -> None:

@@ -25,12 +25,13 @@ from circuitsim.netlist.circuit import (
     Transient,
 )
 from circuitsim.netlist.names import fold
+from circuitsim.netlist.run_size import RunSize
 from circuitsim.solver.dc import operating_point_solution
-from circuitsim.solver.errors import CircuitInputError
+from circuitsim.solver.errors import CircuitInputError, RunSizeError
 from circuitsim.solver.options import SimulationOptions
 from circuitsim.solver.system import MnaSystem
 from circuitsim.solver.threads import single_threaded_blas
-from circuitsim.solver.transient import run_transient
+from circuitsim.solver.transient import check_times, run_transient
 from circuitsim.solver.waveforms import Waveforms
 
 
@@ -156,6 +157,7 @@ def transient(
     options: SimulationOptions | None = None,
     progress: Callable[[str], None] | None = None,
     probes: list[str] | None = None,
+    size_report: Callable[[str], None] | None = None,
 ) -> Waveforms:
     """Transient analysis (``.tran tstep tstop [tstart [tmax]] [uic]``), seconds.
 
@@ -169,14 +171,22 @@ def transient(
     ConvergenceError, SingularMatrixError, CircuitInputError
         CircuitInputError also for a probe that names no signal (before the run).
     RunLimitError
-        The run passed ``options.max_steps`` or ``options.max_wall_time``.
+        The run passed ``options.max_steps``, ``options.max_wall_time`` or
+        ``options.max_memory`` (MemoryBudgetError), or was refused before its start as
+        certain to pass ``max_steps`` or ``max_memory`` (RunSizeError).
+    NonFiniteError
+        A recorded signal became inf or NaN (the solution diverged).
     """
     started = _time.perf_counter()
     system = build_system(circuit, options)
     names = probe_names(system, probes)
     stats: dict = {"analysis": "tran", "newton_iterations": 0}
-    runner = _transient_runner(system, stats)
     unknowns = sorted({system.signals[n] for n in names if system.signals[n] >= 0})
+    size = _checked_size(system, tstep, tstop, tstart, tmax, len(unknowns))
+    stats["run_size"] = size
+    if size_report is not None:
+        size_report(size.describe(system.options.max_steps, system.options.max_memory))
+    runner = _transient_runner(system, stats)
     columns = {index: column for column, index in enumerate(unknowns)}
     extra = {}
     if len(unknowns) < system.size:
@@ -193,6 +203,20 @@ def transient(
     if not extra:
         columns = None
     return _waveforms(system, times, solutions, stats, names, columns)
+
+
+def _checked_size(system: MnaSystem, tstep, tstop, tstart, tmax, recorded: int) -> RunSize:
+    """The run's size (``recorded`` unknowns recorded), its times checked; RunSizeError when
+    it cannot finish within the step limit or the memory budget."""
+    options = system.options
+    check_times(tstep, tstop, tstart, tmax)
+    size = RunSize.of(tstep, tstop, tstart, tmax, recorded, options.fixed_step)
+    refused = size.refusal(options.max_steps, options.max_memory)
+    if refused is not None:
+        limit, message = refused
+        value = options.max_steps if limit == "max_steps" else options.max_memory
+        raise RunSizeError(limit, value, tstop, message)
+    return size
 
 
 def _transient_runner(system: MnaSystem, stats: dict):
@@ -267,6 +291,7 @@ def simulate(
     progress: Callable[[str], None] | None = None,
     probes: list[str] | None = None,
     analysis: str | None = None,
+    size_report: Callable[[str], None] | None = None,
 ) -> Waveforms:
     """Run one of the circuit's analyses: ``analysis`` ("tran", "op" or "ac") if given,
     else its first ``.tran``, else its operating point if it has an ``.op`` card or no
@@ -274,7 +299,8 @@ def simulate(
     the same way).
 
     ``options`` default to ngspice's, overridden by the circuit's ``.options``. ``probes``:
-    only these signals (see :func:`transient`; default all).
+    only these signals (see :func:`transient`; default all); ``size_report``: see
+    :func:`transient`.
 
     Raises
     ------
@@ -309,6 +335,7 @@ def simulate(
         options,
         progress,
         probes,
+        size_report,
     )
 
 

@@ -4,15 +4,24 @@ from __future__ import annotations
 
 import dataclasses
 import numbers
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from circuitsim.netlist.circuit import Circuit, Expression
+from circuitsim.netlist.run_size import default_memory_budget
 from circuitsim.solver.errors import CircuitInputError
 
 METHODS = ("trap", "gear")
 KERNELS = ("auto", "compiled", "ports", "python")
 # fields that are ours, not ngspice's: a netlist's .options cannot set them
-NOT_NGSPICE = ("fixed_step", "dense_limit", "max_steps", "max_wall_time", "kernel", "itl_floor")
+NOT_NGSPICE = (
+    "fixed_step",
+    "dense_limit",
+    "max_steps",
+    "max_wall_time",
+    "max_memory",
+    "kernel",
+    "itl_floor",
+)
 # ngspice's NIiter raises every Newton iteration limit below this to it (niiter.c)
 NGSPICE_ITERATION_FLOOR = 100
 
@@ -67,6 +76,17 @@ class SimulationOptions:
         compiled loops return to Python for that after 20,000 steps, then about every
         second of work). A compile of the kernel in the run (its first use on a machine)
         does not count: the deadline moves by the time of the compiling first call.
+    max_memory : float or None
+        Budget of a transient run's recorded results, bytes (default: half the machine's
+        physical memory, netlist/run_size.py; None: none). A run whose recorded table needs
+        more at least (its time points at TMAX, times the recorded signals and the time, 8
+        bytes each: netlist.run_size.RunSize) is refused before it starts, and a run whose
+        table grows past it (steps shorter than TMAX) stops with a
+        :class:`~circuitsim.solver.errors.MemoryBudgetError` at the time it reached. The
+        compiled loops grow their table by doubling and hold the old one during the copy,
+        so they stop when the next doubling would pass the budget (between half of it and
+        all of it recorded); the reference loop counts its table twice (the list of points
+        and the array made of it at the end).
     bypass : int
         1: after the first Newton iteration of a time point, a junction whose voltage and
         linearized current are within tolerance of its last evaluation keeps that evaluation
@@ -107,6 +127,7 @@ class SimulationOptions:
     dense_limit: int = 150
     max_steps: int = 2_000_000
     max_wall_time: float | None = 600.0
+    max_memory: float | None = field(default_factory=default_memory_budget)
     bypass: int = 0
     itl_floor: int = NGSPICE_ITERATION_FLOOR
     kernel: str = "auto"
@@ -135,6 +156,8 @@ class SimulationOptions:
             raise CircuitInputError(f"option max_steps={self.max_steps!r} must be > 0")
         if self.max_wall_time is not None and not self.max_wall_time > 0:
             raise CircuitInputError(f"option max_wall_time={self.max_wall_time!r} must be > 0")
+        if self.max_memory is not None and not self.max_memory > 0:
+            raise CircuitInputError(f"option max_memory={self.max_memory!r} must be > 0")
         if self.fixed_step is not None and not self.fixed_step > 0:
             raise CircuitInputError(f"fixed_step={self.fixed_step!r} must be > 0")
         for name in ("itl1", "itl4", "itl_floor"):

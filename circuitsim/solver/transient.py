@@ -18,19 +18,31 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from circuitsim.netlist.run_size import largest_step, time_resolution
 from circuitsim.solver.compressed import unique
 from circuitsim.solver.context import StepContext
 from circuitsim.solver.dc import initial_condition_solution, operating_point_solution
 from circuitsim.solver.devices.base import DeviceFamily
 from circuitsim.solver.devices.switch import transition_retry
-from circuitsim.solver.errors import CircuitInputError, ConvergenceError, RunLimitError
+from circuitsim.solver.errors import (
+    CircuitInputError,
+    ConvergenceError,
+    RunLimitError,
+    SolverError,
+)
 from circuitsim.solver.integration import METHODS, truncation_step
 from circuitsim.solver.layout import with_ground
 from circuitsim.solver.newton import newton
+from circuitsim.solver.recording import (
+    budget_rows,
+    diverged_iterate,
+    memory_error,
+    non_finite_error,
+    row_bytes,
+)
 from circuitsim.solver.system import MnaSystem
 
 HISTORY = 4  # accepted points kept: order 2 truncation needs t_n+1 and three before
-SMALLEST_STEP = 1e-100  # s: far below any time constant; its 1e-11 squared is still normal
 
 
 def start_transient(
@@ -59,23 +71,8 @@ def start_transient(
     ctx0 : StepContext
         With its charges in ``ctx0.q``.
     """
-    if not (tstep > 0 and tstop > 0 and 0 <= tstart < tstop):
-        raise CircuitInputError(
-            f".tran {tstep:g} {tstop:g} {tstart:g}: need tstep > 0 and 0 <= tstart < tstop"
-        )
-    if tmax is not None and not tmax > 0:
-        raise CircuitInputError(f".tran tmax {tmax:g} must be > 0")
+    max_step = check_times(tstep, tstop, tstart, tmax)
     stats.update(accepted=0, rejected=0, newton_iterations=stats.get("newton_iterations", 0))
-    max_step = tmax if tmax else min(tstep, (tstop - tstart) / 50)
-    # below a few ulps of tstop, t + h == t: no step could advance time; below SMALLEST_STEP the
-    # smallest step (1e-11 of it) and its powers in the error estimate leave the normal floats
-    # (a 1e-320 s tstep once reached 1/h = inf in the integration coefficients)
-    resolution = max(4.0 * np.finfo(float).eps * tstop, SMALLEST_STEP)
-    if not max_step > resolution:
-        raise CircuitInputError(
-            f".tran {tstep:g} {tstop:g}: the largest step, {max_step:g} s, is below the "
-            f"resolution of time near tstop ({resolution:.3g} s); give a larger tstep or tmax"
-        )
     min_step = 1e-11 * max_step
     for family in system.families:
         family.set_timing(tstep, tstop)
@@ -87,6 +84,34 @@ def start_transient(
     else:
         x, ctx0 = operating_point_solution(system, dc_op=False, clamp_ic=True, stats=stats)
     return max_step, min_step, breaks, x, ctx0
+
+
+def check_times(tstep: float, tstop: float, tstart: float, tmax: float | None) -> float:
+    """The ``.tran`` times checked; returns TMAX (given, or ngspice's default), s.
+
+    Raises
+    ------
+    CircuitInputError
+        A time out of order, or TMAX below the resolution of time near tstop (no step could
+        advance time: ``.tran 1e-30 1e-6``).
+    """
+    if not (tstep > 0 and tstop > 0 and 0 <= tstart < tstop):
+        raise CircuitInputError(
+            f".tran {tstep:g} {tstop:g} {tstart:g}: need tstep > 0 and 0 <= tstart < tstop"
+        )
+    if tmax is not None and not tmax > 0:
+        raise CircuitInputError(f".tran tmax {tmax:g} must be > 0")
+    max_step = largest_step(tstep, tstop, tstart, tmax)
+    # below a few ulps of tstop, t + h == t: no step could advance time; below SMALLEST_STEP the
+    # smallest step (1e-11 of it) and its powers in the error estimate leave the normal floats
+    # (a 1e-320 s tstep once reached 1/h = inf in the integration coefficients)
+    resolution = time_resolution(tstop)
+    if not max_step > resolution:
+        raise CircuitInputError(
+            f".tran {tstep:g} {tstop:g}: the largest step, {max_step:g} s, is below the "
+            f"resolution of time near tstop ({resolution:.3g} s); give a larger tstep or tmax"
+        )
+    return max_step
 
 
 @dataclass
@@ -172,6 +197,9 @@ def run_transient(
     steps = _Steps(t=0.0, h=fixed if fixed else min(tstop / 100, tstep) / 10, saved_h=tstop / 50)
     report_every, next_report = tstop / 10, tstop / 10
     deadline = wall_deadline(options)
+    # the list of points and the array made of it at the end: the table twice
+    columns = system.size if rows is None else len(rows)
+    most_points = budget_rows(options.max_memory, columns, copies=2)
 
     while tstop - steps.t > min_step:
         next_break, landing = _step_start(steps, breaks, fixed, max_step, min_step)
@@ -183,8 +211,14 @@ def run_transient(
         steps.retry_from = None  # only for attempts at this time point (not after a toggle)
         toggled = any([family.accept(x_ext, ctx) for family in accepting])
         history.push(t, x_new, ctx, toggled)
+        kept = x_new if rows is None else x_new[rows]
+        if not np.isfinite(kept).all():
+            _raise_non_finite(system, rows, out_t, out_x, t, kept)
+        if most_points is not None and len(out_t) >= most_points:
+            held = 2 * len(out_t) * row_bytes(columns)
+            raise memory_error(options.max_memory, steps.t, tstop, len(out_t), held)
         out_t.append(t)
-        out_x.append(x_new if rows is None else x_new[rows])
+        out_x.append(kept)
         stats["accepted"] += 1
         if fixed and steps.order < options.maxord:
             steps.order += 1
@@ -399,7 +433,19 @@ def recorded(times: np.ndarray, tstart: float, min_step: float, uic: bool) -> np
     return keep
 
 
-def _failure(system, message, time, step, ctx: StepContext, x_new) -> ConvergenceError:
+def _raise_non_finite(system, rows, out_t, out_x, t, kept) -> None:
+    """Raise the NonFiniteError of the point ``kept`` (the unknowns ``rows``) at ``t``, s."""
+    names = system.layout.unknowns
+    names = names if rows is None else [names[i] for i in rows]
+    table = np.vstack([*out_x, kept])
+    raise non_finite_error(names, np.array([*out_t, t]), table, len(out_t))
+
+
+def _failure(system, message, time, step, ctx: StepContext, x_new) -> SolverError:
+    """The ConvergenceError of a failed step, or the NonFiniteError when its last Newton
+    iterate is not finite (the solution diverged)."""
+    if not np.all(np.isfinite(x_new)):
+        return diverged_iterate(system, x_new, time)
     previous = ctx.x_previous
     node = None
     if previous is not None and np.all(np.isfinite(x_new)):

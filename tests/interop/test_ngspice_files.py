@@ -336,7 +336,11 @@ def test_the_sandbox_lets_ngspice_write_only_in_its_folder(tmp_path, outside_tmp
             folder.mkdir()
             (folder / "deck.cir").write_text(deck)
             done = run_with_limit(
-                [NGSPICE, "-b", "-n", "deck.cir"], folder, bare_environment(folder), 120, confine
+                [NGSPICE, "-b", "-n", "deck.cir"],
+                folder,
+                bare_environment(folder),
+                120,
+                confine=confine,
             )
             assert (folder / "out.raw").stat().st_size > 0  # the run itself works
             written = victim.exists() and victim.read_text() != PRECIOUS

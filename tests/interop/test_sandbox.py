@@ -29,8 +29,9 @@ from circuitsim.interop.sandbox import (
 from tests.conftest import dead_pid, requires_ngspice
 
 ROOT = Path(__file__).resolve().parents[2]
-# About a billion time steps: ngspice is still busy when the tests stop it.
-SLOW = "slow\nV1 a 0 SIN(0 1 1meg)\nR1 a 0 1k\n.tran 1p 1m 0 1p\n.end\n"
+# Two million time steps (the step limit: a longer run is refused before ngspice starts):
+# ngspice is still busy, for seconds, when the tests stop it.
+SLOW = "slow\nV1 a 0 SIN(0 1 1meg)\nR1 a 0 1k\n.tran 1n 2m 0 1n\n.end\n"
 QUICK = "divider\nV1 a 0 DC 1\nR1 a b 1k\nR2 b 0 1k\n.op\n.end\n"
 
 
@@ -195,9 +196,9 @@ def test_the_environment_is_bare(tmp_path, monkeypatch):
 def test_ngspice_is_started_without_init_files_in_its_own_folder(tmp_path, monkeypatch):
     seen = {}
 
-    def spy(args, cwd, env, timeout):
+    def spy(args, cwd, env, timeout, watch=None):
         seen.update(args=args, cwd=cwd, env=env, deck=(cwd / args[-1]).read_text())
-        return run_with_limit(args, cwd, env, timeout)
+        return run_with_limit(args, cwd, env, timeout, watch)
 
     monkeypatch.setattr(ngspice, "run_with_limit", spy)
     monkeypatch.chdir(tmp_path)
@@ -288,9 +289,9 @@ def test_other_verbs_run_ngspice_in_the_sandbox(argv, tmp_path, monkeypatch, cap
 
     calls = []
 
-    def spy(args, cwd, env, timeout):
+    def spy(args, cwd, env, timeout, watch=None):
         calls.append((args[1:], cwd.name, (cwd / args[-1]).read_text().splitlines()[0]))
-        return run_with_limit(args, cwd, env, timeout)
+        return run_with_limit(args, cwd, env, timeout, watch)
 
     monkeypatch.setattr(ngspice, "run_with_limit", spy)
     extra = ["--out", str(tmp_path)] if argv[0] == "sweep" else []

@@ -24,11 +24,14 @@ C1 b 0 1u
 .tran 10u 10m
 .end
 """
+# the same with TMAX = 0.2 ms: 50 steps at least (a limit below is refused before the start,
+# tests/solver/test_run_guards.py), about 65 attempted
+STEPPED = RECTIFIER.replace(".tran 10u 10m", ".tran 1m 10m")
 
 
 @pytest.mark.parametrize("kernel", KERNELS)
 def test_step_limit_stops_with_where_and_what_to_try(kernel):
-    circuit = parse_netlist(RECTIFIER)
+    circuit = parse_netlist(STEPPED)
     with pytest.raises(RunLimitError, match="more than 50 time steps") as caught:
         simulate(circuit, SimulationOptions(kernel=kernel, max_steps=50))
     error = caught.value
@@ -59,15 +62,15 @@ def test_limits_are_validated_and_not_read_from_the_netlist():
 
 def test_cli_limit_option_names_the_file_and_where_it_stopped(tmp_path):
     netlist = tmp_path / "rect.cir"
-    netlist.write_text(RECTIFIER)
+    netlist.write_text(STEPPED)
     result = subprocess.run(
-        [sys.executable, "-m", "circuitsim", "simulate", str(netlist), "--max-steps", "40"],
+        [sys.executable, "-m", "circuitsim", "simulate", str(netlist), "--max-steps", "55"],
         capture_output=True,
         text=True,
         cwd=ROOT,
     )
     assert result.returncode == 3  # the run failed (cli/__init__.py's exit codes)
-    assert "rect.cir: more than 40 time steps attempted: stopped at t = " in result.stderr
+    assert "rect.cir: more than 55 time steps attempted: stopped at t = " in result.stderr
     assert "Traceback" not in result.stderr
 
 

@@ -6,6 +6,7 @@ import numpy as np
 
 from circuitsim.solver.errors import ConvergenceError, RunLimitError, SolverError
 from circuitsim.solver.linalg import SingularPivot, factor
+from circuitsim.solver.recording import diverged_iterate
 from circuitsim.solver.system import MnaSystem
 
 
@@ -51,7 +52,9 @@ def failure(system: MnaSystem, st, status: int, tstop: float) -> SolverError:
     }
     node = None
     fail_x = getattr(st, "fail_x", None)  # the ports kernel keeps junction voltages only
-    if fail_x is not None and np.all(np.isfinite(fail_x)):
+    if fail_x is not None and not np.all(np.isfinite(fail_x)):
+        return diverged_iterate(system, fail_x, t + h)
+    if fail_x is not None:
         node = system.worst_unknown(st.fail_x, st.fail_prev)
     elif fail_x is None and st.fail_v.size and np.all(np.isfinite(st.fail_v)):
         node = worst_junction(system, st.fail_v)

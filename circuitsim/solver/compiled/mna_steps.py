@@ -89,8 +89,6 @@ def record_point(
     return toggled
 
 
-
-
 class MnaWork(NamedTuple):
     """The MNA loop's arrays within one call (shapes: n unknowns, nq charge slots, ms
     switches, r ports plus linear charges)."""

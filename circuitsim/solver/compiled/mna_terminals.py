@@ -87,4 +87,3 @@ def terminals_converged(tp, ts, x_ext, reltol) -> bool:
             if abs(delta) > reltol * max(abs(current + delta), abs(current)) + tp.tol[k]:
                 return False
     return True
-

@@ -216,8 +216,9 @@ def low_rank_columns(system: MnaSystem, port_p, port_n, lin) -> tuple[Compressed
     v = (q_col[kept], nports + slot_of[q_row[kept]], q_val[kept])
     shape = (n, nports + lin.size)
     return tuple(
-        Compressed.from_triplets(*(np.concatenate([a, b]) for a, b in zip(w, part, strict=True)),
-                                 shape)  # fmt: skip
+        Compressed.from_triplets(
+            *(np.concatenate([a, b]) for a, b in zip(w, part, strict=True)), shape
+        )  # fmt: skip
         for part in (u, v)
     )
 

@@ -231,16 +231,12 @@ def port_attempt(plan, st, work, t, h, order, landing, coefficients, ratio, resu
     charge_history(plan, st, a1, a2, b1, hist, hist_lin)
     if resume == NOT_RESUMING and refactor_wanted(plan, st, a0):
         if not factor_now(plan, st, a0):
-            status = wait_for_factor(
-                floats, counters, AT_REFACTOR_TEST, h, order, landing, 0, 0, 0
-            )
+            status = wait_for_factor(floats, counters, AT_REFACTOR_TEST, h, order, landing, 0, 0, 0)
             return status, False
     if resume == AT_REFACTOR_TEST:
         resume = NOT_RESUMING
     for k in range(src_kind.size):
-        src_values[k] = source_value(
-            t + h, k, src_kind, src_par, src_dc, pwl_start, pwl_t, pwl_v
-        )
+        src_values[k] = source_value(t + h, k, src_kind, src_par, src_dc, pwl_start, pwl_t, pwl_v)
     ok = False
     first_attempt = counters[RESUME_ATTEMPT] if resume != NOT_RESUMING else 0
     if resume == AT_SECOND_ATTEMPT:

@@ -59,6 +59,14 @@ from circuitsim.solver.errors import (
     SingularMatrixError,
 )
 from circuitsim.solver.jit import numba_installed
+from circuitsim.solver.recording import (
+    budget_rows,
+    first_non_finite,
+    memory_error,
+    non_finite_error,
+    row_bytes,
+    zero_table,
+)
 from circuitsim.solver.system import MnaSystem
 from circuitsim.solver.transient import recorded, run_transient, start_transient, wall_deadline
 
@@ -317,7 +325,7 @@ def _loop_state(kind, start: PortsStart, plan, rows, capacity, constant=None, ea
         from circuitsim.solver.compiled.port_state import initial_port_state
 
         rows = np.arange(start.system.size) if rows is None else np.asarray(rows, dtype=np.int64)
-        state = initial_port_state(plan, start.families, start.x, start.q0.copy(), capacity, rows)
+        state = initial_port_state(plan, start.families, start.x, start.q0.copy(), 1, rows)
     else:
         devices = device_states(start.families)
         terms = terminal_state(start.families["terminals"], plan.terms)
@@ -326,12 +334,14 @@ def _loop_state(kind, start: PortsStart, plan, rows, capacity, constant=None, ea
                                   search=earlier.search)  # fmt: skip
         for other in others:  # the other column orders' (tried when a pivot gets small)
             earlier.keep(other)
-        state = initial_state(plan, start.families, start.x, start.q0.copy(), capacity, lu)
+        state = initial_state(plan, start.families, start.x, start.q0.copy(), 1, lu)
         if rows is not None:  # only these are recorded (the loop's MidStep.rows)
             rows = np.asarray(rows, dtype=np.int64)
-            out_x = np.zeros((capacity, rows.size))
-            out_x[0] = start.x[rows]
-            state = state._replace(out_x=out_x)
+            state = state._replace(out_x=start.x[rows][None, :])
+    # the recorded table, lazily zero (recording.zero_table): it costs what the run writes
+    out_x = zero_table((capacity, state.out_x.shape[1]))
+    out_x[0] = state.out_x[0]
+    state = state._replace(out_t=zero_table(capacity), out_x=out_x)
     from circuitsim.solver.compiled import newton as nw
 
     state = state._replace(
@@ -414,6 +424,12 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     fixed = options.fixed_step
     tstop, max_step = float(plan.real[TSTOP]), float(plan.real[MAX_STEP])
     capacity = int(min(max(2 * (tstop / (fixed or max_step)) + 100, 1000), 5_000_000))
+    columns = system.size if rows is None else len(rows)
+    # the budget's points: the output arrays are made with np.zeros, whose pages cost memory
+    # only once written, so a table sized to the budget costs what the run records
+    most_points = budget_rows(options.max_memory, columns)
+    if most_points is not None:
+        capacity = max(1, min(capacity, most_points))
     constant = constant_parts(system) if kind != "ports" else None
     orders = EarlierOrders()  # the MNA kernel's earlier pivot orders
     # the compiled functions the runner calls from Python (pivot orders and their fill, the
@@ -443,6 +459,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
     began = time.perf_counter()
     made, repivoted_at, same_step = 1, -1, 0  # pivot orders made (sparse_order.py)
     factored_in_python = 0  # FACTOR returns
+    checked = 0  # recorded points found finite (_check_recorded)
     try:
         if kind == "ports":  # the first factorization: by the loop (newton.FIRST_FACTOR)
             st.fs[nw.FACTOR_A0] = _a0_start(start)
@@ -477,7 +494,8 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
                 st.fs[loop.REPIVOT_A0] = a0
                 status = loop.REPIVOT
             if status == loop.FULL:
-                st = _grown(st)
+                checked = _check_recorded(system, st, rows, checked)
+                st = _grown(st, most_points, options.max_memory, tstop)
             elif kind != "ports" and status == loop.REPIVOT:
                 # the step is attempted again: each new order lets it go further (at most
                 # one per Newton iteration), unless the matrix is singular
@@ -491,6 +509,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
                 st = st._replace(lu=lu)
                 made += 1
             elif status == loop.PAUSED:
+                checked = _check_recorded(system, st, rows, checked)
                 if st.fs[nw.T] >= t_until:
                     if progress is not None:
                         progress(
@@ -532,6 +551,7 @@ def _integrate(kind, start: PortsStart, plan, progress, stats, rows, counted, fi
             stats["orders_reused"] = orders.reused
             stats["pivot_search"] = orders.search.get("kind")  # "ours" or "superlu"
         counted.append(int(st.ints[nw.FACTORIZATIONS]))
+    _check_recorded(system, st, rows, checked)  # a diverged run's first failure
     if status != loop.FINISHED:
         raise failure(system, st, status, tstop)
     if kind != "ports" and startup_library.wanted(kind):
@@ -558,11 +578,32 @@ def _announce_compile(kind: str, dispatcher, helpers_cold: bool = False) -> bool
     return cold
 
 
-def _grown(st):
-    """The state with twice the output capacity."""
+def _check_recorded(system: MnaSystem, st, rows, checked: int) -> int:
+    """Raise NonFiniteError when a point recorded since the first ``checked`` holds inf or
+    NaN; returns the points checked."""
+    from circuitsim.solver.compiled import newton as nw
+
+    count = int(st.ints[nw.COUNT])
+    row = first_non_finite(st.out_x, checked, count)
+    if row is None:
+        return count
+    names = system.layout.unknowns
+    names = names if rows is None else [names[int(i)] for i in rows]
+    raise non_finite_error(names, st.out_t, st.out_x, row)
+
+
+def _grown(st, most_points: int | None = None, max_memory=None, tstop: float = 0.0):
+    """The state with twice the output capacity; a MemoryBudgetError when the old table and
+    the new one would pass the budget of ``most_points`` points together (the copy holds
+    both)."""
     size = st.out_t.size
-    out_t = np.zeros(2 * size)
+    if most_points is not None and 2 * size > most_points:
+        from circuitsim.solver.compiled import newton as nw
+
+        held = size * row_bytes(st.out_x.shape[1])
+        raise memory_error(max_memory, float(st.fs[nw.T]), tstop, size, held)
+    out_t = zero_table(2 * size)
     out_t[:size] = st.out_t
-    out_x = np.zeros((2 * size, st.out_x.shape[1]))
+    out_x = zero_table((2 * size, st.out_x.shape[1]))
     out_x[:size] = st.out_x
     return st._replace(out_t=out_t, out_x=out_x)
