@@ -42,6 +42,13 @@ def _add_frf(sub: argparse._SubParsersAction) -> None:
     add_model_options(parser)
     add_scenario_options(parser)
     add_translator_options(parser, series="exact")
+    parser.add_argument(
+        "--tstop",
+        type=float,
+        metavar="T",
+        help="model seconds of the direct solution whose peaks set the circuit's scaling "
+        "(default: the model's [circuit] t_stop, else 5)",
+    )
     parser.add_argument("--fmin", type=float, default=0.1, help="lowest model frequency, Hz")
     parser.add_argument("--fmax", type=float, default=100.0, help="highest model frequency, Hz")
     parser.add_argument(
@@ -100,7 +107,7 @@ def _engines(args: argparse.Namespace) -> list[str]:
 
 def _check(args: argparse.Namespace) -> None:
     check_translator_options(args)
-    for option in ("fmin", "fmax", "max_db", "max_degrees"):
+    for option in ("tstop", "fmin", "fmax", "max_db", "max_degrees"):
         require_positive("--" + option.replace("_", "-"), getattr(args, option))
     if not args.fmax > args.fmin:
         raise UsageError("--fmax must be above --fmin")

@@ -47,7 +47,9 @@ EXTRA_OPTIONS = [
     "--eigenvalues", "--nosuch", "-o", "--csv", "--plot", "--netlist", "--out",
     "--write-netlist", "--raw", "--scale", "--states", "--forcing", "--ngspice-timeout",
     "--log", "--pair-tolerance", "--speed-range", "--knob", "--pot-series",
-    "--schematic", "--opamp-lib", "--opamp-subckt",
+    "--schematic", "--opamp-lib", "--opamp-subckt", "--max-step", "--max-memory",
+    "--analysis", "--state", "--region", "--fmin", "--fmax", "--points-per-decade", "--freqs",
+    "--max-db", "--max-degrees",
 ]  # fmt: skip
 
 PATH_OPTIONS = (
@@ -129,23 +131,31 @@ def base_command(rng: random.Random, verb: str) -> list[str]:
     if verb == "hunting":
         return ["hunting", "--speeds", "54:55:1", "--settle", "0.05", "--record", "0.05",
                 rng.choice(["--no-circuit", "--flange"]), "--out", str(out / "hunt")]  # fmt: skip
+    if verb == "frf":
+        return ["frf", "--freq", "3", "--engine", "builtin", "--fmin", "1", "--fmax", "20",
+                "--points-per-decade", "4", "--tstop", "0.5"]  # fmt: skip
+    if verb == "stepped-sine":
+        return ["stepped-sine", "--freqs", "2,3", "--settle", "0.05", "--record", "0.05",
+                "--no-circuit", "--out", str(out / "steps")]  # fmt: skip
     raise ValueError(verb)
 
 
 VERBS = ("ode", "stability", "generate", "compare", "sweep", "reproduce", "check", "convert",
-         "simulate", "tolerance", "hunting")  # fmt: skip
+         "simulate", "tolerance", "hunting", "frf", "stepped-sine")  # fmt: skip
 """Every verb of the command line (``circuitsim --help``)."""
 
 # options whose valid values make a run long: a mutation gives them only refused values
 LONG_RUNS = {"--tstop", "--values", "--window", "--max-steps", "--max-wall-time", "--workers",
              "--jobs", "--dt", "--freq", "--speed", "--time-scale", "-n", "--speeds",
-             "--settle", "--record"}  # fmt: skip
+             "--settle", "--record", "--max-step", "--max-memory", "--fmin", "--fmax",
+             "--points-per-decade", "--freqs"}  # fmt: skip
 REFUSED = ["nan", "inf", "-1", "0", "", "abc", "1" * 400, "\x00", "-inf", "1e-320:1:1"]
 
 
 def _value_for(rng: random.Random, option: str, verb: str) -> str:
     if option in LONG_RUNS and verb in ("ode", "generate", "compare", "sweep", "reproduce",
-                                        "simulate", "tolerance", "hunting"):  # fmt: skip
+                                        "simulate", "tolerance", "hunting", "frf",
+                                        "stepped-sine"):  # fmt: skip
         return rng.choice(REFUSED)
     if option in PATH_OPTIONS:
         return rng.choice(hostile_paths())
