@@ -2,7 +2,7 @@
 
 Usage (from the repository root)::
 
-    python -m tests.fuzz.campaign --seed 1 --count 2000
+    python -m tests.fuzz.campaign --seed 1 --count 2000 --log campaign.csv
     python tests/fuzz/campaign.py --seed 1 --count 2000 --only gen_netlists --time-bound 20
 
 ``--count`` is the number of cases asked of EACH generator module (a generator may yield
@@ -44,9 +44,15 @@ def generator_cases(name: str, seed: int, count: int) -> Iterable[Case]:
 
 
 def run_campaign(
-    names: Iterable[str], seed: int, count: int, time_bound: float, quiet: bool = False
+    names: Iterable[str],
+    seed: int,
+    count: int,
+    time_bound: float,
+    quiet: bool = False,
+    log: list | None = None,
 ) -> Summary:
-    """Run the cases of ``names`` and return the summary (progress on stderr unless quiet)."""
+    """Run the cases of ``names`` and return the summary (progress on stderr unless quiet);
+    each case's outcome is appended to ``log`` when given."""
     summary = Summary()
     start = time.perf_counter()
     last = start
@@ -70,6 +76,8 @@ def run_campaign(
         for case in generator_cases(name, seed, count):
             outcome = run_case(case, time_bound)
             summary.add(outcome)
+            if log is not None:
+                log.append(outcome)
             if not quiet:
                 progress(outcome)
     return summary
@@ -88,6 +96,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--time-bound", type=float, default=30.0, help="wall-time bound per case, s (default 30)"
     )
+    parser.add_argument("--log", metavar="FILE.csv", help="one row per case (see above)")
     parser.add_argument(
         "--only",
         action="append",
@@ -102,14 +111,39 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"no generator {', '.join(unknown)}; present: {', '.join(names)}")
         names = [n for n in names if n in args.only]
     start = time.perf_counter()
-    summary = run_campaign(names, args.seed, args.count, args.time_bound)
+    log: list = []
+    summary = run_campaign(names, args.seed, args.count, args.time_bound, log=log)
+    if args.log:
+        _write_log(args.log, log)
     print(
         f"fuzz campaign: generators {', '.join(names)}; seed {args.seed}; "
         f"count {args.count} per generator; time bound {args.time_bound:g} s per case"
     )
     print(summary.report())
+    if log:
+        raised = max(log, key=lambda o: o.peak_rss_mb)
+        first = next(o for o in log if o.peak_rss_mb == raised.peak_rss_mb)
+        child = max(o.peak_child_rss_mb for o in log)
+        print(
+            f"peak resident memory of the campaign process: {raised.peak_rss_mb:.0f} MiB "
+            f"(reached in {first.case.domain} {first.case.name}); of a child: {child:.0f} MiB"
+        )
     print(f"campaign wall time: {time.perf_counter() - start:.0f} s")
     return 1 if any(summary.count(kind) for kind in FAILURES) else 0
+
+
+def _write_log(path: str, log: list) -> None:
+    """The per-case CSV: domain, name, outcome, seconds, peak resident memory so far (MiB)."""
+    import csv
+
+    with open(path, "w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(
+            ["domain", "name", "outcome", "seconds", "peak_rss_mib", "peak_child_rss_mib"]
+        )
+        for o in log:
+            writer.writerow([o.case.domain, o.case.name, o.kind, f"{o.seconds:.3f}",
+                             f"{o.peak_rss_mb:.1f}", f"{o.peak_child_rss_mb:.1f}"])  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -53,8 +53,18 @@ EXTRA_OPTIONS = [
 ]  # fmt: skip
 
 PATH_OPTIONS = (
-    "-o", "--csv", "--plot", "--netlist", "--out", "--model", "--write-netlist", "--raw",
-    "--scale", "--states", "--schematic", "--opamp-lib",
+    "-o",
+    "--csv",
+    "--plot",
+    "--netlist",
+    "--out",
+    "--model",
+    "--write-netlist",
+    "--raw",
+    "--scale",
+    "--states",
+    "--schematic",
+    "--opamp-lib",
 )  # options whose value is a path: mutated with hostile paths
 
 

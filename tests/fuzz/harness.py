@@ -33,6 +33,7 @@ Example
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 import signal
 import threading
@@ -164,6 +165,11 @@ class Outcome:
         Wall time of the call, s.
     trace : str
         The formatted traceback for ``traceback`` outcomes raised in-process, else ``""``.
+    peak_rss_mb : float
+        The campaign process's peak resident memory after the case (its high-water mark so
+        far, MiB): a case that needed more memory than every case before it raised it.
+    peak_child_rss_mb : float
+        The same for the largest child process waited for so far (ngspice), MiB.
     """
 
     case: Case
@@ -171,6 +177,17 @@ class Outcome:
     detail: str
     seconds: float
     trace: str = ""
+    peak_rss_mb: float = 0.0
+    peak_child_rss_mb: float = 0.0
+
+
+def peak_rss_mb(children: bool = False) -> float:
+    """This process's (or its largest waited-for child's) peak resident memory so far, MiB
+    (``ru_maxrss``, KiB on Linux)."""
+    import resource
+
+    who = resource.RUSAGE_CHILDREN if children else resource.RUSAGE_SELF
+    return resource.getrusage(who).ru_maxrss / 1024.0
 
 
 @contextlib.contextmanager
@@ -206,10 +223,18 @@ def _message(exc: BaseException) -> str:
 
 
 def run_case(case: Case, bound: float = 10.0) -> Outcome:
-    """Run ``case`` within ``bound`` seconds of wall time and classify the outcome.
+    """Run ``case`` within ``bound`` seconds of wall time and classify the outcome, with the
+    process's peak resident memory after it.
 
     Warnings raised by the case are ignored (a warning is a clean way to report).
     """
+    outcome = _run_case(case, bound)
+    return dataclasses.replace(
+        outcome, peak_rss_mb=peak_rss_mb(), peak_child_rss_mb=peak_rss_mb(children=True)
+    )
+
+
+def _run_case(case: Case, bound: float) -> Outcome:
     named = NAMED_ERRORS + tuple(case.named)
     start = time.perf_counter()
     try:
