@@ -178,10 +178,8 @@ def main(argv: list[str] | None = None) -> int:
             rows.append((name, status, detail, text))
         if k % 10 == 0:
             print(f"  {k} netlists: {counts}", file=sys.stderr)
-    print(
-        f"differential fuzz: seed {args.seed}, {args.count} netlists, threshold "
-        f"{THRESHOLD:.0%} of range"
-    )
+    print(f"differential fuzz: seed {args.seed}, {args.count} netlists, threshold "
+          f"{THRESHOLD:.0%} of range")
     for status, n in sorted(counts.items()):
         print(f"  {status:15} {n}")
     for name, status, detail, text in rows:
@@ -195,3 +193,5 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":
     sys.exit(main())
+
+

@@ -78,171 +78,42 @@ def include_folder() -> str:
 NUMBER = re.compile(r"(?<![\w.])[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?[a-zA-Z]*")
 
 NASTY_NUMBERS = [
-    "1e999",
-    "-1e999",
-    "1e-999",
-    "nan",
-    "inf",
-    "-inf",
-    "9" * 400,
-    "1" + "0" * 5000,
-    "0." + "0" * 400 + "1",
-    "1e308",
-    "-1e308",
-    "1e-320",
-    "1e-30",
-    "0",
-    "-0",
-    "1..2",
-    "1.2.3",
-    "4k7",
-    "1meg1",
-    "1e",
-    "1e+",
-    ".",
-    "-",
-    "e5",
-    "{1/0}",
-    "{}",
-    "{(}",
-    "{1e308*10}",
-    "{sqrt(-1)}",
-    "{log(0)}",
-    "{undefined_name}",
-    "{min(1)}",
-    "{max(2)}",
-    "{min()}",
-    "{max(1,2,3)}",
-    "{pow(2)}",
-    "{if(1)}",
-    "'a*'",
-    "{1?2:3}",
-    "{-1e308-1e308}",
+    "1e999", "-1e999", "1e-999", "nan", "inf", "-inf", "9" * 400, "1" + "0" * 5000,
+    "0." + "0" * 400 + "1", "1e308", "-1e308", "1e-320", "1e-30", "0", "-0", "1..2", "1.2.3",
+    "4k7", "1meg1", "1e", "1e+", ".", "-", "e5", "{1/0}", "{}", "{(}", "{1e308*10}",
+    "{sqrt(-1)}", "{log(0)}", "{undefined_name}", "{min(1)}", "{max(2)}", "{min()}",
+    "{max(1,2,3)}", "{pow(2)}", "{if(1)}", "'a*'", "{1?2:3}", "{-1e308-1e308}",
     "\uff11\uff10",  # fullwidth "10"
     "\u0661\u0660",  # Arabic-Indic "10"
-    "\u00b9",
-    "\u2155",
-    "\U0001d7e3",
-    "1\u00b5",
-    "1\u03bc",
-    "1\u2212",
-    "\u22121",
+    "\u00b9", "\u2155", "\U0001d7e3", "1\u00b5", "1\u03bc", "1\u2212", "\u22121",
 ]
 
 NASTY_TOKENS = [
-    "\u212a",
-    "k",
-    "K",
-    "\u0130",
-    "\u00df",
-    "\u0000",
-    "\ufeff",
-    "\u200b",
-    "\t",
-    "\\",
-    "+",
-    "=",
-    "(",
-    ")",
-    "{",
-    "}",
-    ",",
-    ";",
-    "$",
-    "*",
-    "0",
-    "gnd",
-    "GND",
-    "n\u00e9",
-    "\U0001f600",
-    ".end",
-    ".ends",
-    ".endc",
-    ".control",
-    "shell",
-    "'",
-    '"',
+    "\u212a", "k", "K", "\u0130", "\u00df", "\u0000", "\ufeff", "\u200b", "\t", "\\", "+", "=",
+    "(", ")", "{", "}", ",", ";", "$", "*", "0", "gnd", "GND", "n\u00e9", "\U0001f600",
+    ".end", ".ends", ".endc", ".control", "shell", "'", '"',
 ]
 
 UNKNOWN_CARDS = [
-    ".foo bar",
-    ".probe v(a)",
-    ".nodeset v(a)=1",
-    ".ic v(b)=0.5",
-    ".save all",
-    ".meas tran x",
-    ".global a",
-    ".temp 27",
-    ".four 1k v(a)",
-    ".func f(x) {x*2}",
-    ".csparam a=1",
-    ".option",
-    ".options reltol=-1",
-    ".options method=euler",
-    ".options maxord=9",
-    ".options gmin=nan",
-    ".ac dec 10 1 1k",
-    ".dc v1 0 1 0.1",
-    ".noise v(a) v1 dec 10 1 1k",
-    ".op",
-    ".tran 0 0",
-    ".tran -1 1",
-    ".tran 1u 1e9",
-    ".tran 1e-30 1",
-    ".tran 1u 1m 2m",
-    ".subckt",
-    ".ends",
-    ".model",
-    ".model m sw vt=1 vh=-0.5",
-    ".model d1 d(is=-1)",
-    ".model x nosuchkind",
-    "Q1 a b c qmod",
-    "M1 a b c d nmos",
-    "Z1 a b zz",
-    "J1 a b c jf",
-    "Y1 a b",
-    "T1 a 0 b 0 z0=50",
-    "Xnosuch a b nosub",
-    "W1 a 0 vx wmod",
-    "B1 a 0 v={v(a)*2}",
-    "A1 a b amod",
-    "R1",
-    "R1 a",
-    "R1 a b",
-    "C1 a b",
-    "L1 a b 0",
-    "V1 a",
-    "I1 a 0 pulse(",
-    "V1 a 0 sin(0 1)",
-    "E1 a 0 b",
-    "G1 a 0 b 0",
-    "F1 a 0 vnone 2",
-    "H1 a 0 vnone 2",
-    "S1 a 0 b 0",
-    "V9 a 0 pulse(0 1 -1m -1u -1u 1m 2m)",
-    "V9 a 0 pwl(0 0 -1 1 1 2)",
-    "V9 a 0 pwl(1 0 0 1)",
-    "R9 a 0 1e-30",
-    "R9 a 0 -1k",
-    "C9 a 0 -1u",
-    "L9 a 0 0",
-    "D9 a 0 nomodel",
+    ".foo bar", ".probe v(a)", ".nodeset v(a)=1", ".ic v(b)=0.5", ".save all", ".meas tran x",
+    ".global a", ".temp 27", ".four 1k v(a)", ".func f(x) {x*2}", ".csparam a=1", ".option",
+    ".options reltol=-1", ".options method=euler", ".options maxord=9", ".options gmin=nan",
+    ".ac dec 10 1 1k", ".dc v1 0 1 0.1", ".noise v(a) v1 dec 10 1 1k", ".op", ".tran 0 0",
+    ".tran -1 1", ".tran 1u 1e9", ".tran 1e-30 1", ".tran 1u 1m 2m", ".subckt", ".ends",
+    ".model", ".model m sw vt=1 vh=-0.5", ".model d1 d(is=-1)", ".model x nosuchkind",
+    "Q1 a b c qmod", "M1 a b c d nmos", "Z1 a b zz", "J1 a b c jf", "Y1 a b", "T1 a 0 b 0 z0=50",
+    "Xnosuch a b nosub", "W1 a 0 vx wmod", "B1 a 0 v={v(a)*2}", "A1 a b amod",
+    "R1", "R1 a", "R1 a b", "C1 a b", "L1 a b 0", "V1 a", "I1 a 0 pulse(", "V1 a 0 sin(0 1)",
+    "E1 a 0 b", "G1 a 0 b 0", "F1 a 0 vnone 2", "H1 a 0 vnone 2", "S1 a 0 b 0",
+    "V9 a 0 pulse(0 1 -1m -1u -1u 1m 2m)", "V9 a 0 pwl(0 0 -1 1 1 2)", "V9 a 0 pwl(1 0 0 1)",
+    "R9 a 0 1e-30", "R9 a 0 -1k", "C9 a 0 -1u", "L9 a 0 0", "D9 a 0 nomodel",
 ]
 
 INCLUDES = [
-    ".include nosuch.inc",
-    ".include /nonexistent/dir/x.inc",
-    ".include loop.inc",
-    ".include secret.txt",
-    ".include binary.inc",
-    ".include .",
-    ".include",
-    ".lib sections.lib nosuchsection",
-    ".lib nosuch.lib typ",
-    ".include /etc/passwd",
-    '.include "parts.inc',
-    ".include\tparts.inc",
-    ".lib\tsections.lib\ttyp",
+    ".include nosuch.inc", ".include /nonexistent/dir/x.inc", ".include loop.inc",
+    ".include secret.txt", ".include binary.inc", ".include .", ".include",
+    ".lib sections.lib nosuchsection", ".lib nosuch.lib typ", ".include /etc/passwd",
+    '.include "parts.inc', ".include\tparts.inc", ".lib\tsections.lib\ttyp",
 ]
 
 
@@ -384,16 +255,10 @@ def include_card(rng: random.Random, text: str) -> str:
 
 def after_end(rng: random.Random, text: str) -> str:
     """Put cards after ``.end`` (ngspice ignores them) or drop ``.end``."""
-    tail = rng.choice(
-        [
-            "R77 a 0 1",
-            "V77 a 0 5",
-            ".control\nshell echo pwned\n.endc",
-            ".end",
-            "garbage (",
-            ".tran 1n 1n",
-        ]
-    )
+    tail = rng.choice([
+        "R77 a 0 1", "V77 a 0 5", ".control\nshell echo pwned\n.endc", ".end", "garbage (",
+        ".tran 1n 1n",
+    ])
     lines = [ln for ln in _lines(text) if ln.strip().lower() != ".end"]
     if rng.random() < 0.2:
         return "\n".join(lines) + "\n"
@@ -402,16 +267,10 @@ def after_end(rng: random.Random, text: str) -> str:
 
 def control_block(rng: random.Random, text: str) -> str:
     """Insert a control block in one of the spellings ngspice matches by prefix."""
-    opener, closer = rng.choice(
-        [
-            (".control", ".endc"),
-            (".control;x", ".endc;x"),
-            (".controls", ".endcs"),
-            (".CONTROL", ".ENDC"),
-            (".control", ""),
-            ("", ".endc"),
-        ]
-    )
+    opener, closer = rng.choice([
+        (".control", ".endc"), (".control;x", ".endc;x"), (".controls", ".endcs"),
+        (".CONTROL", ".ENDC"), (".control", ""), ("", ".endc"),
+    ])
     lines = _lines(text)
     lines.insert(_body_index(rng, lines), f"{opener}\nshell echo pwned\n{closer}")
     return "\n".join(lines) + "\n"
@@ -432,10 +291,8 @@ def recursive_subcircuit(rng: random.Random, text: str) -> str:
     if rng.random() < 0.5:
         block = ".subckt selfie a b\nXin a b selfie\nR1 a b 1k\n.ends\nXtop 1 0 selfie"
     else:
-        block = (
-            ".subckt ping a b\nXp a b pong\n.ends\n.subckt pong a b\nXq a b ping\n.ends\n"
-            "Xtop 1 0 ping"
-        )
+        block = (".subckt ping a b\nXp a b pong\n.ends\n.subckt pong a b\nXq a b ping\n.ends\n"
+                 "Xtop 1 0 ping")
     lines = _lines(text)
     lines.insert(_body_index(rng, lines), block)
     return "\n".join(lines) + "\n"
@@ -480,22 +337,9 @@ def case_change(rng: random.Random, text: str) -> str:
 
 
 MUTATIONS: tuple[Callable[[random.Random, str], str], ...] = (
-    token_swap,
-    nasty_number,
-    foreign_digits,
-    nasty_token,
-    deep_nesting,
-    long_line,
-    param_chain,
-    unknown_card,
-    include_card,
-    after_end,
-    control_block,
-    tabs,
-    recursive_subcircuit,
-    delete_or_duplicate,
-    random_bytes,
-    case_change,
+    token_swap, nasty_number, foreign_digits, nasty_token, deep_nesting, long_line,
+    param_chain, unknown_card, include_card, after_end, control_block, tabs,
+    recursive_subcircuit, delete_or_duplicate, random_bytes, case_change,
 )
 
 
@@ -510,7 +354,6 @@ def mutate(rng: random.Random, text: str) -> tuple[str, str]:
 
 
 # --- what each domain runs ----------------------------------------------------------------
-
 
 def read(text: str):
     """Read ``text`` as the file ``fuzz.cir`` in the include folder."""

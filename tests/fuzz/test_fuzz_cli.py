@@ -24,18 +24,8 @@ def test_the_base_command_of_every_verb_is_valid():
     from tests.fuzz.harness import Case, cli_call, run_case
 
     rng = random.Random(SEED)
-    for verb in (
-        "ode",
-        "stability",
-        "generate",
-        "check",
-        "convert",
-        "simulate",
-        "tolerance",
-        "hunting",
-        "frf",
-        "stepped-sine",
-    ):
+    for verb in ("ode", "stability", "generate", "check", "convert", "simulate", "tolerance",
+                 "hunting", "frf", "stepped-sine"):  # fmt: skip
         argv = gen_cli.base_command(rng, verb)
         outcome = run_case(Case("cli", verb, "", cli_call(argv, gen_cli.work_folder())), BOUND)
         assert outcome.kind == "clean", (argv, outcome.detail)
