@@ -57,7 +57,7 @@ from circuitsim.inputfile import (
 from circuitsim.interop.errors import NgspiceError, NgspiceTimeout
 from circuitsim.interop.ngspice_deck import TITLE, DeckLine, check_inert, decode, flatten_deck
 from circuitsim.interop.ngspice_files import STITCH_BLANKS, hide_included
-from circuitsim.interop.ngspice_limits import RunLimits
+from circuitsim.interop.ngspice_limits import RunLimits, refuse_endless_sweep
 from circuitsim.interop.rawfile import parse_ascii_raw, parse_rawfile
 from circuitsim.interop.sandbox import (
     TimeLimitExceeded,
@@ -152,6 +152,8 @@ def run_ngspice(
     found = _deck_found(netlist)
     lines = [line.text for line in found]
     analysis = _chosen_analysis(lines, analysis)
+    if analysis == "ac":
+        refuse_endless_sweep(lines)
     deck = _with_control(lines, analysis)
     binary = shutil.which("ngspice")
     if binary is None:

@@ -13,6 +13,7 @@ kill) and reports the elapsed time. Its results must be finite.
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -24,7 +25,7 @@ from circuitsim.netlist.run_size import (
     size_text,
 )
 from circuitsim.netlist.values import parse_value
-from circuitsim.solver.errors import MemoryBudgetError, RunSizeError
+from circuitsim.solver.errors import CircuitInputError, MemoryBudgetError, RunSizeError
 from circuitsim.solver.transient import check_times
 
 try:
@@ -54,6 +55,33 @@ def tran_times(lines: list[str]) -> tuple[float, float, float, float | None] | N
         tmax = numbers[3] if len(numbers) > 3 else None
         return numbers[0], numbers[1], tstart, tmax
     return None
+
+
+def refuse_endless_sweep(lines: list[str]) -> None:
+    """Refuse an ``.ac dec`` card whose range holds less than one step: ngspice 39 takes
+    ``floor(decades * points)`` equal ratios from fstart to fstop, and with none its ratio is
+    infinite and its sweep never ends (acan.c: ``freq *= inf`` stays within ``fstop + inf``).
+
+    Raises
+    ------
+    CircuitInputError
+        Naming the card, before ngspice starts.
+    """
+    for text in lines:
+        words = re.split(r"[\s,]+", text.strip())
+        if len(words) < 5 or words[0].lower() != ".ac" or words[1].lower() != "dec":
+            continue
+        try:
+            points, fstart, fstop = (parse_value(w) for w in words[2:5])
+        except ValueError:
+            return  # parameters: ngspice evaluates them
+        if fstart > 0 and fstop > 0 and math.floor(abs(math.log10(fstop / fstart)) * points) < 1:
+            raise CircuitInputError(
+                f"{text.strip()}: less than one step between fstart and fstop at {points:g} "
+                "points per decade; ngspice 39 never ends such a sweep (widen the range or "
+                "raise the points)"
+            )
+        return
 
 
 def checked_size(

@@ -266,3 +266,13 @@ def test_the_frequency_grid_is_ngspice_s_on_awkward_ranges(card):
     ours, reference = _run(text).time, run_ngspice(text).time
     assert ours.shape == reference.shape
     assert np.allclose(ours, reference, rtol=1e-15, atol=0.0)
+
+
+def test_a_decade_sweep_without_a_step_is_refused_before_ngspice_starts():
+    """ngspice 39 loops for ever on it (its ratio is infinite); ours gives fstart alone."""
+    from circuitsim.interop.ngspice import run_ngspice
+
+    text = "rc\nV1 in 0 AC 1\nR1 in out 1k\nC1 out 0 1u\n.ac dec 3 1 1.5\n.end\n"
+    assert _run(text).time.tolist() == [1.0]
+    with pytest.raises(CircuitInputError, match="less than one step"):
+        run_ngspice(text, timeout=5)
