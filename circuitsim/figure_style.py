@@ -50,7 +50,7 @@ RC: dict[str, Any] = {
     "legend.fontsize": 8.0,
     "figure.titlesize": 10.0,
     "axes.formatter.useoffset": False,  # a ratio axis reads 0.999999, never 1e-6+1
-    "axes.formatter.limits": (-4, 5),
+    "axes.formatter.limits": (-5, 6),  # 0.0002 rather than a 1e-4 multiplier
     "axes.grid": True,
     "grid.alpha": 0.3,
     "grid.linewidth": 0.5,
@@ -137,8 +137,9 @@ def new_figure(width: float = DOUBLE_COLUMN, height: float = 3.0):
 
 
 def legend_outside(figure, axis=None, ncols: int | None = None, **kwargs) -> None:
-    """The legend of ``axis`` (default: the first axes), above the axes of ``figure``, outside
-    the data. Does nothing when nothing is labelled."""
+    """The legend of ``axis`` (default: the first axes), below the axes of ``figure``, outside
+    the data (below rather than above: the suptitle keeps the top). Does nothing when nothing
+    is labelled."""
     axis = axis if axis is not None else figure.axes[0]
     handles, labels = axis.get_legend_handles_labels()
     if not handles:
@@ -146,7 +147,7 @@ def legend_outside(figure, axis=None, ncols: int | None = None, **kwargs) -> Non
     figure.legend(
         handles,
         labels,
-        loc="outside upper center",
+        loc="outside lower center",
         ncols=ncols or min(len(handles), 4),
         **kwargs,
     )

@@ -101,7 +101,8 @@ def _drawing(result, add) -> None:
         return
     parts = "; ".join(
         f"{k.resistor} = {k.fixed_part} {_value(k.fixed, 'ohm')} (E96) + {k.pot_part} "
-        f"{_value(k.pot, 'ohm')} linear potentiometer" for k in knobs
+        f"{_value(k.pot, 'ohm')} linear potentiometer"
+        for k in knobs
     )
     add(f"Speed knob: {parts}. Dial setting = fraction of the potentiometer's rotation:")
     add("")

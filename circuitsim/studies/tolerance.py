@@ -526,9 +526,9 @@ def _plot_tolerance(result: ToleranceResult, path, state: str | None, dpi):
         ax.locator_params(axis="x", nbins=4)
         outside = []
         if below:
-            outside.append(f"{below} below {low:.4g} (min {finite.min():.4g})")
+            outside.append(f"{below} below (min {finite.min():.6g})")
         if above:
-            outside.append(f"{above} above {high:.4g} (max {finite.max():.4g})")
+            outside.append(f"{above} above (max {finite.max():.4g})")
         ax.set_title(title + ("\noff scale: " + ", ".join(outside) if outside else ""))
         ax.set_xlabel(f"{title.split(': ')[-1]} ({unit})" if unit else title.split(": ")[-1])
         ax.set_ylabel("circuits")
