@@ -94,7 +94,7 @@ def plot_response(
             "o",
             color=series_style(1)["color"],
             markersize=2.5,
-            label="kinks (flange contact switches)",
+            label="kinks (a piecewise-linear term switches branch)",
         )
         legend_outside(figure, axes[2])
     if title:

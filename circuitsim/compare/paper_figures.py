@@ -100,7 +100,7 @@ def plot_growth_rate(
         for index, (label, values) in enumerate(bands, start=2):
             style = series_style(index)
             values = [v for v in values if v is not None]
-            if not values:
+            if not zoom or not values:  # a band of 0.01 m/s is a line over 40-70 m/s
                 continue
             lo, hi = min(values), max(values)
             if hi - lo > 1e-3:

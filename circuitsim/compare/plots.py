@@ -97,7 +97,7 @@ def plot_overlay(
     per_column = -(-len(states) // columns)
     rows = 2 * per_column if errors else per_column
     if columns == 1:
-        size = (DOUBLE_COLUMN, 1.45 * rows + 0.9)
+        size = (DOUBLE_COLUMN, (1.45 if rows <= 4 else 1.1) * rows + 0.9)  # <= a page
     else:  # lower panels in a grid: 5 columns of 6 states with errors stay on one screen
         size = (max(DOUBLE_COLUMN, 3.4 * columns), 1.2 * rows + 0.9)
     figure = new_figure(*size)

@@ -521,15 +521,15 @@ def _plot_tolerance(result: ToleranceResult, path, state: str | None, dpi):
         if kind == "critical" and result.critical_speed_model is not None:
             ax.axvline(result.critical_speed_model, **MARK, label="model")
             ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0))
+        notes = []
         if th is not None and kind != "critical":
-            _threshold_marks(ax, kind, th, inside)
+            notes += _threshold_marks(ax, kind, th, inside)
         ax.locator_params(axis="x", nbins=4)
-        outside = []
         if below:
-            outside.append(f"{below} below (min {finite.min():.6g})")
+            notes.append(f"off scale: {below} below (min {finite.min():.6g})")
         if above:
-            outside.append(f"{above} above (max {finite.max():.4g})")
-        ax.set_title(title + ("\noff scale: " + ", ".join(outside) if outside else ""))
+            notes.append(f"off scale: {above} above (max {finite.max():.4g})")
+        ax.set_title("\n".join([title, *notes]))  # above the axes, never over the bars
         ax.set_xlabel(f"{title.split(': ')[-1]} ({unit})" if unit else title.split(": ")[-1])
         ax.set_ylabel("circuits")
     tol = result.tolerances
@@ -544,10 +544,10 @@ def _plot_tolerance(result: ToleranceResult, path, state: str | None, dpi):
     return fig
 
 
-def _threshold_marks(ax, kind: str, th: Thresholds, finite: np.ndarray) -> None:
+def _threshold_marks(ax, kind: str, th: Thresholds, finite: np.ndarray) -> list[str]:
     """The threshold(s) of a ``kind`` panel (``nrmsd``, ``peak``, ``frequency``) as dashed
-    lines, or as a note when they lie far outside the drawn values (a line there would
-    squeeze the histogram into one pixel)."""
+    lines, or as a note returned for the title when they lie far outside the drawn values (a
+    line there would squeeze the histogram into one pixel)."""
     if kind == "nrmsd":
         edges = [th.nrmsd_percent]
     else:
@@ -560,5 +560,5 @@ def _threshold_marks(ax, kind: str, th: Thresholds, finite: np.ndarray) -> None:
         ax.axvline(edge, color="#d55e00", ls="--", lw=1)
     if len(near) < len(edges):
         text = ", ".join(f"{e:g}" for e in edges if e not in near)
-        ax.annotate(f"threshold {text} off scale", (0.02, 0.95), xycoords="axes fraction",
-                    va="top", color="#d55e00")  # fmt: skip
+        return [f"threshold {text} off scale"]
+    return []
