@@ -12,6 +12,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 
 from circuitsim.cli import main
 from circuitsim.figure_style import DEFAULT_DPI, DOUBLE_COLUMN, MIN_FONT_PT, robust_range
+from tests.conftest import requires_ngspice
 
 MAGIC = {"png": b"\x89PNG\r\n\x1a\n", "pdf": b"%PDF", "svg": b"<?xml"}
 
@@ -175,3 +176,36 @@ def test_hunting_figure_labels_its_bound_and_rings_repushed_steps(tmp_path):
     drawn = next(line for line in axis.get_lines() if line.get_label() == "ode, up")
     assert np.isnan(drawn.get_ydata()[-1])  # the unbounded step is not drawn at a value
     assert any(line.get_marker() == r"$\uparrow$" for line in axis.get_lines())
+
+
+# --- reproduce ----------------------------------------------------------------------------
+
+
+def test_reproduce_refuses_a_bad_dpi_before_any_work(tmp_path, capsys):
+    out = tmp_path / "rep"
+    assert main(["reproduce", "--out", str(out), "--dpi", "10"]) == 2
+    assert "--dpi must be between 30 and 1200" in capsys.readouterr().err
+    assert not out.exists()
+
+
+@pytest.mark.slow
+@requires_ngspice
+def test_reproduce_writes_every_figure_in_the_format_asked_and_embeds_fig4(tmp_path):
+    from circuitsim.studies.reproduce import reproduce
+    from circuitsim.studies.reproduce_cases import Scenario
+
+    result = reproduce(
+        tmp_path, scenarios=(Scenario(10.0, True, t_stop=0.5),), opamps=("ideal",),
+        series=("exact",), engines=("ngspice",), free_speeds=(54.0,), workers=1,
+        hunting_speeds=(), tolerance_samples=0, frequency_response=False, figure_format="svg",
+    )  # fmt: skip
+    drawn = {k: v for k, v in result.figures.items() if k != "schematic"}  # always SVG + PNG
+    assert {"fig3", "fig4-f10-flange-on", "fig6-f10-flange-on", "critical-speed"} <= set(drawn)
+    for relative in drawn.values():
+        assert relative.endswith(".svg")
+        assert (tmp_path / relative).read_bytes().startswith(MAGIC["svg"])
+    assert not list((tmp_path / "figures").glob("fig*.png"))
+    report = (tmp_path / "report.md").read_text()
+    assert "![ODE: displacement, velocity and phase portrait, V = 55 m/s, f = 10 Hz, flange on]" \
+        "(figures/fig4-f10-flange-on.svg)" in report  # fmt: skip
+    assert "freq of error y (Hz)" in report and "error freq" not in report
