@@ -57,7 +57,7 @@ def plot_free_response(
         axis.set(
             xlabel="time (s)",
             ylabel=f"{state} ({scaled_unit})",
-            title=f"V = {speed:g} m/s\nmax |{state}| over the last second {peak:.3g} {scaled_unit}",
+            title=f"V = {speed:g} m/s\nmax |{state}| over the last second {peak:.4g} {scaled_unit}",
         )
     save_figure(figure, path, dpi)
 
