@@ -96,13 +96,15 @@ def test_every_state_is_plotted_in_its_unit(tmp_path):
     # the kinks marked when the stop was reached)
     assert len(result.kinks) > 0
     assert [len(axis.lines) for axis in figure.axes] == [2, 2, 2]
-    assert figure.axes[0].get_ylabel() == "x1, x2 (m)"
+    # lengths are drawn in mm (the house style, circuitsim/figure_style.py)
+    assert figure.axes[0].get_ylabel() == "x1, x2 (mm)"
     assert figure.axes[1].get_ylabel() == "x1_dot, x2_dot (m/s)"
     assert figure.axes[0].get_xlabel() == "time (s)"
-    assert figure.axes[2].get_xlabel() == "x1 (m)"
+    assert figure.axes[2].get_xlabel() == "x1 (mm)"
     drawn = np.vstack([line.get_ydata() for axis in figure.axes[:2] for line in axis.lines])
     t = figure.axes[0].lines[0].get_xdata()
-    assert np.allclose(drawn, result.sol(t))
+    in_mm = np.array([1e3 if unit == "m" else 1.0 for unit in result.units])[:, None]
+    assert np.allclose(drawn, result.sol(t) * in_mm)
     assert (tmp_path / "two.png").stat().st_size > 1000
 
 

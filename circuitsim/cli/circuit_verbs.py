@@ -9,15 +9,19 @@ from typing import TYPE_CHECKING
 
 from circuitsim.cli.common import (
     UsageError,
+    add_figure_options,
     add_jobs_option,
     add_max_step,
     add_model_options,
     add_ngspice_timeout,
     add_scenario_options,
     check_scenario_options,
+    figure_format,
+    plot_target,
     prepare_output_folder,
     print_warning,
     progress,
+    require_figure_options,
     require_figure_path,
     require_jobs,
     require_positive,
@@ -242,6 +246,7 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:
         metavar="A,B,...",
         help="the states --plot draws, in this order (comma-separated; default: every state)",
     )
+    add_figure_options(parser, "the --plot figure")
     parser.set_defaults(func=_run_compare)
 
 
@@ -265,6 +270,8 @@ def _check_compare(args: argparse.Namespace) -> None:
     require_positive("--ngspice-timeout", args.ngspice_timeout)
     require_positive("--max-step", args.max_step)
     require_figure_path("--plot", args.plot)
+    require_figure_options(args)
+    args.plot = plot_target("--plot", args.plot, args)
     if args.write_netlist is not None:
         from circuitsim.synthesis.generate import companion_paths
 
@@ -422,16 +429,20 @@ def _print_case(args: argparse.Namespace, case, label: str, time_unit: str = "s"
     comparison = case.comparison
     if args.plot:
         from circuitsim.compare.plots import plot_overlay
+        from circuitsim.figure_style import display_unit
 
+        shown = {state: display_unit(m.unit) for state, m in comparison.states.items()}
         plot_overlay(
             args.plot,
             case.reference,
             {label: case.circuit},
             states=args.states,
-            units={state: m.unit for state, m in comparison.states.items()},
+            units={state: unit for state, (unit, _) in shown.items()},
+            scales={state: factor for state, (_, factor) in shown.items()},
             title=f"circuit over ODE ({label})",
             errors=True,
             time_unit=time_unit,
+            dpi=args.dpi,
         )
     written = [str(args.plot)] if args.plot else []
     if case.netlist is not None and case.synthesis is not None:  # generated and written here
@@ -499,6 +510,7 @@ def _add_reproduce(sub: argparse._SubParsersAction) -> None:
     )
     add_jobs_option(parser, "processes at a time, at least 1 (default: every core)", None)
     add_ngspice_timeout(parser)
+    add_figure_options(parser, "the figures in figures/ (the schematic is SVG and PNG)")
     parser.set_defaults(func=_run_reproduce)
 
 
@@ -507,6 +519,7 @@ def _run_reproduce(args: argparse.Namespace) -> int:
 
     require_jobs(args)
     require_positive("--ngspice-timeout", args.ngspice_timeout)
+    require_figure_options(args)
     prepare_output_folder("--out", args.out, "report.md", "metrics.json")
     result = reproduce(
         args.out,
@@ -516,6 +529,8 @@ def _run_reproduce(args: argparse.Namespace) -> int:
         engines=tuple(args.engine or ("builtin", "ngspice")),
         workers=args.jobs,
         ngspice_timeout=args.ngspice_timeout,
+        figure_format=figure_format(args),
+        dpi=args.dpi,
     )
     done = [r for r in result.rows if r.comparison is not None]
     passed = sum(r.comparison.passed for r in done)

@@ -195,6 +195,77 @@ def require_figure_path(option: str, path: str | None) -> None:
         )
 
 
+MIN_DPI, MAX_DPI = 30.0, 1200.0
+"""The ``--dpi`` values taken: below 30 a figure is unreadable, above 1200 a double-column
+PNG passes 70 megapixels."""
+
+
+def add_figure_options(parser: argparse.ArgumentParser, what: str = "the figures") -> None:
+    """``--format png|svg|pdf`` and ``--dpi N``: how a verb writes ``what`` (every verb that
+    draws takes both; house style: :mod:`circuitsim.figure_style`). The values are
+    ``args.figure_format`` (None: not given) and ``args.dpi``."""
+    from circuitsim.figure_style import DEFAULT_DPI, FORMATS
+
+    parser.add_argument(
+        "--format",
+        dest="figure_format",
+        choices=FORMATS,
+        default=None,
+        help=f"format of {what} (default png, or a --plot file's suffix)",
+    )
+    parser.add_argument(
+        "--dpi",
+        type=float,
+        default=DEFAULT_DPI,
+        metavar="N",
+        help=f"resolution of PNG figures, dots per inch (default {DEFAULT_DPI:g})",
+    )
+
+
+def require_figure_options(args: argparse.Namespace) -> None:
+    """Refuse a ``--dpi`` outside [MIN_DPI, MAX_DPI] (or not finite).
+
+    Raises
+    ------
+    UsageError
+        Naming ``--dpi``, the value and the range.
+    """
+    dpi = getattr(args, "dpi", None)
+    if dpi is not None and not (math.isfinite(dpi) and MIN_DPI <= dpi <= MAX_DPI):
+        raise UsageError(
+            f"--dpi must be between {MIN_DPI:g} and {MAX_DPI:g} dots per inch, got {_number(dpi)}"
+        )
+
+
+def figure_format(args: argparse.Namespace) -> str:
+    """The format of the figures a verb writes into its folder: ``--format`` or PNG."""
+    return getattr(args, "figure_format", None) or "png"
+
+
+def plot_target(option: str, path: str | None, args: argparse.Namespace) -> str | None:
+    """The file ``option`` (``--plot FILE``) writes, with ``--format``: a path without a
+    suffix gets the format's; a suffix that names another format is refused. None: no plot.
+
+    Raises
+    ------
+    UsageError
+        ``--format`` and the file's suffix disagree.
+    """
+    if path is None:
+        return None
+    fmt = getattr(args, "figure_format", None)
+    suffix = Path(path).suffix.lstrip(".").lower()
+    if fmt is None:
+        return path
+    if not suffix:
+        return f"{path}.{fmt}"
+    if suffix != fmt:
+        raise UsageError(
+            f"{option} {path}: the suffix .{suffix} and --format {fmt} disagree; drop one of them"
+        )
+    return path
+
+
 def require_writable(*paths: str | Path | None) -> None:
     """Check that every output file given (None: not asked for) can be written, before any
     long computation.

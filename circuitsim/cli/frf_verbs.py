@@ -11,9 +11,13 @@ import numpy as np
 
 from circuitsim.cli.common import (
     UsageError,
+    add_figure_options,
     add_model_options,
     add_ngspice_timeout,
     add_scenario_options,
+    figure_format,
+    plot_target,
+    require_figure_options,
     require_figure_path,
     require_positive,
     require_writable,
@@ -78,6 +82,7 @@ def _add_frf(sub: argparse._SubParsersAction) -> None:
         help="Bode figure per input (FILE-INPUT.png when the model has several inputs)",
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    add_figure_options(parser, "the --plot figures")
     parser.set_defaults(func=_run_frf)
 
 
@@ -114,6 +119,8 @@ def _check(args: argparse.Namespace) -> None:
     if not 1 <= args.points_per_decade <= 1000:
         raise UsageError("--points-per-decade must be from 1 to 1000")
     require_figure_path("--plot", args.plot)
+    require_figure_options(args)
+    args.plot = plot_target("--plot", args.plot, args)
     require_writable(args.csv, args.plot)
 
 
@@ -142,7 +149,7 @@ def _run_frf(args: argparse.Namespace) -> int:
     if args.csv:
         _write_csv(args.csv, responses)
     if args.plot:
-        _plot(args.plot, responses)
+        _plot(args.plot, responses, args.dpi)
     if args.json:
         print(json.dumps(summary, indent=1))
     else:
@@ -241,7 +248,7 @@ def _write_csv(path: str, responses: dict) -> None:
     write_text_atomic(path, "\n".join(lines) + "\n")
 
 
-def _plot(path: str, responses: dict) -> None:
+def _plot(path: str, responses: dict, dpi: float) -> None:
     from pathlib import Path
 
     from circuitsim.compare.frf_plot import plot_frf
@@ -251,7 +258,7 @@ def _plot(path: str, responses: dict) -> None:
         target = Path(path)
         if len(inputs) > 1:
             target = target.with_name(f"{target.stem}-{name}{target.suffix}")
-        plot_frf(responses, name, target)
+        plot_frf(responses, name, target, dpi=dpi)
         print(f"wrote {target}", file=sys.stderr)
 
 
@@ -290,6 +297,7 @@ def _add_stepped_sine(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--no-circuit", action="store_true", help="the ODE path only")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
     parser.add_argument("--out", default=".", metavar="DIR", help="output folder (default .)")
+    add_figure_options(parser, "stepped_sine's figure")
     parser.set_defaults(func=_run_stepped_sine)
 
 
@@ -304,6 +312,8 @@ def _run_stepped_sine(args: argparse.Namespace) -> int:
     check_scenario_options(args)
     require_positive("--settle", args.settle)
     require_positive("--record", args.record)
+    require_figure_options(args)
+    figure = f"stepped_sine.{figure_format(args)}"
     if args.freq is not None:
         raise UsageError("the forcing frequency is stepped (--freqs): do not fix it with --freq")
     model = load_model(args.model)
@@ -326,7 +336,7 @@ def _run_stepped_sine(args: argparse.Namespace) -> int:
         scenario.flange = flange if model.nonlinear_terms else None
         return scenario_system(scenario, model=model)
 
-    folder = prepare_output_folder("--out", args.out, "stepped_sine.csv", "stepped_sine.png")
+    folder = prepare_output_folder("--out", args.out, "stepped_sine.csv", figure)
     settings = HuntingSettings(settle=args.settle, record=args.record, repush=0.0)
     bar = _Eta()
     try:
@@ -341,7 +351,7 @@ def _run_stepped_sine(args: argparse.Namespace) -> int:
     from circuitsim.atomic import write_text_atomic
 
     write_text_atomic(folder / "stepped_sine.csv", result.csv_text())
-    plot_response_curves(result, folder / "stepped_sine.png")
+    plot_response_curves(result, folder / figure, args.dpi)
     data = summary(result)
     if args.json:
         print(json.dumps(data, indent=1))
@@ -354,7 +364,7 @@ def _run_stepped_sine(args: argparse.Namespace) -> int:
                     print(f"  {key[: -len('_jumps_hz')].replace('_', ' ')}: jumps at {jumps}")
                 elif not math.isnan(value):
                     print(f"  {key.replace('_', ' ')}: {100 * value:.3g} % at most")
-    for name in ("stepped_sine.csv", "stepped_sine.png"):
+    for name in ("stepped_sine.csv", figure):
         print(f"wrote {folder / name}", file=sys.stderr if args.json else sys.stdout)
     return 0
 

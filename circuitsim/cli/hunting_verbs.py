@@ -10,12 +10,15 @@ from typing import TYPE_CHECKING
 
 from circuitsim.cli.common import (
     UsageError,
+    add_figure_options,
     add_max_step,
     add_model_options,
     add_scenario_options,
     check_scenario_options,
+    figure_format,
     prepare_output_folder,
     print_warning,
+    require_figure_options,
     require_positive,
     scenario_system,
     with_inputs,
@@ -102,6 +105,7 @@ def _add_hunting(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--out", default=".", metavar="DIR", help="output folder (default .)"
     )  # fmt: skip
+    add_figure_options(parser, "hunting.png")
     parser.set_defaults(func=_run_hunting)
 
 
@@ -176,6 +180,8 @@ def _run_hunting(args: argparse.Namespace) -> int:
     require_positive("--max-step", args.max_step)
     if not (math.isfinite(args.repush) and 0 <= args.repush < 1):
         raise UsageError(f"--repush must be in [0, 1), got {args.repush:g}")
+    require_figure_options(args)
+    fmt = figure_format(args)
     model = with_inputs(args, load_model(args.model))
     name = _speed_parameter(model, args.parameter)
     fixed = dict(args.param)
@@ -210,7 +216,7 @@ def _run_hunting(args: argparse.Namespace) -> int:
         scenario.flange = flange if model.nonlinear_terms else None
         return scenario_system(scenario, model=model)
 
-    prepare_output_folder("--out", args.out, "hunting.csv", "hunting.png")
+    prepare_output_folder("--out", args.out, "hunting.csv", f"hunting.{fmt}")
     settings = HuntingSettings(
         settle=args.settle, record=args.record, threshold=args.threshold or 0.0,
         bound=args.bound or math.inf, repush=args.repush, max_step=args.max_step,
@@ -226,7 +232,7 @@ def _run_hunting(args: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
     finally:
         bar.close()
-    paths = save_hunting(result, args.out)
+    paths = save_hunting(result, args.out, fmt=fmt, dpi=args.dpi)
     _summary(result, len(speeds))
     for path in paths:
         print(f"wrote {path}")

@@ -8,12 +8,15 @@ import math
 from circuitsim.cli.common import (
     MAX_STEP_COUNT,
     UsageError,
+    add_figure_options,
     add_max_step,
     add_model_options,
     add_scenario_options,
     check_scenario_options,
     parameter_assignment,
+    plot_target,
     require_count,
+    require_figure_options,
     require_figure_path,
     require_finite,
     require_fraction,
@@ -261,6 +264,7 @@ def _add_ode(sub: argparse._SubParsersAction) -> None:
         "against time, one panel per unit, and the phase portrait of --state's coordinate "
         "(default: the model's [options] state, else the first) of a second-order model",
     )
+    add_figure_options(parser, "the --plot figure")
     parser.set_defaults(func=_run_ode)
 
 
@@ -288,6 +292,8 @@ def _check_ode(args: argparse.Namespace) -> None:
     require_positive("--max-wall-time", args.max_wall_time)
     require_positive("--max-step", args.max_step)
     require_figure_path("--plot", args.plot)
+    require_figure_options(args)
+    args.plot = plot_target("--plot", args.plot, args)
     require_writable(args.csv, args.plot)
 
 
@@ -338,7 +344,7 @@ def _run_ode(args: argparse.Namespace) -> int:
         title = f"{model.name} ({settings})"
         plot_states(
             args.plot, result, title=title, time_unit=model.time_unit,
-            state=model.state_named(args.state),
+            state=model.state_named(args.state), dpi=args.dpi,
         )  # fmt: skip
     terms = ", ".join(term.name for term in system.nonlinear) or "none"
     print(f"model {model.name}, coefficient set {system.coefficient_set}, nonlinear: {terms}")

@@ -8,11 +8,14 @@ import sys
 from circuitsim.cli.common import (
     MAX_STEP_COUNT,
     UsageError,
+    add_figure_options,
     add_ngspice_timeout,
+    plot_target,
     progress,
     progress_after,
     read_netlist_reporting_warnings,
     require_count,
+    require_figure_options,
     require_figure_path,
     require_positive,
     require_writable,
@@ -175,6 +178,7 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         "more at least is refused before it starts, a run that records more stops with an "
         "error (ngspice: when its resident memory passes it)",
     )
+    add_figure_options(parser, "the --plot figure")
     parser.set_defaults(func=_run_simulate)
 
 
@@ -208,6 +212,8 @@ def _run_simulate(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     require_figure_path("--plot", args.plot)
+    require_figure_options(args)
+    args.plot = plot_target("--plot", args.plot, args)
     require_positive("--ngspice-timeout", args.ngspice_timeout)
     require_count("--max-steps", args.max_steps, MAX_STEP_COUNT)
     require_positive("--max-wall-time", args.max_wall_time)
@@ -281,7 +287,7 @@ def _run_simulate(args: argparse.Namespace) -> int:
         from circuitsim.solver.plotting import plot_bode, plot_waveforms
 
         plot = plot_bode if waves.axis == "frequency" else plot_waveforms
-        plot(waves, args.plot, title=Path(args.netlist).name)
+        plot(waves, args.plot, title=Path(args.netlist).name, dpi=args.dpi)
         print(f"wrote {args.plot}")
     if not args.csv and not args.plot and not args.raw:
         where = f"f = {waves.time[-1]:.6g} Hz" if waves.axis == "frequency" else "t = "

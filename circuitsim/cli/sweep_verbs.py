@@ -12,14 +12,17 @@ from circuitsim.cli.circuit_verbs import TSTOP_HELP
 from circuitsim.cli.common import (
     KERNEL_WORDS,
     UsageError,
+    add_figure_options,
     add_jobs_option,
     add_model_options,
     add_ngspice_timeout,
     add_scenario_options,
     check_scenario_options,
+    figure_format,
     parameter_assignment,
     prepare_output_folder,
     print_warning,
+    require_figure_options,
     require_jobs,
     require_positive,
     scenario_system,
@@ -145,6 +148,7 @@ def _add_sweep(sub: argparse._SubParsersAction) -> None:
         metavar="DIR",
         help="output folder, created (and checked) before the sweep runs (default .)",
     )
+    add_figure_options(parser, "sweep.png")
     parser.set_defaults(func=_run_sweep)
 
 
@@ -248,6 +252,8 @@ def _run_sweep(args: argparse.Namespace) -> int:
     require_positive("--tstop", args.tstop)
     require_positive("--window", args.window)
     require_positive("--ngspice-timeout", args.ngspice_timeout)
+    require_figure_options(args)
+    fmt = figure_format(args)
     check_scenario_options(args)
     check_scheduler_options(args)
     model = with_inputs(args, load_model(args.model))
@@ -263,7 +269,7 @@ def _run_sweep(args: argparse.Namespace) -> int:
             f"--window {args.window:g} s is longer than the simulated time ({given}: {t_stop:g} s)"
         )
     window = min(1.0, t_stop) if args.window is None else args.window
-    prepare_output_folder("--out", args.out, "sweep.csv", "sweep.png")
+    prepare_output_folder("--out", args.out, "sweep.csv", f"sweep.{fmt}")
     options = SynthesisOptions(opamp=args.opamp, t_stop=args.tstop)
     fixed = [p for p in args.param if not isinstance(p, str)]
     one = len(grid.names) == 1 and grid.axes is not None  # a plain sweep: its CSV and plot
@@ -295,7 +301,9 @@ def _run_sweep(args: argparse.Namespace) -> int:
         from circuitsim.studies.study import save_grid
 
         result.critical = critical_curve(args, model, grid, fixed)
-        report_grid(result, grid, save_grid(result, args.out, log=args.log), executor)
+        report_grid(
+            result, grid, save_grid(result, args.out, log=args.log, fmt=fmt, dpi=args.dpi), executor
+        )
         return 0
     from circuitsim.compare.sweep_plot import save_sweep
 
@@ -307,7 +315,7 @@ def _run_sweep(args: argparse.Namespace) -> int:
         result.critical, _ = critical_speed(
             model, coefficients, parameter=name, parameters=dict(fixed) or None
         )
-    paths = save_sweep(result, args.out, log=args.log)
+    paths = save_sweep(result, args.out, log=args.log, fmt=fmt, dpi=args.dpi)
     per = result.timings["simulation"] / len(grid)
     kernels = result.timings.get("kernels")
     ready = "" if kernels is None else f", compiled kernels ready {kernels:.3g} s"

@@ -10,14 +10,17 @@ from circuitsim.cli.circuit_verbs import TSTOP_HELP
 from circuitsim.cli.common import (
     KERNEL_WORDS,
     UsageError,
+    add_figure_options,
     add_jobs_option,
     add_max_step,
     add_model_options,
     add_scenario_options,
     check_scenario_options,
+    figure_format,
     prepare_output_folder,
     progress_after,
     require_count,
+    require_figure_options,
     require_jobs,
     require_positive,
     scenario_system,
@@ -139,6 +142,7 @@ def _add_tolerance(sub: argparse._SubParsersAction) -> None:
         "--out", default="tolerance", metavar="FOLDER",
         help="output folder for tolerance.json and tolerance.png (default ./tolerance)",
     )  # fmt: skip
+    add_figure_options(parser, "the histograms (tolerance.png)")
     parser.set_defaults(func=_run_tolerance)
 
 
@@ -152,6 +156,8 @@ def _run_tolerance(args: argparse.Namespace) -> int:
     require_count("--samples", args.samples, 1_000_000)
     require_positive("--tstop", args.tstop)
     require_positive("--max-step", args.max_step)
+    require_figure_options(args)
+    figure = f"tolerance.{figure_format(args)}"
     if args.jobs is None:
         args.jobs = os.cpu_count() or 1
     require_jobs(args)
@@ -162,7 +168,7 @@ def _run_tolerance(args: argparse.Namespace) -> int:
         and max(args.resistor_tolerance, args.capacitor_tolerance) >= 0.3
     ):
         raise UsageError("gaussian tolerances must be below 30 % (3 sigma below 100 %)")
-    folder = prepare_output_folder("--out", args.out, "tolerance.json", "tolerance.png")
+    folder = prepare_output_folder("--out", args.out, "tolerance.json", figure)
     model, system = scenario_system(args, with_model=True)
     state = model.state_named(args.state)
     tolerances = Tolerances(
@@ -186,11 +192,11 @@ def _run_tolerance(args: argparse.Namespace) -> int:
         system, tolerances, args.samples, args.seed, options, args.simulate,
         workers=args.jobs, progress=progress, max_step=args.max_step,
     )  # fmt: skip
-    json_path, png_path = folder / "tolerance.json", folder / "tolerance.png"
+    json_path, png_path = folder / "tolerance.json", folder / figure
     from circuitsim.atomic import write_text_atomic
 
     write_text_atomic(json_path, json.dumps(result.to_json(), indent=1) + "\n")
-    plot_tolerance(result, png_path, state)
+    plot_tolerance(result, png_path, state, dpi=args.dpi)
     _print_summary(result)
     print(f"wrote {json_path}")
     print(f"wrote {png_path}")

@@ -1,7 +1,7 @@
 """Figures of a direct ODE solution: displacement, velocity and phase portrait (paper Fig. 4),
 and every state of any model against time (``ode --plot``).
 
-Written atomically as PNG; small enough on disk to commit.
+Written atomically in the house style (:mod:`circuitsim.figure_style`): lengths in mm.
 """
 
 from __future__ import annotations
@@ -11,7 +11,15 @@ import os
 import numpy as np
 from matplotlib.figure import Figure
 
-from circuitsim.compare.plots import save_figure
+from circuitsim.figure_style import (
+    DOUBLE_COLUMN,
+    display_unit,
+    house_style,
+    legend_outside,
+    new_figure,
+    save_figure,
+    series_style,
+)
 from circuitsim.mechanics.solve import OdeResult
 
 
@@ -25,6 +33,7 @@ def default_pair(result: OdeResult) -> tuple[str, str]:
     return first, result.states[min(1, len(result.states) - 1)]
 
 
+@house_style
 def plot_response(
     path: str | os.PathLike,
     result: OdeResult,
@@ -32,7 +41,7 @@ def plot_response(
     velocity: str | None = None,
     title: str = "",
     samples: int = 20001,
-    dpi: int = 90,
+    dpi: float | None = None,
 ) -> None:
     """Draw displacement(t), velocity(t) and velocity against displacement, save to ``path``.
 
@@ -48,8 +57,8 @@ def plot_response(
         Figure title (e.g. the parameters of the run).
     samples : int
         Dense-output samples over the span.
-    dpi : int
-        Resolution.
+    dpi : float, optional
+        Resolution of a PNG, dots per inch (default the house style's).
     """
     first, second = default_pair(result)
     displacement = displacement or first
@@ -61,16 +70,18 @@ def plot_response(
     x = result.sol(t)
     d = x[result.states.index(displacement)]
     v = x[result.states.index(velocity)]
-    d_unit = result.units[result.states.index(displacement)]
-    v_unit = result.units[result.states.index(velocity)]
+    d_unit, d_factor = display_unit(result.units[result.states.index(displacement)])
+    v_unit, v_factor = display_unit(result.units[result.states.index(velocity)])
+    d, v = d * d_factor, v * v_factor
 
-    figure = Figure(figsize=(12, 3.6))
+    figure = new_figure(DOUBLE_COLUMN, 2.6)
     axes = figure.subplots(1, 3)
-    axes[0].plot(t, d, color="tab:blue", linewidth=0.9)
+    line = series_style(0)
+    axes[0].plot(t, d, **line)
     axes[0].set(xlabel="time (s)", ylabel=f"{displacement} ({d_unit})", title="displacement")
-    axes[1].plot(t, v, color="tab:red", linewidth=0.9)
+    axes[1].plot(t, v, **line)
     axes[1].set(xlabel="time (s)", ylabel=f"{velocity} ({v_unit})", title="velocity")
-    axes[2].plot(d, v, color="tab:green", linewidth=0.6)
+    axes[2].plot(d, v, **{**line, "linewidth": 0.6})
     axes[2].set(
         xlabel=f"{displacement} ({d_unit})", ylabel=f"{velocity} ({v_unit})", title="phase portrait"
     )
@@ -78,32 +89,30 @@ def plot_response(
         # where the piecewise-linear terms switch branch (the wheelset: flange contact)
         k = result.sol(result.kinks)
         axes[2].plot(
-            k[result.states.index(displacement)],
-            k[result.states.index(velocity)],
-            ".",
-            color="black",
-            markersize=2,
-            label="kinks",
+            k[result.states.index(displacement)] * d_factor,
+            k[result.states.index(velocity)] * v_factor,
+            "o",
+            color=series_style(1)["color"],
+            markersize=2.5,
+            label="kinks (a piecewise-linear term switches branch)",
         )
-        axes[2].legend(loc="upper right", fontsize=7)
-    for axis in axes:
-        axis.grid(True, linewidth=0.3)
+        legend_outside(figure, axes[2])
     if title:
-        figure.suptitle(title, fontsize=10)
-    figure.tight_layout()
+        figure.suptitle(title)
     save_figure(figure, path, dpi)
 
 
 LEGEND_ENTRIES = 12  # states named in one panel's legend; more would hide the traces
 
 
+@house_style
 def plot_states(
     path: str | os.PathLike,
     result: OdeResult,
     title: str = "",
     time_unit: str = "s",
     samples: int = 20001,
-    dpi: int = 90,
+    dpi: float | None = None,
     state: str | None = None,
 ) -> Figure:
     """Draw every state against time, one panel per unit, and save to ``path``.
@@ -125,8 +134,8 @@ def plot_states(
         The model's time unit (``"s"``; ``""`` for a dimensionless time).
     samples : int
         Dense-output samples over the span.
-    dpi : int
-        Resolution.
+    dpi : float, optional
+        Resolution of a PNG, dots per inch (default the house style's).
     state : str, optional
         The phase portrait's coordinate (or its rate).
 
@@ -146,35 +155,35 @@ def plot_states(
     first, rate = state, f"{state}_dot"
     phase = first in result.states and rate in result.states
     panels = len(groups) + phase
-    figure = Figure(figsize=(9, 1.2 + 2.2 * panels))
+    figure = new_figure(DOUBLE_COLUMN, 0.9 + 2.0 * panels)
     axes = np.atleast_1d(figure.subplots(panels, 1))
     time_label = f"time ({time_unit})" if time_unit else "time (dimensionless)"
+    shown_units = [display_unit(unit) for unit in result.units]
+    x = x * np.array([factor for _, factor in shown_units])[:, None]
     for axis, (unit, members) in zip(axes, groups.items(), strict=False):
-        for index in members:
-            label = result.states[index] if members.index(index) < LEGEND_ENTRIES else None
-            axis.plot(t, x[index], linewidth=0.8, label=label)
+        for order, index in enumerate(members):
+            label = result.states[index] if order < LEGEND_ENTRIES else None
+            axis.plot(t, x[index], label=label, **series_style(order))
         names = ", ".join(result.states[i] for i in members[:3])
         more = f" (+{len(members) - 3})" if len(members) > 3 else ""
-        axis.set(xlabel=time_label, ylabel=f"{names}{more} ({unit or '1'})")
+        axis.set(xlabel=time_label, ylabel=f"{names}{more} ({display_unit(unit)[0] or '1'})")
         if len(members) > 1:
-            axis.legend(loc="upper right", fontsize=7, ncol=min(4, len(members)))
+            axis.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))
     if phase:
         axis = axes[-1]
         d, v = result.states.index(first), result.states.index(rate)
-        axis.plot(x[d], x[v], color="tab:green", linewidth=0.6)
+        axis.plot(x[d], x[v], **{**series_style(0), "linewidth": 0.6})
         if len(result.kinks):
-            k = result.sol(result.kinks)
-            axis.plot(k[d], k[v], ".", color="black", markersize=2, label="kinks")
-            axis.legend(loc="upper right", fontsize=7)
+            k = result.sol(result.kinks) * np.array([f for _, f in shown_units])[:, None]
+            axis.plot(k[d], k[v], "o", color=series_style(1)["color"], markersize=2.5,
+                      label="kinks")  # fmt: skip
+            axis.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))
         axis.set(
-            xlabel=f"{first} ({result.units[d] or '1'})",
-            ylabel=f"{rate} ({result.units[v] or '1'})",
+            xlabel=f"{first} ({shown_units[d][0] or '1'})",
+            ylabel=f"{rate} ({shown_units[v][0] or '1'})",
             title="phase portrait",
         )
-    for axis in axes:
-        axis.grid(True, linewidth=0.3)
     if title:
-        figure.suptitle(title, fontsize=10)
-    figure.tight_layout()
+        figure.suptitle(title)
     save_figure(figure, path, dpi)
     return figure

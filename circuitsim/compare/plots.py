@@ -1,7 +1,5 @@
-"""Circuit traces drawn over the reference's (the paper's Fig. 6 style), written atomically.
-
-Kept small on disk (PNG, ~100 dpi) so that the validation figures can be committed.
-"""
+"""Circuit traces drawn over the reference's (the paper's Fig. 6 style), written atomically
+in the house style (:mod:`circuitsim.figure_style`)."""
 
 from __future__ import annotations
 
@@ -10,23 +8,18 @@ import os
 import numpy as np
 from matplotlib.figure import Figure
 
-from circuitsim.atomic import write_figure_atomic
 from circuitsim.compare.mapping import Trace, resample
+from circuitsim.figure_style import (
+    DOUBLE_COLUMN,
+    REFERENCE,
+    house_style,
+    legend_outside,
+    new_figure,
+    save_figure,
+    series_style,
+)
 
-# Solid thin lines in distinct colours over a wide grey reference: dashes over dense oscillations
-# look like noise and triple the PNG size.
-_STYLES = [
-    {"color": "tab:red", "linewidth": 0.7},
-    {"color": "tab:blue", "linewidth": 0.7},
-    {"color": "tab:green", "linewidth": 0.7},
-    {"color": "tab:purple", "linewidth": 0.7},
-]
-
-
-def save_figure(figure, path: str | os.PathLike, dpi: int = 90) -> None:
-    """Render ``figure`` in the format of ``path``'s suffix (PNG without one) and write it
-    atomically to ``path``."""
-    write_figure_atomic(figure, path, dpi=dpi)
+__all__ = ["plot_overlay", "save_figure"]
 
 
 #: States per column of an overlay: more states are drawn in side-by-side columns.
@@ -36,6 +29,7 @@ STATES_PER_COLUMN = 6
 MAX_COLUMNS = 6
 
 
+@house_style
 def plot_overlay(
     path: str | os.PathLike,
     reference: dict[str, Trace],
@@ -47,7 +41,7 @@ def plot_overlay(
     scales: dict[str, float] | None = None,
     errors: bool = False,
     n_points: int = 1500,
-    dpi: int = 72,
+    dpi: float | None = None,
     time_unit: str = "s",
 ) -> Figure:
     """Each state's circuit trace(s) over the reference trace, one panel per state.
@@ -81,8 +75,8 @@ def plot_overlay(
     n_points : int
         Every curve is drawn from this many resampled points (keeps the PNG small; 50 points
         per period at 10 Hz over 5 s).
-    dpi : int
-        Resolution.
+    dpi : float, optional
+        Resolution of a PNG, dots per inch (default the house style's).
     time_unit : str
         The model's time unit (``"s"``; ``""`` for a dimensionless time).
 
@@ -103,10 +97,10 @@ def plot_overlay(
     per_column = -(-len(states) // columns)
     rows = 2 * per_column if errors else per_column
     if columns == 1:
-        size = (6.4, 1.5 * rows + 0.6)
+        size = (DOUBLE_COLUMN, (1.45 if rows <= 4 else 1.1) * rows + 0.9)  # <= a page
     else:  # lower panels in a grid: 5 columns of 6 states with errors stay on one screen
-        size = (4.2 * columns, 1.2 * rows + 0.8)
-    figure = Figure(figsize=size)
+        size = (max(DOUBLE_COLUMN, 3.4 * columns), 1.2 * rows + 0.9)
+    figure = new_figure(*size)
     axes = figure.subplots(rows, columns, sharex=True, squeeze=False)
     step = 2 if errors else 1
     for k, state in enumerate(states):
@@ -115,32 +109,31 @@ def plot_overlay(
         factor = scales.get(state, 1.0)
         grid = _grid(reference[state], n_points)
         t, values = grid, resample(reference[state], grid)
-        axis.plot(t, values * factor, color="0.55", linewidth=2.4, label=reference_label)
-        for style, (label, traces) in zip(_STYLES * 4, circuits.items(), strict=False):
+        axis.plot(t, values * factor, label=reference_label, **REFERENCE)
+        for index, (label, traces) in enumerate(circuits.items()):
+            style = series_style(index)
             if state in traces:
                 tc = _grid(traces[state], n_points)
                 vc = resample(traces[state], tc)
                 axis.plot(tc, vc * factor, label=f"circuit ({label})", **style)
         unit = units.get(state, "")
-        axis.set_ylabel(f"{state} ({unit})" if unit else state, fontsize=8)
-        axis.grid(True, alpha=0.3)
+        axis.set_ylabel(f"{state} ({unit})" if unit else state)
         if errors:
             below = axes[step * row + 1, column]
             _error_panel(below, state, reference, circuits, factor, n_points)
-            below.set_ylabel(f"error ({unit})" if unit else "error", fontsize=8)
+            below.set_ylabel(f"error ({unit})" if unit else "error")
     for k in range(len(states), per_column * columns):  # the last column's empty slots
         column, row = divmod(k, per_column)
         for extra in range(step):
             axes[step * row + extra, column].set_visible(False)
-    axes[0, 0].legend(loc="upper right", fontsize=7, ncol=2)
+    legend_outside(figure, axes[0, 0], ncols=min(3, len(circuits) + 1))
     label = f"model time ({time_unit})" if time_unit else "model time (dimensionless)"
     for column in range(columns):
         filled = min(per_column, len(states) - column * per_column)
         axes[step * filled - 1, column].set_xlabel(label)
         axes[step * filled - 1, column].xaxis.set_tick_params(labelbottom=True)
     if title:
-        figure.suptitle(title, fontsize=10)
-    figure.tight_layout()
+        figure.suptitle(title)
     save_figure(figure, path, dpi)
     return figure
 
@@ -153,10 +146,10 @@ def _grid(trace: Trace, n_points: int) -> np.ndarray:
 def _error_panel(axis, state, reference, circuits, factor, n_points: int) -> None:
     grid = _grid(reference[state], n_points)
     base = resample(reference[state], grid)
-    for style, (label, traces) in zip(_STYLES * 4, circuits.items(), strict=False):
+    for index, (label, traces) in enumerate(circuits.items()):
+        style = series_style(index)
         if state in traces:
             t_c = traces[state][0]
             inside = (grid >= t_c[0]) & (grid <= t_c[-1])
             difference = resample(traces[state], grid[inside]) - base[inside]
             axis.plot(grid[inside], difference * factor, label=label, **style)
-    axis.grid(True, alpha=0.3)

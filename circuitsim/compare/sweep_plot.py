@@ -10,7 +10,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from circuitsim.atomic import write_figure_atomic, write_text_atomic
+from circuitsim.atomic import write_text_atomic
+from circuitsim.figure_style import (
+    MARK,
+    REFERENCE,
+    SINGLE_COLUMN,
+    house_style,
+    legend_outside,
+    new_figure,
+    save_figure,
+    series_style,
+)
 
 if TYPE_CHECKING:
     from circuitsim.compare.sweep import SweepResult
@@ -21,11 +31,18 @@ class SweepPlotWarning(UserWarning):
 
 
 def save_sweep(
-    result: SweepResult, folder: str | os.PathLike, stem: str = "sweep", log: bool = False
+    result: SweepResult,
+    folder: str | os.PathLike,
+    stem: str = "sweep",
+    log: bool = False,
+    fmt: str = "png",
+    dpi: float | None = None,
 ) -> list[Path]:
-    """Write ``<stem>.csv`` and ``<stem>.png`` (bifurcation-style plot) atomically.
+    """Write ``<stem>.csv`` and the figure ``<stem>.<fmt>`` (bifurcation-style plot)
+    atomically.
 
-    ``log`` draws the figure's peak axis on a log scale (see :func:`plot_sweep`).
+    ``log`` draws the figure's peak axis on a log scale (see :func:`plot_sweep`); ``dpi``
+    is a PNG's resolution (default the house style's).
 
     Returns
     -------
@@ -34,10 +51,10 @@ def save_sweep(
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    csv_path, png_path = folder / f"{stem}.csv", folder / f"{stem}.png"
+    csv_path, figure_path = folder / f"{stem}.csv", folder / f"{stem}.{fmt}"
     write_text_atomic(csv_path, result.csv_text())
-    plot_sweep(result, png_path, log=log)
-    return [csv_path, png_path]
+    plot_sweep(result, figure_path, log=log, dpi=dpi)
+    return [csv_path, figure_path]
 
 
 def _log_drawable(result: SweepResult, log: bool) -> tuple[np.ndarray, np.ndarray, bool]:
@@ -71,7 +88,10 @@ def _log_drawable(result: SweepResult, log: bool) -> tuple[np.ndarray, np.ndarra
     return peak_all * gap, peak_late * gap, True
 
 
-def plot_sweep(result: SweepResult, path: str | os.PathLike, log: bool = False) -> None:
+@house_style
+def plot_sweep(
+    result: SweepResult, path: str | os.PathLike, log: bool = False, dpi: float | None = None
+) -> None:
     """Peak |state| (late window and whole run) against the parameter, critical value marked.
 
     Parameters
@@ -83,41 +103,32 @@ def plot_sweep(result: SweepResult, path: str | os.PathLike, log: bool = False) 
         Peak axis on a log scale: a growing or decaying free response shows as a straight
         line. Peaks of 0 cannot be drawn there: those values are left out of the figure with
         a :class:`SweepPlotWarning` (all of them 0: the axis stays linear, with the warning).
+    dpi : float, optional
+        Resolution of a PNG, dots per inch (default the house style's).
     """
-    from matplotlib.figure import Figure  # here: a sweep's CSV alone does not load it
-
-    fig = Figure(figsize=(7, 4.2))
+    fig = new_figure(1.4 * SINGLE_COLUMN, 3.6)
     ax = fig.subplots()
     scale, unit = (1e3, "mm") if result.state_unit == "m" else (1.0, result.state_unit)
     peak_all, peak_late, log = _log_drawable(result, log)
-    ax.plot(result.values, peak_all * scale, "o-", ms=3, color="0.6", label="whole run")
+    whole = {**REFERENCE, "linewidth": 1.6}
+    ax.plot(result.values, peak_all * scale, marker="s", ms=3, label="whole run", **whole)
     ax.plot(
         result.values,
         peak_late * scale,
-        "o-",
         ms=3,
-        color="C0",
         label=f"last {result.window:g} s",
+        **series_style(0, marker=True),
     )
     if log:
         ax.set_yscale("log")
     if result.critical is not None:
-        ax.axvline(result.critical, color="C3", ls="--", lw=1)
-        ax.annotate(
-            f"critical {result.parameter} = {result.critical:.4g} {result.unit}",
-            (result.critical, 0.97),
-            xycoords=("data", "axes fraction"),
-            ha="right",
-            va="top",
-            rotation=90,
-            color="C3",
-            fontsize=8,
-            bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "none", "alpha": 0.85},
+        ax.axvline(
+            result.critical,
+            **MARK,
+            label=f"critical {result.parameter} = {result.critical:.4g} {result.unit}",
         )
     ax.set_xlabel(f"{result.parameter} ({result.unit})" if result.unit else result.parameter)
     ax.set_ylabel(f"max |{result.state}| ({unit})")
     ax.set_title(f"peak |{result.state}| against {result.parameter} ({result.engine} engine)")
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc="upper left", fontsize=8)
-    fig.tight_layout()
-    write_figure_atomic(fig, path, format="png", dpi=120)
+    legend_outside(fig, ax, ncols=2)
+    save_figure(fig, path, dpi)

@@ -36,7 +36,8 @@ def render_agreement(result, add) -> None:
         "uniform grid. NRMSD = RMS(circuit - ODE) / range(ODE) x 100; peak ratio = "
         "max|circuit| / max|ODE|; frequency ratio of the dominant FFT peaks (Hann window, "
         "interpolated); lag from the cross-correlation peak (positive: the circuit lags); "
-        "error freq = dominant frequency of circuit minus ODE. "
+        "freq of error = dominant frequency of the error signal circuit minus ODE (what the "
+        "difference oscillates at, not a difference of frequencies). "
         "Thresholds: NRMSD <= 0.5 % (ideal) or 2 % (tl074), peak and frequency ratios within "
         "1 %. Bold = beyond its threshold. The E96 rows show what standard resistor values "
         "cost; the paragraph after the table says where their deviation comes from."
@@ -44,7 +45,7 @@ def render_agreement(result, add) -> None:
     add("")
     add(
         "| scenario | op-amp | values | engine | NRMSD y % | NRMSD y' % | NRMSD psi % "
-        "| NRMSD psi' % | peak ratio y | freq ratio y | lag y (ms) | error freq y (Hz) "
+        "| NRMSD psi' % | peak ratio y | freq ratio y | lag y (ms) | freq of error y (Hz) "
         "| verdict | sim (s) |"
     )
     add("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")

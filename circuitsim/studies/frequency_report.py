@@ -22,7 +22,7 @@ STEPPED_SINE_SETTLE, STEPPED_SINE_RECORD = 4.0, 1.0
 
 def frequency_study(
     model, engines: dict[str, str | None], frf_figure: Path, curves_figure: Path,
-    frequencies: tuple[float, ...] = STEPPED_SINE_FREQUENCIES,
+    frequencies: tuple[float, ...] = STEPPED_SINE_FREQUENCIES, dpi: float | None = None,
 ) -> dict:  # fmt: skip
     """Both parts, figures written; a JSON-ready summary with ``wall_s``.
 
@@ -34,6 +34,8 @@ def frequency_study(
         Engine to why it cannot run (None: available).
     frequencies : tuple of float
         The stepped sine's frequencies, Hz; empty to leave it out.
+    dpi : float, optional
+        Resolution of PNG figures (default the house style's); their format by suffix.
     """
     from circuitsim.compare.frf import circuit_response, departure, differences, model_response
     from circuitsim.compare.frf_plot import plot_frf
@@ -50,7 +52,7 @@ def frequency_study(
     for engine, reason in engines.items():
         if reason is None:
             responses[engine] = circuit_response(synthesis, system, sweep, engine)
-    plot_frf(responses, responses["model"].inputs[0], frf_figure)
+    plot_frf(responses, responses["model"].inputs[0], frf_figure, dpi=dpi)
     rows = []
     model_frf = responses["model"]
     for state in model_frf.states:
@@ -69,12 +71,12 @@ def frequency_study(
         rows.append(row)
     summary = {"sweep_hz": [low, high, per_decade], "input": model_frf.inputs[0], "rows": rows}
     if frequencies:
-        summary["stepped_sine"] = _stepped_sine(model, frequencies, curves_figure)
+        summary["stepped_sine"] = _stepped_sine(model, frequencies, curves_figure, dpi)
     summary["wall_s"] = time.perf_counter() - started
     return summary
 
 
-def _stepped_sine(model, frequencies, path: Path) -> dict:
+def _stepped_sine(model, frequencies, path: Path, dpi: float | None) -> dict:
     from circuitsim.studies.hunting_result import HuntingSettings
     from circuitsim.studies.stepped_sine import plot_response_curves, run_stepped_sine, summary
 
@@ -84,7 +86,7 @@ def _stepped_sine(model, frequencies, path: Path) -> dict:
 
     settings = HuntingSettings(STEPPED_SINE_SETTLE, STEPPED_SINE_RECORD, repush=0.0)
     result = run_stepped_sine(forced, np.asarray(frequencies, dtype=float), settings, (True,))
-    plot_response_curves(result, path)
+    plot_response_curves(result, path, dpi)
     return summary(result)
 
 

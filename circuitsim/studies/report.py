@@ -101,7 +101,8 @@ def _drawing(result, add) -> None:
         return
     parts = "; ".join(
         f"{k.resistor} = {k.fixed_part} {_value(k.fixed, 'ohm')} (E96) + {k.pot_part} "
-        f"{_value(k.pot, 'ohm')} linear potentiometer" for k in knobs
+        f"{_value(k.pot, 'ohm')} linear potentiometer"
+        for k in knobs
     )
     add(f"Speed knob: {parts}. Dial setting = fraction of the potentiometer's rotation:")
     add("")
@@ -241,9 +242,14 @@ def _forced(result, add) -> None:
             f"| {s['max_abs_y_mm']:.3f} ({number_cell(r[0], '.3f')}) "
             f"| {s['y_end_mm']:+.4f} ({number_cell(r[1], '+.4f')}) "
             f"| {s['max_abs_y_dot']:.4f} ({number_cell(r[2], '.4f')}) | {s['kinks']} "
-            f"| {f'[png]({fig})' if fig else '-'} |"
+            f"| {f'[figure]({fig})' if fig else '-'} |"
         )
     add("")
+    for scenario in result.scenarios:  # the figures themselves, in the table's order
+        fig = result.figures.get(f"fig4-{scenario.name}")
+        if fig and scenario.name in result.ode_summary:
+            add(f"![ODE: displacement, velocity and phase portrait, {scenario.title}]({fig})")
+            add("")
 
 
 def _netlists(result, add) -> None:

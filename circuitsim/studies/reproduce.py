@@ -108,6 +108,8 @@ def reproduce(
     n_points: int = 4096,
     skip: dict[tuple[str, str], str] | None = None,
     ngspice_timeout: float | None = None,
+    figure_format: str = "png",
+    dpi: float | None = None,
 ) -> Reproduction:
     """Run the paper's cases and write figures, netlists, report.md and metrics.json.
 
@@ -146,6 +148,11 @@ def reproduce(
     ngspice_timeout : float, optional
         Seconds before each ngspice run is stopped (default 300); a run stopped is a
         "failed" row naming the limit.
+    figure_format : str
+        Format of the figures (``png``, ``svg``, ``pdf``: their files' suffix).
+    dpi : float, optional
+        Resolution of PNG figures, dots per inch (default
+        :data:`circuitsim.figure_style.DEFAULT_DPI`).
 
     Returns
     -------
@@ -168,9 +175,10 @@ def reproduce(
     model = load_model()
     v_c, f_h = critical_speed(model)
     say(f"model critical speed {v_c:.4f} m/s, hunting frequency {f_h:.3f} Hz")
+    fmt = figure_format
     jobs, skipped = _plan(
         out, scenarios, opamps, series, engines, free_speeds, available, skip or {},
-        ngspice_timeout,
+        ngspice_timeout, fmt, dpi,
     )  # fmt: skip
     warm_up_s = None
     initializer = None
@@ -183,25 +191,28 @@ def reproduce(
         if warm_up_s is not None:
             say(f"compiled kernels ready in {warm_up_s:.1f} s")
             initializer = warm_up
-    outcomes = _run_jobs(jobs, workers, initializer, say)
+    outcomes = _run_jobs(jobs, workers, initializer, say, fmt)
     figures = outcomes.figures
     rows, circuits, traces_by = _compared_rows(outcomes, skipped, n_points)
     rows.sort(key=lambda r: _row_order(r, scenarios, opamps, series, engines))
 
     if outcomes.free:
-        plot_free_response(out / "figures" / "fig3-free-response.png", outcomes.free)
-        figures["fig3"] = "figures/fig3-free-response.png"
+        plot_free_response(out / "figures" / f"fig3-free-response.{fmt}", outcomes.free, dpi=dpi)
+        figures["fig3"] = f"figures/fig3-free-response.{fmt}"
     speeds = np.linspace(40.0, 70.0, 301)
     rates = eigenvalues(model, "V", speeds)[:, 0].real
     realized: dict[str, list[float]] = {}
     for (_, _, s), info in sorted(circuits.items()):
         realized.setdefault(f"{s} circuits", []).append(info.critical_speed_realized)
-    plot_growth_rate(out / "figures" / "critical-speed.png", speeds, rates, v_c, realized)
-    figures["critical-speed"] = "figures/critical-speed.png"
+    plot_growth_rate(
+        out / "figures" / f"critical-speed.{fmt}", speeds, rates, v_c, realized, dpi=dpi
+    )
+    figures["critical-speed"] = f"figures/critical-speed.{fmt}"
     hunting = None
     if hunting_speeds:
-        hunting = _hunting_diagram(model, v_c, hunting_speeds, out / "figures" / "hunting.png")
-        figures["hunting"] = "figures/hunting.png"
+        figure = out / "figures" / f"hunting.{fmt}"
+        hunting = _hunting_diagram(model, v_c, hunting_speeds, figure, dpi)
+        figures["hunting"] = f"figures/hunting.{fmt}"
         say(f"hunting diagram: {len(hunting_speeds)} speeds, {hunting['wall_s']:.1f} s")
     tolerance = None
     if tolerance_samples and scenarios:
@@ -209,8 +220,8 @@ def reproduce(
 
         first = scenarios[0]
         tolerance = tolerance_study(first.system(model), first.title, tolerance_samples,
-                                    out / "figures" / "tolerance.png", workers)  # fmt: skip
-        figures["tolerance"] = "figures/tolerance.png"
+                                    out / "figures" / f"tolerance.{fmt}", workers, dpi)  # fmt: skip
+        figures["tolerance"] = f"figures/tolerance.{fmt}"
         say(f"tolerance: {tolerance_samples} circuits, {tolerance['wall_s']:.1f} s")
     frequency = None
     if frequency_response:
@@ -221,14 +232,15 @@ def reproduce(
 
         steps = stepped_sine_frequencies
         frequency = frequency_study(
-            model, available, out / "figures" / "frf.png", out / "figures" / "stepped-sine.png",
-            STEPPED_SINE_FREQUENCIES if steps is None else tuple(steps),
+            model, available, out / "figures" / f"frf.{fmt}",
+            out / "figures" / f"stepped-sine.{fmt}",
+            STEPPED_SINE_FREQUENCIES if steps is None else tuple(steps), dpi,
         )  # fmt: skip
-        figures["frf"] = "figures/frf.png"
+        figures["frf"] = f"figures/frf.{fmt}"
         if "stepped_sine" in frequency:
-            figures["stepped_sine"] = "figures/stepped-sine.png"
+            figures["stepped_sine"] = f"figures/stepped-sine.{fmt}"
         say(f"frequency response: {frequency['wall_s']:.1f} s")
-    _fig6_figures(out, scenarios, engines, outcomes.references, traces_by, figures)
+    _fig6_figures(out, scenarios, engines, outcomes.references, traces_by, figures, fmt, dpi)
     say("figures written")
 
     # Frequency of the slowest (hunting) mode at each simulated speed, Hz: what a free-motion
@@ -272,7 +284,7 @@ _JOBS = {"circuit": circuit_job, "ode": ode_job, "free": free_job, "schematic": 
 _COST = {("builtin", "ideal"): 9.0, ("builtin", "tl074"): 1000.0, ("ngspice", "tl074"): 3.5}
 
 
-def _plan(out, scenarios, opamps, series, engines, free_speeds, available, skip, timeout):
+def _plan(out, scenarios, opamps, series, engines, free_speeds, available, skip, timeout, fmt, dpi):
     """The pool's jobs as (kind, arguments), the longest first so that the workers finish
     together, and the rows not run as asked by ``skip`` (each with its reason). The first
     available engine's circuit jobs write the netlists."""
@@ -291,7 +303,9 @@ def _plan(out, scenarios, opamps, series, engines, free_speeds, available, skip,
                     if engine == writer:
                         path = str(out / "netlists" / f"{scenario.name}-{opamp}-{s.lower()}.cir")
                     jobs.append(("circuit", (scenario, variant, path, reason, timeout)))
-    ode_jobs = [("ode", (sc, str(out / "figures" / f"fig4-{sc.name}.png"))) for sc in scenarios]
+    ode_jobs = [
+        ("ode", (sc, str(out / "figures" / f"fig4-{sc.name}.{fmt}"), dpi)) for sc in scenarios
+    ]
     free_jobs = [("free", (speed,)) for speed in free_speeds]
     drawn = next((sc for sc in scenarios if sc.flange), scenarios[0] if scenarios else None)
     if drawn is not None and 40.0 <= drawn.speed <= 70.0:
@@ -319,7 +333,7 @@ class _Outcomes:
     figures: dict[str, str] = field(default_factory=dict)
 
 
-def _run_jobs(jobs, workers: int, initializer, say) -> _Outcomes:
+def _run_jobs(jobs, workers: int, initializer, say, fmt: str = "png") -> _Outcomes:
     """Run ``jobs`` in a pool of ``workers`` processes, one progress line per finished job."""
     got = _Outcomes()
     with ProcessPoolExecutor(max_workers=workers, initializer=initializer) as pool:
@@ -331,7 +345,7 @@ def _run_jobs(jobs, workers: int, initializer, say) -> _Outcomes:
             if kind == "ode":
                 name, traces, summary = value
                 got.references[name], got.ode_summary[name] = traces, summary
-                got.figures[f"fig4-{name}"] = f"figures/fig4-{name}.png"
+                got.figures[f"fig4-{name}"] = f"figures/fig4-{name}.{fmt}"
                 say(f"{count} ODE {args[0].title}: max |y| {summary['max_abs_y_mm']:.3f} mm")
             elif kind == "schematic":
                 got.schematic = value
@@ -372,7 +386,9 @@ def _compared_rows(outcomes: _Outcomes, skipped: list[Row], n_points: int):
     return rows, circuits, traces_by
 
 
-def _fig6_figures(out: Path, scenarios, engines, references, traces_by, figures) -> None:
+def _fig6_figures(
+    out: Path, scenarios, engines, references, traces_by, figures, fmt="png", dpi=None
+) -> None:
     """Per scenario, the chosen circuits (:func:`_fig6_variants`) over the ODE, with errors."""
     from circuitsim.compare.plots import plot_overlay
 
@@ -384,7 +400,7 @@ def _fig6_figures(out: Path, scenarios, engines, references, traces_by, figures)
         if curves:
             name = f"fig6-{scenario.name}"
             plot_overlay(
-                out / "figures" / f"{name}.png",
+                out / "figures" / f"{name}.{fmt}",
                 references[scenario.name],
                 curves,
                 states=["y", "y_dot"],
@@ -392,11 +408,12 @@ def _fig6_figures(out: Path, scenarios, engines, references, traces_by, figures)
                 scales={"y": 1000.0},
                 title=f"circuit over ODE: {scenario.title}",
                 errors=True,
+                dpi=dpi,
             )
-            figures[name] = f"figures/{name}.png"
+            figures[name] = f"figures/{name}.{fmt}"
 
 
-def _hunting_diagram(model, v_c: float, speeds, path: Path) -> dict:
+def _hunting_diagram(model, v_c: float, speeds, path: Path, dpi: float | None = None) -> dict:
     """The hunting bifurcation diagram of the wheelset (free response from a 5 mm push), its
     figure written to ``path``; returns its summary with ``wall_s``."""
     from circuitsim.studies.hunting import run_hunting
@@ -414,7 +431,7 @@ def _hunting_diagram(model, v_c: float, speeds, path: Path) -> dict:
     settings = HuntingSettings(settle=HUNTING_SETTLE, record=HUNTING_RECORD)
     result = run_hunting(free, np.asarray(speeds, dtype=float), "V", "m/s", settings,
                          linear_critical=v_c)  # fmt: skip
-    plot_hunting(result, path)
+    plot_hunting(result, path, dpi)
     return {**result.summary(), "wall_s": time.perf_counter() - started}
 
 

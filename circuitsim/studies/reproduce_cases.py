@@ -104,8 +104,9 @@ class CircuitInfo:
     coefficients: list[tuple[str, float, float, float, str]] = field(default_factory=list)
 
 
-
-def ode_job(scenario: Scenario, figure: str | None) -> tuple[str, dict[str, Trace], dict]:
+def ode_job(
+    scenario: Scenario, figure: str | None, dpi: float | None = None
+) -> tuple[str, dict[str, Trace], dict]:
     from circuitsim.compare.case import reference_traces
     from circuitsim.compare.figures import plot_response
     from circuitsim.mechanics import load_model
@@ -113,7 +114,7 @@ def ode_job(scenario: Scenario, figure: str | None) -> tuple[str, dict[str, Trac
     system = scenario.system(load_model())
     result, traces = reference_traces(system, scenario.t_stop)
     if figure is not None:
-        plot_response(figure, result, title=f"ODE: {scenario.title}", samples=4001, dpi=72)
+        plot_response(figure, result, title=f"ODE: {scenario.title}", samples=4001, dpi=dpi)
     summary = {
         "max_abs_y_mm": 1e3 * result.max_abs("y"),
         "y_end_mm": 1e3 * float(result.sol(scenario.t_stop)[result.states.index("y")]),

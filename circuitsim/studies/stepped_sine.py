@@ -156,36 +156,45 @@ def summary(result: HuntingResult) -> dict:
     }
 
 
-def plot_response_curves(result: HuntingResult, path: str | os.PathLike) -> None:
+def plot_response_curves(
+    result: HuntingResult, path: str | os.PathLike, dpi: float | None = None
+) -> None:
     """Amplitude against forcing frequency: ODE (lines) and circuit (markers), up (solid,
     upward triangles) and down (dashed, downward), one panel per flange setting, jumps
-    marked."""
-    from matplotlib.figure import Figure
+    marked. House style (:mod:`circuitsim.figure_style`: lengths in mm); ``dpi`` of a PNG
+    (default the house style's)."""
+    from circuitsim.figure_style import style_context
 
-    from circuitsim.atomic import write_figure_atomic
+    with style_context():
+        _plot_response_curves(result, path, dpi)
+
+
+def _plot_response_curves(result: HuntingResult, path, dpi) -> None:
+    from circuitsim.figure_style import DOUBLE_COLUMN, SERIES, display_unit, new_figure, save_figure
 
     flanges = sorted({b.flange for b in result.branches}, reverse=True)
-    fig = Figure(figsize=(8, 3.6 * len(flanges)))
+    fig = new_figure(DOUBLE_COLUMN, 0.6 + 2.8 * len(flanges))
     axes = fig.subplots(len(flanges), 1, squeeze=False)[:, 0]
-    unit = f" ({result.state_unit})" if result.state_unit else ""
+    shown, factor = display_unit(result.state_unit)
+    unit = f" ({shown})" if shown else ""
     for ax, flange in zip(axes, flanges, strict=True):
         for b in (b for b in result.branches if b.flange == flange):
             up = b.direction == "up"
-            color = "C0" if up else "C1"
+            color = SERIES[0 if up else 1]["color"]
+            amplitude = np.asarray(b.amplitude, dtype=float) * factor
             if b.path == "ode":
-                ax.plot(b.speeds, b.amplitude, "-" if up else "--", color=color,
+                ax.plot(b.speeds, amplitude, "-" if up else "--", color=color,
                         label=f"ODE, {b.direction}")  # fmt: skip
             else:
-                ax.plot(b.speeds, b.amplitude, "^" if up else "v", color=color, ms=5,
+                ax.plot(b.speeds, amplitude, "^" if up else "v", color=color, ms=5,
                         fillstyle="none", ls="none", label=f"circuit, {b.direction}")  # fmt: skip
             if b.path == "ode":
                 other = result.branch(b.path, "down" if up else "up", flange)
                 for jump in jumps(b, other):
                     ax.axvline(jump.frequency, color=color, lw=0.8, ls=":")
         ax.set_ylabel(f"amplitude of {result.state}{unit}")
-        ax.set_title(f"piecewise-linear terms {'on' if flange else 'off'}", fontsize="medium")
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize="small", frameon=False, loc="upper left", bbox_to_anchor=(1.01, 1))
+        ax.set_title(f"piecewise-linear terms {'on' if flange else 'off'}")
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1))
     axes[-1].set_xlabel("forcing frequency (Hz, model time)")
     fig.suptitle("stepped sine: steady amplitude, frequency swept up then down")
-    write_figure_atomic(fig, path, bbox_inches="tight")
+    save_figure(fig, path, dpi)

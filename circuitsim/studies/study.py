@@ -16,9 +16,17 @@ from pathlib import Path
 
 import numpy as np
 
-from circuitsim.atomic import write_figure_atomic, write_text_atomic
+from circuitsim.atomic import write_text_atomic
 from circuitsim.compare.sweep import SweepResult, run_sweep
 from circuitsim.compare.sweep_measure import Executor
+from circuitsim.figure_style import (
+    MARK,
+    SINGLE_COLUMN,
+    house_style,
+    legend_outside,
+    new_figure,
+    save_figure,
+)
 from circuitsim.mechanics.system import System
 from circuitsim.studies.grid import ParameterGrid
 from circuitsim.synthesis.options import SynthesisOptions
@@ -105,9 +113,15 @@ def run_grid(
 
 
 def save_grid(
-    result: GridResult, folder: str | os.PathLike, stem: str = "sweep", log: bool = False
+    result: GridResult,
+    folder: str | os.PathLike,
+    stem: str = "sweep",
+    log: bool = False,
+    fmt: str = "png",
+    dpi: float | None = None,
 ) -> list[Path]:
-    """Write ``<stem>.csv`` (tidy) and, for two parameters, ``<stem>.png`` (the map).
+    """Write ``<stem>.csv`` (tidy) and, for two parameters, ``<stem>.<fmt>`` (the map;
+    ``dpi``: a PNG's resolution, default the house style's).
 
     Returns
     -------
@@ -119,12 +133,15 @@ def save_grid(
     written = [folder / f"{stem}.csv"]
     write_text_atomic(written[0], result.csv_text())
     if len(result.grid.names) == 2:
-        written.append(folder / f"{stem}.png")
-        plot_map(result, written[1], log=log)
+        written.append(folder / f"{stem}.{fmt}")
+        plot_map(result, written[1], log=log, dpi=dpi)
     return written
 
 
-def plot_map(result: GridResult, path: str | os.PathLike, log: bool = False) -> None:
+@house_style
+def plot_map(
+    result: GridResult, path: str | os.PathLike, log: bool = False, dpi: float | None = None
+) -> None:
     """The late-window peak over two parameters: a colour map for a full grid, coloured
     points for sets from a file; the linear critical curve drawn when known.
 
@@ -136,9 +153,10 @@ def plot_map(result: GridResult, path: str | os.PathLike, log: bool = False) -> 
         PNG file, written atomically.
     log : bool
         Logarithmic colour scale (peaks of 0 shown in the lowest colour).
+    dpi : float, optional
+        Resolution of a PNG, dots per inch (default the house style's).
     """
     from matplotlib.colors import LogNorm
-    from matplotlib.figure import Figure
 
     g, s = result.grid, result.sweep
     scale, unit = (1e3, "mm") if s.state_unit == "m" else (1.0, s.state_unit)
@@ -148,7 +166,7 @@ def plot_map(result: GridResult, path: str | os.PathLike, log: bool = False) -> 
         low = float(np.min(peaks[peaks > 0]))
         norm = LogNorm(vmin=low, vmax=max(float(np.max(peaks)), low * 10))
         peaks = np.maximum(peaks, low)
-    fig = Figure(figsize=(7, 5))
+    fig = new_figure(1.4 * SINGLE_COLUMN, 4.0)
     ax = fig.subplots()
     x_name, y_name = g.names
     if g.axes is not None:
@@ -163,13 +181,12 @@ def plot_map(result: GridResult, path: str | os.PathLike, log: bool = False) -> 
         limits = ax.get_xlim(), ax.get_ylim()  # the grid's range, not the curve's
         along, other, critical = result.critical
         curve = (critical, other) if along == x_name else (other, critical)
-        ax.plot(*curve, color="C3", ls="--", lw=1.2, label=f"linear critical {along}")
+        ax.plot(*curve, **MARK, label=f"linear critical {along}")
         ax.set_xlim(*limits[0])
         ax.set_ylim(*limits[1])
-        ax.legend(loc="upper right", fontsize=8)
+        legend_outside(fig, ax)
     x_unit, y_unit = g.units
     ax.set_xlabel(f"{x_name} ({x_unit})" if x_unit else x_name)
     ax.set_ylabel(f"{y_name} ({y_unit})" if y_unit else y_name)
     ax.set_title(f"peak |{s.state}| over {x_name} x {y_name} ({len(g)} variants, {s.engine})")
-    fig.tight_layout()
-    write_figure_atomic(fig, path, format="png", dpi=120)
+    save_figure(fig, path, dpi)

@@ -464,19 +464,34 @@ def _simulate_and_compare(
     return metrics, passed, kernel
 
 
-def plot_tolerance(result: ToleranceResult, path, state: str | None = None):
+def plot_tolerance(result: ToleranceResult, path, state: str | None = None, dpi=None):
     """Histograms: the realized critical speed (for a model with one) and, when simulated,
     ``state``'s %NRMSD, peak ratio and frequency ratio against the ODE (thresholds dashed;
-    ``state`` default: the first). PNG, written atomically; returns the Figure.
+    ``state`` default: the first). Each histogram spans its values' robust range
+    (:func:`circuitsim.figure_style.robust_range`); circuits outside it are counted in the
+    panel's title. Written atomically in the format of ``path``'s suffix at ``dpi`` (PNG
+    default: the house style's); returns the Figure.
 
     Raises
     ------
     ComparisonError
         ``state`` is not one of the simulated states.
     """
-    from matplotlib.figure import Figure
+    from circuitsim.figure_style import style_context
 
-    from circuitsim.atomic import write_figure_atomic
+    with style_context():
+        return _plot_tolerance(result, path, state, dpi)
+
+
+def _plot_tolerance(result: ToleranceResult, path, state: str | None, dpi):
+    from circuitsim.figure_style import (
+        DOUBLE_COLUMN,
+        MARK,
+        new_figure,
+        robust_range,
+        save_figure,
+        series_style,
+    )
 
     panels = []  # (kind, title, values, unit)
     if result.critical_speed_model is not None or np.isfinite(result.critical_speed).any():
@@ -497,7 +512,7 @@ def plot_tolerance(result: ToleranceResult, path, state: str | None = None):
                        result.critical_speed, result.speed_unit))  # fmt: skip
     columns = 2 if len(panels) > 1 else 1
     rows = math.ceil(len(panels) / columns)
-    fig = Figure(figsize=(5.0 * columns, 3.4 * rows + 0.4))
+    fig = new_figure(DOUBLE_COLUMN, 2.6 * rows + 0.5)
     axes = np.atleast_1d(fig.subplots(rows, columns)).ravel()
     for ax in axes[len(panels) :]:
         ax.set_visible(False)
@@ -505,18 +520,24 @@ def plot_tolerance(result: ToleranceResult, path, state: str | None = None):
     for ax, (kind, title, values, unit) in zip(axes, panels, strict=False):
         finite = np.asarray(values, dtype=float)
         finite = finite[np.isfinite(finite)]
-        ax.hist(finite, bins=max(5, min(40, int(np.sqrt(max(finite.size, 1))) * 2)),
-                color="C0", alpha=0.8)  # fmt: skip
+        low, high, below, above = robust_range(finite)
+        inside = finite[(finite >= low) & (finite <= high)]
+        ax.hist(inside, bins=max(5, min(40, int(np.sqrt(max(inside.size, 1))) * 2)),
+                range=(low, high), color=series_style(2)["color"], alpha=0.8)  # fmt: skip
         if kind == "critical" and result.critical_speed_model is not None:
-            ax.axvline(result.critical_speed_model, color="C3", ls="--", lw=1, label="model")
-            ax.legend(fontsize=8)
+            ax.axvline(result.critical_speed_model, **MARK, label="model")
+            ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0))
+        notes = []
         if th is not None and kind != "critical":
-            _threshold_marks(ax, kind, th, finite)
-        ax.locator_params(axis="x", nbins=5)  # an offset axis of 1e-6 ratios stays readable
-        ax.set_title(title, fontsize=9)
-        ax.set_xlabel(unit or "ratio")
+            notes += _threshold_marks(ax, kind, th, inside)
+        ax.locator_params(axis="x", nbins=4)
+        if below:
+            notes.append(f"off scale: {below} below (min {finite.min():.6g})")
+        if above:
+            notes.append(f"off scale: {above} above (max {finite.max():.4g})")
+        ax.set_title("\n".join([title, *notes]))  # above the axes, never over the bars
+        ax.set_xlabel(f"{title.split(': ')[-1]} ({unit})" if unit else title.split(": ")[-1])
         ax.set_ylabel("circuits")
-        ax.grid(True, alpha=0.3)
     tol = result.tolerances
     label = (
         f"R {100 * tol.resistor:g} %, C {100 * tol.capacitor:g} %, offsets "
@@ -524,16 +545,15 @@ def plot_tolerance(result: ToleranceResult, path, state: str | None = None):
     )
     if result.yield_fraction is not None:
         label += f"; yield {100 * result.yield_fraction:.1f} %"
-    fig.suptitle(label, fontsize=9)
-    fig.tight_layout()
-    write_figure_atomic(fig, path, format="png", dpi=110)
+    fig.suptitle(label)
+    save_figure(fig, path, dpi)
     return fig
 
 
-def _threshold_marks(ax, kind: str, th: Thresholds, finite: np.ndarray) -> None:
+def _threshold_marks(ax, kind: str, th: Thresholds, finite: np.ndarray) -> list[str]:
     """The threshold(s) of a ``kind`` panel (``nrmsd``, ``peak``, ``frequency``) as dashed
-    lines, or as a note when they lie far outside the drawn values (a line there would
-    squeeze the histogram into one pixel)."""
+    lines, or as a note returned for the title when they lie far outside the drawn values (a
+    line there would squeeze the histogram into one pixel)."""
     if kind == "nrmsd":
         edges = [th.nrmsd_percent]
     else:
@@ -543,8 +563,8 @@ def _threshold_marks(ax, kind: str, th: Thresholds, finite: np.ndarray) -> None:
     span = max(high - low, 1e-12)
     near = [e for e in edges if low - 3 * span <= e <= high + 3 * span]
     for edge in near:
-        ax.axvline(edge, color="C3", ls="--", lw=1)
+        ax.axvline(edge, color="#d55e00", ls="--", lw=1)
     if len(near) < len(edges):
         text = ", ".join(f"{e:g}" for e in edges if e not in near)
-        ax.annotate(f"threshold {text} off scale", (0.02, 0.95), xycoords="axes fraction",
-                    va="top", fontsize=8, color="C3")  # fmt: skip
+        return [f"threshold {text} off scale"]
+    return []

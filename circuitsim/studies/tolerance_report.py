@@ -15,8 +15,11 @@ RESISTOR_TOLERANCE, CAPACITOR_TOLERANCE = 0.01, 0.05
 SEED = 1
 
 
-def tolerance_study(system, scenario_title: str, samples: int, path: Path, workers: int) -> dict:
-    """Run the report's Monte Carlo on ``system`` and draw its histograms into ``path``.
+def tolerance_study(
+    system, scenario_title: str, samples: int, path: Path, workers: int, dpi: float | None = None
+) -> dict:
+    """Run the report's Monte Carlo on ``system`` and draw its histograms into ``path`` (its
+    format by suffix; ``dpi``: a PNG's resolution, default the house style's).
 
     Returns
     -------
@@ -32,7 +35,7 @@ def tolerance_study(system, scenario_title: str, samples: int, path: Path, worke
     result = run_tolerance(
         system, tolerances, samples, SEED, SynthesisOptions(series="E96"), workers=workers
     )
-    plot_tolerance(result, path)
+    plot_tolerance(result, path, dpi=dpi)
     data = result.to_json()
     return {
         "scenario": scenario_title,

@@ -138,7 +138,8 @@ def test_ode_pushes_the_named_state_and_draws_its_phase_portrait(tmp_path, capsy
     figure = plot_states(tmp_path / "p.png", result, state=loaded.default_state)
     phase = figure.axes[-1]
     assert phase.get_title() == "phase portrait"
-    assert phase.get_xlabel() == "y (m)" and phase.get_ylabel() == "y_dot (m/s)"
+    # lengths drawn in mm (the house style, circuitsim/figure_style.py)
+    assert phase.get_xlabel() == "y (mm)" and phase.get_ylabel() == "y_dot (m/s)"
 
 
 def free_peak(V: float, push: float, t_stop: float, window: float) -> float:
