@@ -1,0 +1,467 @@
+"""An editable KiCad schematic (``.kicad_sch``, KiCad 6 format) of a generated circuit.
+
+Written with kiutils (the optional ``kicad`` extra). The stages are cut as in
+:func:`~circuitsim.synthesis.schematic.layout`: each op-amp section with its input chains,
+feedback parts and output parts is drawn with real wires; global labels (named after the
+netlist's nodes) join the stages and the sources. Reference designators are the bill of
+materials' (op-amp sections ``U3A`` are unit A of the TL074 ``U3``; each package also gets its
+supply unit E, and a package's unused sections are wired as grounded followers).
+
+Simulation: KiCad 6's fields (``Spice_Primitive``, ``Spice_Model``, ``Spice_Lib_File``,
+``Spice_Node_Sequence``); KiCad 7 and later convert these fields on load. The op-amps, diode
+and switch models live in a SPICE library written beside the schematic
+(:func:`spice_library_text`), with a 14-pin wrapper per quad package, because KiCad's netlister
+emits one subcircuit call per reference (all units of ``U1`` together). The netlist's
+voltage-controlled switch is drawn as the panel switch it stands for (``Switch:SW_SPST``) and
+simulated as its closed resistance; its control source is not drawn (the BOM: a manual switch
+needs no part).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import uuid
+from pathlib import Path
+
+from kiutils.items.common import ColorRGBA, Effects, Font, PageSettings, Position, Property
+from kiutils.items.schitems import (
+    Connection,
+    GlobalLabel,
+    HierarchicalSheetInstance,
+    Junction,
+    NoConnect,
+    SchematicSymbol,
+    SymbolInstance,
+    Text,
+)
+from kiutils.schematic import Schematic
+
+from circuitsim.netlist.circuit import (
+    Capacitor,
+    Circuit,
+    Diode,
+    Element,
+    Resistor,
+    SubcircuitCall,
+    Switch,
+    VoltageSource,
+)
+from circuitsim.netlist.writer import write_netlist
+from circuitsim.synthesis.blocks import BomEntry
+from circuitsim.synthesis.errors import SynthesisError
+from circuitsim.synthesis.kicad_symbols import PINS, TL074_SECTIONS, library_symbol
+from circuitsim.synthesis.parts import board_parts
+from circuitsim.synthesis.schematic import GROUND, Stage, layout
+
+GRID = 2.54  # mm
+ROW = 7.62  # pitch of parallel chains
+QUAD = "TL074_QUAD"
+
+
+def kicad_value(value: float, unit: str) -> str:
+    """A value in KiCad's (and SPICE's) notation: 30100 -> ``30.1k``, 1e-7 -> ``100n``."""
+    if value == 0 or not math.isfinite(value):
+        return f"{value:g}"
+    exponent = min(max(3 * math.floor(math.log10(abs(value)) / 3), -12), 6)
+    prefix = {-12: "p", -9: "n", -6: "u", -3: "m", 0: "", 3: "k", 6: "Meg"}[exponent]
+    return f"{float(f'{value / 10.0**exponent:.6g}'):g}{prefix}"
+
+
+def _pin_nodes(element: Element) -> dict[str, str]:
+    """Symbol pin number -> circuit node of a two-terminal part."""
+    if isinstance(element, Diode):
+        return {"2": element.anode.lower(), "1": element.cathode.lower()}
+    return {"1": element.positive.lower(), "2": element.negative.lower()}
+
+
+def _lib_id(element: Element) -> str:
+    if isinstance(element, Resistor):
+        return "Device:R"
+    if isinstance(element, Capacitor):
+        return "Device:C"
+    if isinstance(element, Diode):
+        return "Device:D"
+    if isinstance(element, Switch):
+        return "Switch:SW_SPST"
+    if isinstance(element, VoltageSource):
+        return "Simulation_SPICE:VSIN" if element.waveform is not None else "Simulation_SPICE:VDC"
+    raise SynthesisError(f"kicad schematic: no symbol for {element.name}")
+
+
+def pin_point(lib_id: str, unit: int, number: str, x: float, y: float, angle: int):
+    """Where pin ``number`` of a symbol placed at (x, y) rotated by ``angle`` lands (mm,
+    schematic coordinates, y down)."""
+    for u, n, _, px, py in PINS[lib_id]:
+        if n == number and u in (0, unit):
+            a = math.radians(angle)
+            rx = px * math.cos(a) - py * math.sin(a)
+            ry = px * math.sin(a) + py * math.cos(a)
+            return round(x + rx, 2), round(y - ry, 2)
+    raise KeyError(number)
+
+
+class _Sheet:
+    """Symbols, wires and labels collected before they become a kiutils Schematic."""
+
+    def __init__(self, circuit: Circuit, bom: list[BomEntry] | None, library: str) -> None:
+        self.circuit = circuit
+        self.library = library
+        self.designators = {p.part.lower(): p.designator for p in board_parts(circuit, bom or [])}
+        self.schematic = Schematic.create_new()
+        self.schematic.version = 20211123
+        self.schematic.generator = "eeschema"
+        self.endpoints: dict[tuple[float, float], int] = {}
+        self.power = 0
+
+    # --- primitives -----------------------------------------------------------------------
+    def wire(self, *points: tuple[float, float]) -> None:
+        for p, q in zip(points, points[1:], strict=False):
+            if p == q:
+                continue
+            self.schematic.graphicalItems.append(
+                Connection(type="wire", points=[Position(*p), Position(*q)], uuid=str(uuid.uuid4()))
+            )
+            for end in (p, q):
+                self.endpoints[end] = self.endpoints.get(end, 0) + 1
+
+    def label(self, net: str, at: tuple[float, float], left: bool) -> None:
+        if net == GROUND:
+            self.ground(at)
+            return
+        self.schematic.globalLabels.append(GlobalLabel(
+            text=net, shape="passive", position=Position(*at, 180 if left else 0),
+            effects=Effects(font=Font(height=1.27, width=1.27)), uuid=str(uuid.uuid4()),
+            properties=[Property("Intersheet References", "${INTERSHEET_REFS}", 0,
+                                 Position(*at, 0), Effects(font=Font(height=1.27, width=1.27), hide=True))],
+        ))  # fmt: skip
+
+    def ground(self, at: tuple[float, float]) -> None:
+        self.power += 1
+        self.symbol("power:GND", f"#PWR{self.power:03d}", "GND", at, 0)
+
+    def symbol(self, lib_id, reference, value, at, angle, unit=1, fields=None) -> None:
+        nickname, entry = lib_id.split(":")
+        uid = str(uuid.uuid4())
+        properties = [
+            Property("Reference", reference, 0, Position(at[0], at[1] - 3.81, 0),
+                     Effects(font=Font(height=1.27, width=1.27), hide=lib_id == "power:GND")),
+            Property("Value", value, 1, Position(at[0], at[1] + 3.81, 0),
+                     Effects(font=Font(height=1.27, width=1.27))),
+            Property("Footprint", "", 2, Position(*at, 0), Effects(Font(height=1.27, width=1.27), hide=True)),
+            Property("Datasheet", "~", 3, Position(*at, 0), Effects(Font(height=1.27, width=1.27), hide=True)),
+        ]  # fmt: skip
+        for k, (key, text) in enumerate((fields or {}).items(), start=4):
+            properties.append(Property(key, text, k, Position(*at, 0),
+                                       Effects(Font(height=1.27, width=1.27), hide=True)))  # fmt: skip
+        self.schematic.schematicSymbols.append(SchematicSymbol(
+            libraryNickname=nickname, entryName=entry, position=Position(*at, angle), unit=unit,
+            uuid=uid, properties=properties, pins={}))  # fmt: skip
+        self.schematic.symbolInstances.append(
+            SymbolInstance(path=f"/{uid}", reference=reference, unit=unit, value=value)
+        )
+        for _, end in self._pins(lib_id, unit, at, angle):
+            self.endpoints[end] = self.endpoints.get(end, 0) + 1
+
+    def _pins(self, lib_id, unit, at, angle):
+        return [(n, pin_point(lib_id, unit, n, *at, angle))
+                for u, n, *_ in PINS[lib_id] if u in (0, unit)]  # fmt: skip
+
+    # --- parts ----------------------------------------------------------------------------
+    def reference(self, element: Element) -> str:
+        return self.designators.get(element.name.lower(), element.name)
+
+    def fields(self, element: Element) -> dict[str, str]:
+        if isinstance(element, Diode):
+            return {"Spice_Primitive": "D", "Spice_Model": element.model.upper(),
+                    "Spice_Netlist_Enabled": "Y", "Spice_Node_Sequence": "2 1",
+                    "Spice_Lib_File": self.library}  # fmt: skip
+        if isinstance(element, Switch):
+            return {"Spice_Primitive": "R", "Spice_Model": "1", "Spice_Netlist_Enabled": "Y"}
+        if isinstance(element, VoltageSource):
+            return {"Spice_Primitive": "V", "Spice_Model": _source_model(element),
+                    "Spice_Netlist_Enabled": "Y"}  # fmt: skip
+        return {}
+
+    def value(self, element: Element) -> str:
+        if isinstance(element, Resistor):
+            return kicad_value(float(element.resistance), "ohm")
+        if isinstance(element, Capacitor):
+            return kicad_value(float(element.capacitance), "F")
+        if isinstance(element, Diode):
+            return "1N4148" if element.model.upper() == "D1N4148" else element.model.upper()
+        if isinstance(element, Switch):
+            return "SW_SPST"
+        return _source_model(element)
+
+    def two(self, element: Element, left_node: str, left: tuple[float, float]) -> tuple:
+        """Place ``element`` horizontally with ``left_node`` on its left pin at ``left``;
+        returns its right pin's point."""
+        lib_id = _lib_id(element)
+        nodes = _pin_nodes(element)
+        for angle in (0, 90, 180, 270):
+            pins = dict(self._pins(lib_id, 1, (0.0, 0.0), angle))
+            (n1, p1), (n2, p2) = pins.items()
+            if p1[1] != p2[1]:
+                continue
+            west = n1 if p1[0] < p2[0] else n2
+            if nodes[west] == left_node or nodes[n1] == nodes[n2]:
+                span = abs(p1[0] - p2[0])
+                at = (round(left[0] + span / 2, 2), left[1])
+                self.symbol(lib_id, self.reference(element), self.value(element), at, angle,
+                            fields=self.fields(element))  # fmt: skip
+                return round(left[0] + span, 2), left[1]
+        raise SynthesisError(f"kicad schematic: cannot orient {element.name}")  # pragma: no cover
+
+
+def _source_model(source: VoltageSource) -> str:
+    wave = source.waveform
+    if wave is None:
+        return f"dc {float(source.dc):g}"
+    if type(wave).__name__.upper() == "SIN":
+        return (f"sin({float(wave.offset):g} {float(wave.amplitude):g} "
+                f"{float(wave.frequency):g})")  # fmt: skip
+    raise SynthesisError(
+        f"kicad schematic: source {source.name} has a {type(wave).__name__} waveform; "
+        "only DC and SIN sources are drawn"
+    )
+
+
+def _span(element: Element) -> float:
+    return 10.16 if isinstance(element, Switch) else 7.62
+
+
+def _chain_width(chain: list[Element], net: str) -> float:
+    return sum(_span(e) + GRID for e in chain) + GRID + 1.27 * len(net) + 5.08
+
+
+def _snap(x: float) -> float:
+    return round(round(x / GRID) * GRID, 2)
+
+
+def _draw_stage(sheet: _Sheet, s: Stage, x0: float, oy: float) -> tuple[float, float]:
+    """One op-amp section with its parts; returns (right edge, lowest y)."""
+    width_in = max([_chain_width(c, n) for c, n in s.inputs] or [5.08])
+    xj = _snap(x0 + width_in)
+    ox, xo = xj + 12.7, xj + 25.4
+    package, section = _section(sheet, s.opamp)
+    plus, minus, out = TL074_SECTIONS[section]
+    unit = "ABCD".index(section) + 1
+    sheet.symbol("Amplifier_Operational:TL074", package, "TL074", (ox, oy), 0, unit,
+                 fields=sheet.opamp_fields)  # fmt: skip
+    lib = "Amplifier_Operational:TL074"
+    pm = pin_point(lib, unit, minus, ox, oy, 0)
+    pp = pin_point(lib, unit, plus, ox, oy, 0)
+    po = pin_point(lib, unit, out, ox, oy, 0)
+    top = oy - ROW * len(s.feedback)
+    sheet.wire(pm, (xj, pm[1]))
+    sheet.wire(po, (xo, po[1]))
+    sheet.wire(pp, (pp[0] - GRID, pp[1]))
+    sheet.label(s.plus, (pp[0] - GRID, pp[1]), left=True)
+    # feedback above, each row from the junction column to the output column
+    previous_j, previous_o = (xj, pm[1]), (xo, po[1])
+    for k, element in enumerate(s.feedback):
+        y = oy - ROW * (k + 1)
+        sheet.wire(previous_j, (xj, y))
+        sheet.wire(previous_o, (xo, y))
+        left = (_snap(ox - _span(element) / 2), y)
+        sheet.wire((xj, y), left)
+        right = sheet.two(element, s.junction, left)
+        sheet.wire(right, (xo, y))
+        previous_j, previous_o = (xj, y), (xo, y)
+    # inputs below the junction, from it to the left
+    y_in = pm[1]
+    previous = (xj, y_in)
+    for k, (chain, net) in enumerate(s.inputs):
+        y = y_in + ROW * k
+        sheet.wire(previous, (xj, y))
+        previous = (xj, y)
+        x, node = xj, s.junction
+        for element in chain:
+            start = (x - GRID, y)
+            sheet.wire((x, y), start)
+            nodes = _pin_nodes(element)
+            far = next((n for n in nodes.values() if n != node), node)
+            left = (round(start[0] - _span(element), 2), y)
+            sheet.two(element, far, left)
+            x, node = left[0], far
+        sheet.wire((x, y), (x - GRID, y))
+        sheet.label(net, (x - GRID, y), left=True)
+    # the output node's label, then the parts hanging on the output, to the right
+    sheet.wire((xo, po[1]), (xo + GRID, po[1]))
+    sheet.label(s.output, (xo + GRID, po[1]), left=False)
+    right_edge = xo + GRID + 1.27 * len(s.output) + 5.08
+    previous = (xo, po[1])
+    low = y_in + ROW * max(len(s.inputs) - 1, 0)
+    for k, (chain, net) in enumerate(s.outputs):
+        y = po[1] + ROW * (k + 1)
+        sheet.wire(previous, (xo, y))
+        previous = (xo, y)
+        x, node = xo, s.output
+        for element in chain:
+            sheet.wire((x, y), (x + GRID, y))
+            right = sheet.two(element, node, (x + GRID, y))
+            node = next((n for n in _pin_nodes(element).values() if n != node), node)
+            x = right[0]
+        sheet.wire((x, y), (x + GRID, y))
+        sheet.label(net, (x + GRID, y), left=False)
+        right_edge = max(right_edge, x + GRID + 1.27 * len(net) + 5.08)
+        low = max(low, y)
+    del top
+    return right_edge, low
+
+
+def _section(sheet: _Sheet, opamp: SubcircuitCall) -> tuple[str, str]:
+    designator = sheet.designators.get(opamp.name.lower(), opamp.name)
+    match = re.fullmatch(r"(U\d+)([A-D])", designator.upper())
+    if match is None:
+        raise SynthesisError(f"kicad schematic: op-amp {opamp.name} has no section designator")
+    return match.group(1), match.group(2)
+
+
+def spice_library_text(circuit: Circuit) -> str:
+    """The models and subcircuits of ``circuit`` plus one 14-pin quad wrapper (pins in TL074
+    order) around its op-amp subcircuit, for the schematic's ``Spice_Lib_File``."""
+    text = write_netlist(circuit, "ngspice", fold_subcircuit_defaults=True)
+    kept, inside, previous = [], False, False
+    for line in text.splitlines():
+        head = line.strip().lower()
+        if head.startswith(".subckt"):
+            inside = True
+        take = inside or head.startswith(".model") or (previous and head.startswith("+"))
+        if take:
+            kept.append(line)
+        previous = take
+        if head.startswith(".ends"):
+            inside = False
+    calls = [e for e in circuit.elements if isinstance(e, SubcircuitCall)]
+    if calls:
+        model, ports = calls[0].subcircuit, len(calls[0].connections)
+        kept.append(f".subckt {QUAD} " + " ".join(f"p{k}" for k in range(1, 15)))
+        for section, (plus, minus, out) in TL074_SECTIONS.items():
+            supplies = ["p4", "p11"][: ports - 3]
+            nodes = [f"p{plus}", f"p{minus}", *supplies, f"p{out}"]
+            kept.append(f"X{section} " + " ".join(nodes) + f" {model}")
+        kept.append(f".ends {QUAD}")
+    return "\n".join(kept) + "\n"
+
+
+def kicad_schematic_text(
+    circuit: Circuit,
+    states: list[str] | None = None,
+    bom: list[BomEntry] | None = None,
+    library: str = "circuit.spice.lib",
+) -> str:
+    """The ``.kicad_sch`` text of ``circuit`` (see the module's docstring).
+
+    Parameters
+    ----------
+    circuit : Circuit
+        A translator's circuit.
+    states : list of str, optional
+        State names: one row of stages per state, as in the schemdraw drawing.
+    bom : list of BomEntry, optional
+        The translator's records (designators of the bill of materials).
+    library : str
+        File name of the SPICE library (:func:`spice_library_text`) beside the schematic.
+
+    The circuit's ``.ic`` and ``.tran`` lines are placed on the sheet as simulation directives,
+    so KiCad's simulator runs what the netlist runs.
+    """
+    sheet = _Sheet(circuit, bom, library)
+    sheet.opamp_fields = {"Spice_Primitive": "X", "Spice_Model": QUAD,
+                          "Spice_Netlist_Enabled": "Y", "Spice_Lib_File": library,
+                          "Spice_Node_Sequence": " ".join(str(k) for k in range(1, 15))}  # fmt: skip
+    for lib_id in PINS:
+        sheet.schematic.libSymbols.append(library_symbol(lib_id))
+    plan = layout(circuit, states)
+    y, right_most = 30.48, 0.0
+    used: dict[str, set[str]] = {}
+    supplies: dict[str, tuple[str, ...]] = {}
+    for _, stages in plan.rows:
+        oy = _snap(y + ROW * max(len(s.feedback) for s in stages) + 5.08)
+        x, low = 20.32, oy
+        for s in stages:
+            right, bottom = _draw_stage(sheet, s, x, oy)
+            package, section = _section(sheet, s.opamp)
+            used.setdefault(package, set()).add(section)
+            supplies[package] = tuple(n.lower() for n in s.opamp.connections[2:-1])
+            x, low = _snap(right + 7.62), max(low, bottom)
+        right_most = max(right_most, x)
+        y = low + 12.7
+    # the packages' supply units and their unused sections
+    y = _snap(y + 10.16)
+    x = 25.4
+    for package in sorted(used, key=lambda u: int(u[1:])):
+        lib = "Amplifier_Operational:TL074"
+        sheet.symbol(lib, package, "TL074", (x, y), 0, 5, fields=sheet.opamp_fields)
+        for number, net in zip(("4", "11"), supplies[package] or (None, None), strict=False):
+            p = pin_point(lib, 5, number, x, y, 0)
+            q = (p[0], p[1] + (-GRID if number == "4" else GRID))
+            if net is None:
+                sheet.schematic.noConnects.append(NoConnect(Position(*p), str(uuid.uuid4())))
+                continue
+            sheet.wire(p, q)
+            sheet.label(net, q, left=False)
+        for section in "ABCD":
+            if section in used[package]:
+                continue
+            x += 25.4
+            unit = "ABCD".index(section) + 1
+            plus, minus, out = TL074_SECTIONS[section]
+            sheet.symbol(lib, package, "TL074", (x, y), 0, unit, fields=sheet.opamp_fields)
+            pm, pp, po = (pin_point(lib, unit, n, x, y, 0) for n in (minus, plus, out))
+            sheet.wire(pp, (pp[0] - GRID, pp[1]))
+            sheet.ground((pp[0] - GRID, pp[1]))
+            sheet.wire(po, (po[0] + GRID, po[1]), (po[0] + GRID, pm[1] + 5.08),
+                       (pm[0] - GRID, pm[1] + 5.08), (pm[0] - GRID, pm[1]), pm)  # fmt: skip
+        x += 30.48
+    # the sources, upright, each pin to a label (or ground)
+    for element in plan.others:
+        if isinstance(element, VoltageSource) and any(
+            isinstance(s, Switch) and s.control_positive.lower() == element.positive.lower()
+            for s in circuit.elements
+        ):
+            continue  # a switch's control: the panel switch needs none
+        x += 20.32
+        lib_id = _lib_id(element)
+        sheet.symbol(lib_id, sheet.reference(element), sheet.value(element), (x, y), 0,
+                     fields=sheet.fields(element))  # fmt: skip
+        for number, node in _pin_nodes(element).items():
+            p = pin_point(lib_id, 1, number, x, y, 0)
+            q = (p[0], p[1] + (-GRID if number == "1" else GRID))
+            sheet.wire(p, q)
+            sheet.label(node, q, left=False)
+    right_most = max(right_most, x + 20.32)
+    lines = [line for line in write_netlist(circuit, "ngspice").splitlines()
+             if line.lower().startswith((".ic", ".tran"))]  # fmt: skip
+    if lines:
+        sheet.schematic.texts.append(Text(text="\\n".join(lines), position=Position(20.32, 15.24, 0),
+                                          effects=Effects(Font(height=1.27, width=1.27)), uuid=str(uuid.uuid4())))  # fmt: skip
+    for point, count in sheet.endpoints.items():
+        if count >= 3:
+            sheet.schematic.junctions.append(
+                Junction(Position(*point), 0, ColorRGBA(), str(uuid.uuid4()))
+            )
+    width, height = right_most + 20, y + 40
+    for paper, (w, h) in (("A3", (420, 297)), ("A2", (594, 420)), ("A1", (841, 594)),
+                          ("A0", (1189, 841))):  # fmt: skip
+        if width <= w and height <= h:
+            break
+    else:
+        paper = "User"
+    sheet.schematic.paper = PageSettings(paperSize=paper, width=width, height=height)
+    sheet.schematic.sheetInstances = [HierarchicalSheetInstance("/", "1")]
+    return sheet.schematic.to_sexpr()
+
+
+def kicad_library_path(schematic: str | os.PathLike) -> Path:
+    """The SPICE library written beside ``FILE.kicad_sch``: ``FILE.spice.lib``."""
+    return Path(f"{Path(schematic).with_suffix('')}.spice.lib")
+
+
+def check_kicad_path(path: str | os.PathLike) -> None:
+    """SynthesisError naming ``path`` unless it ends in ``.kicad_sch``."""
+    if Path(path).suffix.lower() != ".kicad_sch":
+        raise SynthesisError(f"kicad schematic {path}: the file name must end in .kicad_sch")
