@@ -58,6 +58,15 @@ from circuitsim.synthesis.schematic import GROUND, Stage, layout
 GRID = 2.54  # mm
 ROW = 7.62  # pitch of parallel chains
 QUAD = "TL074_QUAD"
+PAPERS = {"A3": (420, 297), "A2": (594, 420), "A1": (841, 594), "A0": (1189, 841)}  # mm
+
+
+def _effects(hide: bool = False) -> Effects:
+    return Effects(font=Font(height=1.27, width=1.27), hide=hide)
+
+
+def _uid() -> str:
+    return str(uuid.uuid4())
 
 
 def kicad_value(value: float, unit: str) -> str:
@@ -114,6 +123,11 @@ class _Sheet:
         self.schematic.generator = "eeschema"
         self.endpoints: dict[tuple[float, float], int] = {}
         self.power = 0
+        # all units of a package are one subcircuit call in KiCad's netlist: the quad wrapper
+        self.opamp_fields = {
+            "Spice_Primitive": "X", "Spice_Model": QUAD, "Spice_Netlist_Enabled": "Y",
+            "Spice_Lib_File": library, "Spice_Node_Sequence": " ".join(map(str, range(1, 15))),
+        }  # fmt: skip
 
     # --- primitives -----------------------------------------------------------------------
     def wire(self, *points: tuple[float, float]) -> None:
@@ -121,7 +135,7 @@ class _Sheet:
             if p == q:
                 continue
             self.schematic.graphicalItems.append(
-                Connection(type="wire", points=[Position(*p), Position(*q)], uuid=str(uuid.uuid4()))
+                Connection(type="wire", points=[Position(*p), Position(*q)], uuid=_uid())
             )
             for end in (p, q):
                 self.endpoints[end] = self.endpoints.get(end, 0) + 1
@@ -132,9 +146,9 @@ class _Sheet:
             return
         self.schematic.globalLabels.append(GlobalLabel(
             text=net, shape="passive", position=Position(*at, 180 if left else 0),
-            effects=Effects(font=Font(height=1.27, width=1.27)), uuid=str(uuid.uuid4()),
+            effects=_effects(), uuid=_uid(),
             properties=[Property("Intersheet References", "${INTERSHEET_REFS}", 0,
-                                 Position(*at, 0), Effects(font=Font(height=1.27, width=1.27), hide=True))],
+                                 Position(*at, 0), _effects(True))],
         ))  # fmt: skip
 
     def ground(self, at: tuple[float, float]) -> None:
@@ -143,18 +157,28 @@ class _Sheet:
 
     def symbol(self, lib_id, reference, value, at, angle, unit=1, fields=None) -> None:
         nickname, entry = lib_id.split(":")
-        uid = str(uuid.uuid4())
+        uid = _uid()
+        x, y = at
+        power = lib_id == "power:GND"
+        turn = 90 if angle in (90, 270) else 0  # fields read left to right on every part
+        if lib_id.startswith("Amplifier_Operational"):
+            ref_at, value_at = (x + 2.54, y + 5.08), (x + 2.54, y + 7.62)
+        elif lib_id.startswith(("Simulation_SPICE", "power")):
+            ref_at, value_at = (x + 6.35, y - 1.27), (x + 6.35, y + 1.27)
+        elif turn or lib_id in ("Device:D", "Switch:SW_SPST"):
+            ref_at, value_at = (x, y - 2.54), (x, y + 2.54)
+        else:
+            ref_at, value_at = (x + 3.81, y - 1.27), (x + 3.81, y + 1.27)
         properties = [
-            Property("Reference", reference, 0, Position(at[0], at[1] - 3.81, 0),
-                     Effects(font=Font(height=1.27, width=1.27), hide=lib_id == "power:GND")),
-            Property("Value", value, 1, Position(at[0], at[1] + 3.81, 0),
-                     Effects(font=Font(height=1.27, width=1.27))),
-            Property("Footprint", "", 2, Position(*at, 0), Effects(Font(height=1.27, width=1.27), hide=True)),
-            Property("Datasheet", "~", 3, Position(*at, 0), Effects(Font(height=1.27, width=1.27), hide=True)),
+            Property("Reference", reference, 0, Position(*ref_at, turn),
+                     _effects(power)),
+            Property("Value", value, 1, Position(*value_at, turn), _effects(power)),
+            Property("Footprint", "", 2, Position(*at, 0), _effects(True)),
+            Property("Datasheet", "~", 3, Position(*at, 0), _effects(True)),
         ]  # fmt: skip
         for k, (key, text) in enumerate((fields or {}).items(), start=4):
             properties.append(Property(key, text, k, Position(*at, 0),
-                                       Effects(Font(height=1.27, width=1.27), hide=True)))  # fmt: skip
+                                       _effects(True)))  # fmt: skip
         self.schematic.schematicSymbols.append(SchematicSymbol(
             libraryNickname=nickname, entryName=entry, position=Position(*at, angle), unit=unit,
             uuid=uid, properties=properties, pins={}))  # fmt: skip
@@ -232,8 +256,14 @@ def _span(element: Element) -> float:
     return 10.16 if isinstance(element, Switch) else 7.62
 
 
-def _chain_width(chain: list[Element], net: str) -> float:
-    return sum(_span(e) + GRID for e in chain) + GRID + 1.27 * len(net) + 5.08
+def _lead(sheet: _Sheet, element: Element) -> float:
+    """The wire before a part in a chain: long enough that its reference fits (mm)."""
+    text = max(len(sheet.reference(element)), len(sheet.value(element))) * 1.1
+    return max(GRID, _snap(text - _span(element) + GRID))
+
+
+def _chain_width(sheet: _Sheet, chain: list[Element], net: str) -> float:
+    return sum(_span(e) + _lead(sheet, e) for e in chain) + GRID + 1.27 * len(net) + 5.08
 
 
 def _snap(x: float) -> float:
@@ -242,7 +272,7 @@ def _snap(x: float) -> float:
 
 def _draw_stage(sheet: _Sheet, s: Stage, x0: float, oy: float) -> tuple[float, float]:
     """One op-amp section with its parts; returns (right edge, lowest y)."""
-    width_in = max([_chain_width(c, n) for c, n in s.inputs] or [5.08])
+    width_in = max([_chain_width(sheet, c, n) for c, n in s.inputs] or [5.08])
     xj = _snap(x0 + width_in)
     ox, xo = xj + 12.7, xj + 25.4
     package, section = _section(sheet, s.opamp)
@@ -279,7 +309,7 @@ def _draw_stage(sheet: _Sheet, s: Stage, x0: float, oy: float) -> tuple[float, f
         previous = (xj, y)
         x, node = xj, s.junction
         for element in chain:
-            start = (x - GRID, y)
+            start = (round(x - _lead(sheet, element), 2), y)
             sheet.wire((x, y), start)
             nodes = _pin_nodes(element)
             far = next((n for n in nodes.values() if n != node), node)
@@ -300,8 +330,9 @@ def _draw_stage(sheet: _Sheet, s: Stage, x0: float, oy: float) -> tuple[float, f
         previous = (xo, y)
         x, node = xo, s.output
         for element in chain:
-            sheet.wire((x, y), (x + GRID, y))
-            right = sheet.two(element, node, (x + GRID, y))
+            lead = round(x + _lead(sheet, element), 2)
+            sheet.wire((x, y), (lead, y))
+            right = sheet.two(element, node, (lead, y))
             node = next((n for n in _pin_nodes(element).values() if n != node), node)
             x = right[0]
         sheet.wire((x, y), (x + GRID, y))
@@ -370,13 +401,10 @@ def kicad_schematic_text(
     so KiCad's simulator runs what the netlist runs.
     """
     sheet = _Sheet(circuit, bom, library)
-    sheet.opamp_fields = {"Spice_Primitive": "X", "Spice_Model": QUAD,
-                          "Spice_Netlist_Enabled": "Y", "Spice_Lib_File": library,
-                          "Spice_Node_Sequence": " ".join(str(k) for k in range(1, 15))}  # fmt: skip
     for lib_id in PINS:
         sheet.schematic.libSymbols.append(library_symbol(lib_id))
     plan = layout(circuit, states)
-    y, right_most = 30.48, 0.0
+    y = 30.48
     used: dict[str, set[str]] = {}
     supplies: dict[str, tuple[str, ...]] = {}
     for _, stages in plan.rows:
@@ -388,7 +416,6 @@ def kicad_schematic_text(
             used.setdefault(package, set()).add(section)
             supplies[package] = tuple(n.lower() for n in s.opamp.connections[2:-1])
             x, low = _snap(right + 7.62), max(low, bottom)
-        right_most = max(right_most, x)
         y = low + 12.7
     # the packages' supply units and their unused sections
     y = _snap(y + 10.16)
@@ -400,7 +427,7 @@ def kicad_schematic_text(
             p = pin_point(lib, 5, number, x, y, 0)
             q = (p[0], p[1] + (-GRID if number == "4" else GRID))
             if net is None:
-                sheet.schematic.noConnects.append(NoConnect(Position(*p), str(uuid.uuid4())))
+                sheet.schematic.noConnects.append(NoConnect(Position(*p), _uid()))
                 continue
             sheet.wire(p, q)
             sheet.label(net, q, left=False)
@@ -433,24 +460,18 @@ def kicad_schematic_text(
             q = (p[0], p[1] + (-GRID if number == "1" else GRID))
             sheet.wire(p, q)
             sheet.label(node, q, left=False)
-    right_most = max(right_most, x + 20.32)
     lines = [line for line in write_netlist(circuit, "ngspice").splitlines()
              if line.lower().startswith((".ic", ".tran"))]  # fmt: skip
     if lines:
-        sheet.schematic.texts.append(Text(text="\\n".join(lines), position=Position(20.32, 15.24, 0),
-                                          effects=Effects(Font(height=1.27, width=1.27)), uuid=str(uuid.uuid4())))  # fmt: skip
+        directive = Text(text="\\n".join(lines), position=Position(20.32, 15.24, 0),
+                         effects=_effects(), uuid=_uid())  # fmt: skip
+        sheet.schematic.texts.append(directive)
     for point, count in sheet.endpoints.items():
         if count >= 3:
-            sheet.schematic.junctions.append(
-                Junction(Position(*point), 0, ColorRGBA(), str(uuid.uuid4()))
-            )
-    width, height = right_most + 20, y + 40
-    for paper, (w, h) in (("A3", (420, 297)), ("A2", (594, 420)), ("A1", (841, 594)),
-                          ("A0", (1189, 841))):  # fmt: skip
-        if width <= w and height <= h:
-            break
-    else:
-        paper = "User"
+            sheet.schematic.junctions.append(Junction(Position(*point), 0, ColorRGBA(), _uid()))
+    width = max(p[0] for p in sheet.endpoints) + 30.0
+    height = max(p[1] for p in sheet.endpoints) + 40.0
+    paper = next((name for name, (w, h) in PAPERS.items() if width <= w and height <= h), "User")
     sheet.schematic.paper = PageSettings(paperSize=paper, width=width, height=height)
     sheet.schematic.sheetInstances = [HierarchicalSheetInstance("/", "1")]
     return sheet.schematic.to_sexpr()

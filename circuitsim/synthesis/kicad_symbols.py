@@ -72,8 +72,8 @@ def _graphics(lib_id: str, unit: int) -> list:
         return [_line((1.27, 1.27), (1.27, -1.27)),
                 _line((1.27, 0), (-1.27, 1.27), (-1.27, -1.27), (1.27, 0))]  # fmt: skip
     if lib_id == "Switch:SW_SPST":
-        return [_line((-2.54, 0), (2.032, 1.524)), SyCircle(center=Position(-2.54, 0), radius=0.508),
-                SyCircle(center=Position(2.54, 0), radius=0.508)]  # fmt: skip
+        contacts = [SyCircle(center=Position(x, 0), radius=0.508) for x in (-2.54, 2.54)]
+        return [_line((-2.54, 0), (2.032, 1.524)), *contacts]
     if lib_id.startswith("Simulation_SPICE:"):
         marks = [_line((-0.635, 1.905), (0.635, 1.905)), _line((0, 1.27), (0, 2.54))]
         if lib_id.endswith("VSIN"):
@@ -105,6 +105,7 @@ def library_symbol(lib_id: str) -> Symbol:
     symbol = Symbol(libraryNickname=nickname, entryName=entry, properties=properties,
                     isPower=lib_id == "power:GND", inBom=lib_id != "power:GND",
                     onBoard=lib_id != "power:GND", pinNamesOffset=0.254)  # fmt: skip
+    symbol.pinNames = True
     symbol.pinNamesHide = lib_id != "Amplifier_Operational:TL074"
     symbol.hidePinNumbers = lib_id.startswith("Simulation_SPICE") or lib_id == "power:GND"
     pins = PINS[lib_id]
