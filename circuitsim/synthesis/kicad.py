@@ -403,6 +403,7 @@ def kicad_schematic_text(
     sheet = _Sheet(circuit, bom, library)
     for lib_id in PINS:
         sheet.schematic.libSymbols.append(library_symbol(lib_id))
+    _check_switches(circuit)
     plan = layout(circuit, states)
     y = 30.48
     used: dict[str, set[str]] = {}
@@ -475,6 +476,21 @@ def kicad_schematic_text(
     sheet.schematic.paper = PageSettings(paperSize=paper, width=width, height=height)
     sheet.schematic.sheetInstances = [HierarchicalSheetInstance("/", "1")]
     return sheet.schematic.to_sexpr()
+
+
+def _check_switches(circuit: Circuit) -> None:
+    """SynthesisError unless every switch is held on by a constant control (drawn closed)."""
+    sources = {e.positive.lower(): e for e in circuit.elements if isinstance(e, VoltageSource)}
+    for switch in (e for e in circuit.elements if isinstance(e, Switch)):
+        control = sources.get(switch.control_positive.lower())
+        model = circuit.models.get(switch.model.lower())
+        threshold = float((model.params if model else {}).get("vt", 0.0))
+        if (control is None or control.waveform is not None or switch.control_negative != GROUND
+                or not float(control.dc) > threshold):  # fmt: skip
+            raise SynthesisError(
+                f"kicad schematic: switch {switch.name} is not held on by a constant control; "
+                "the schematic draws it as a closed panel switch"
+            )
 
 
 def kicad_library_path(schematic: str | os.PathLike) -> Path:

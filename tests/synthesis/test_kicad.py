@@ -193,3 +193,26 @@ def test_a_bad_suffix_is_refused_before_anything_is_written(tmp_path):
     with pytest.raises(SynthesisError, match=r"w\.sch.*\.kicad_sch"):
         generate(system, tmp_path / "w.cir", kicad=tmp_path / "w.sch")
     assert not list(tmp_path.iterdir())
+
+
+def test_the_rest_of_circuitsim_does_not_import_kiutils():
+    """kiutils is an optional extra: the CLI and the generator load it only for --kicad."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, circuitsim.cli, circuitsim.synthesis.generate, circuitsim.synthesis.schematic;"
+        "print('kiutils' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+def test_a_switch_closed_later_is_refused(tmp_path):
+    """The schematic draws S1 closed: a circuit that closes it at a time is refused by name."""
+    from circuitsim.synthesis.generate import switch_at
+
+    system = switch_at(load_model("wheelset").system(), 1.0)
+    with pytest.raises(SynthesisError, match="switch S1 is not held on"):
+        generate(system, tmp_path / "w.cir", kicad=tmp_path / "w.kicad_sch")
+    assert not list(tmp_path.iterdir())
