@@ -95,7 +95,8 @@ def _lib_id(element: Element) -> str:
     if isinstance(element, Switch):
         return "Switch:SW_SPST"
     if isinstance(element, VoltageSource):
-        return "Simulation_SPICE:VSIN" if element.waveform is not None else "Simulation_SPICE:VDC"
+        kind = type(element.waveform).__name__.upper() if element.waveform is not None else "DC"
+        return f"Simulation_SPICE:V{kind}"
     raise SynthesisError(f"kicad schematic: no symbol for {element.name}")
 
 
@@ -123,6 +124,7 @@ class _Sheet:
         self.schematic.generator = "eeschema"
         self.endpoints: dict[tuple[float, float], int] = {}
         self.power = 0
+        self.sources = _source_models(circuit)
         # all units of a package are one subcircuit call in KiCad's netlist: the quad wrapper
         self.opamp_fields = {
             "Spice_Primitive": "X", "Spice_Model": QUAD, "Spice_Netlist_Enabled": "Y",
@@ -204,7 +206,7 @@ class _Sheet:
         if isinstance(element, Switch):
             return {"Spice_Primitive": "R", "Spice_Model": "1", "Spice_Netlist_Enabled": "Y"}
         if isinstance(element, VoltageSource):
-            return {"Spice_Primitive": "V", "Spice_Model": _source_model(element),
+            return {"Spice_Primitive": "V", "Spice_Model": self.sources[element.name.lower()],
                     "Spice_Netlist_Enabled": "Y"}  # fmt: skip
         return {}
 
@@ -217,7 +219,8 @@ class _Sheet:
             return "1N4148" if element.model.upper() == "D1N4148" else element.model.upper()
         if isinstance(element, Switch):
             return "SW_SPST"
-        return _source_model(element)
+        model = self.sources[element.name.lower()]
+        return model if len(model) <= 24 else model.split("(")[0] + "(...)"
 
     def two(self, element: Element, left_node: str, left: tuple[float, float]) -> tuple:
         """Place ``element`` horizontally with ``left_node`` on its left pin at ``left``;
@@ -239,17 +242,22 @@ class _Sheet:
         raise SynthesisError(f"kicad schematic: cannot orient {element.name}")  # pragma: no cover
 
 
-def _source_model(source: VoltageSource) -> str:
-    wave = source.waveform
-    if wave is None:
-        return f"dc {float(source.dc):g}"
-    if type(wave).__name__.upper() == "SIN":
-        return (f"sin({float(wave.offset):g} {float(wave.amplitude):g} "
-                f"{float(wave.frequency):g})")  # fmt: skip
-    raise SynthesisError(
-        f"kicad schematic: source {source.name} has a {type(wave).__name__} waveform; "
-        "only DC and SIN sources are drawn"
-    )
+def _source_models(circuit: Circuit) -> dict[str, str]:
+    """Each voltage source's value as the ngspice netlist writes it (``DC 15``, ``SIN(0 13.2
+    3)``, ``PWL(...)``), by lower-case name: KiCad's ``Spice_Model`` field."""
+    names = {e.name.lower() for e in circuit.elements if isinstance(e, VoltageSource)}
+    cards: list[str] = []
+    for line in write_netlist(circuit, "ngspice").splitlines():
+        if line.startswith("+") and cards:
+            cards[-1] += " " + line[1:].strip()
+        else:
+            cards.append(line.strip())
+    models = {}
+    for card in cards:
+        fields = card.split(None, 3)
+        if len(fields) == 4 and fields[0].lower() in names:
+            models[fields[0].lower()] = fields[3]
+    return models
 
 
 def _span(element: Element) -> float:

@@ -1,10 +1,10 @@
 """The KiCad symbols a generated schematic uses, embedded in its ``lib_symbols`` section.
 
 Each symbol carries the name of KiCad's standard library entry (``Device:R``, ``Device:C``,
-``Device:D``, ``Amplifier_Operational:TL074``, ``Simulation_SPICE:VDC`` / ``VSIN``,
-``Switch:SW_SPST``, ``power:GND``) and the same pin numbers and pin positions as that entry, so
-a user's "update symbols from library" keeps every wire attached; the drawings are plain
-outlines made here. Positions are in millimetres, library coordinates (y up).
+``Device:D``, ``Amplifier_Operational:TL074``, ``Simulation_SPICE:VDC`` / ``VSIN`` /
+``VPULSE`` / ``VPWL``, ``Switch:SW_SPST``, ``power:GND``) and the same pin numbers and pin
+positions as that entry, so a user's "update symbols from library" keeps every wire attached;
+the drawings are plain outlines made here. Positions are in millimetres, library coordinates (y up).
 
 :data:`PINS` lists, per library id, each pin as ``(unit, number, name, x, y)``; unit 0 is a
 pin common to all units. The TL074 has sections A-D (units 1-4: output, inverting and
@@ -25,6 +25,8 @@ PINS: dict[str, list[tuple[int, str, str, float, float]]] = {
     "Switch:SW_SPST": [(0, "1", "A", -5.08, 0.0), (0, "2", "B", 5.08, 0.0)],
     "Simulation_SPICE:VDC": [(0, "1", "~", 0.0, 5.08), (0, "2", "~", 0.0, -5.08)],
     "Simulation_SPICE:VSIN": [(0, "1", "~", 0.0, 5.08), (0, "2", "~", 0.0, -5.08)],
+    "Simulation_SPICE:VPULSE": [(0, "1", "~", 0.0, 5.08), (0, "2", "~", 0.0, -5.08)],
+    "Simulation_SPICE:VPWL": [(0, "1", "~", 0.0, 5.08), (0, "2", "~", 0.0, -5.08)],
     "power:GND": [(0, "1", "GND", 0.0, 0.0)],
     "Amplifier_Operational:TL074": [
         (unit, number, name, x, y)
@@ -78,6 +80,11 @@ def _graphics(lib_id: str, unit: int) -> list:
         marks = [_line((-0.635, 1.905), (0.635, 1.905)), _line((0, 1.27), (0, 2.54))]
         if lib_id.endswith("VSIN"):
             marks.append(_line((-1.27, 0), (-0.635, 0.635), (0.635, -0.635), (1.27, 0)))
+        if lib_id.endswith("VPULSE"):
+            marks.append(_line((-1.27, -0.635), (-0.635, -0.635), (-0.635, 0.635), (0.635, 0.635),
+                               (0.635, -0.635), (1.27, -0.635)))  # fmt: skip
+        if lib_id.endswith("VPWL"):
+            marks.append(_line((-1.27, -0.635), (-0.381, 0.635), (0.381, -0.254), (1.27, 0.635)))
         return [SyCircle(center=Position(0, 0), radius=2.54), *marks]
     if lib_id == "power:GND":
         return [_line((0, 0), (0, -1.27), (1.27, -1.27), (0, -2.54), (-1.27, -1.27), (0, -1.27))]

@@ -124,9 +124,13 @@ def _expected(circuit, bom):
     return expected
 
 
-@pytest.mark.parametrize("opamp", ["tl074", "ideal"])
-def test_the_schematic_nets_are_the_circuit_nets(tmp_path, opamp):
-    system = load_model("wheelset").system()
+@pytest.mark.parametrize(
+    "model, opamp",
+    [("wheelset", "tl074"), ("wheelset", "ideal"), ("quarter_car", "ideal"), ("bogie", "tl074"),
+     ("wheelset_creep", "ideal")],
+)  # fmt: skip
+def test_the_schematic_nets_are_the_circuit_nets(tmp_path, model, opamp):
+    system = load_model(model).system()
     sch_path = tmp_path / "w.kicad_sch"
     out = generate(system, tmp_path / "w.cir", SynthesisOptions(opamp=opamp), kicad=sch_path)
     circuit, bom = out.synthesis.circuit, out.synthesis.bom
