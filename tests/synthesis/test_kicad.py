@@ -220,3 +220,17 @@ def test_a_switch_closed_later_is_refused(tmp_path):
     with pytest.raises(SynthesisError, match="switch S1 is not held on"):
         generate(system, tmp_path / "w.cir", kicad=tmp_path / "w.kicad_sch")
     assert not list(tmp_path.iterdir())
+
+
+def test_generate_kicad_on_the_command_line(tmp_path, capsys):
+    from circuitsim.cli import main
+
+    sch = tmp_path / "w.kicad_sch"
+    assert main(["generate", "--kicad", str(sch), "-o", str(tmp_path / "w.cir")]) == 0
+    out = capsys.readouterr().out
+    assert str(sch) in out and str(tmp_path / "w.spice.lib") in out
+    assert Schematic.from_file(str(sch)).schematicSymbols
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    assert main(["generate", "--kicad", str(bad / "w.txt"), "-o", str(bad / "w.cir")]) == 2
+    assert "--kicad" in capsys.readouterr().err and not list(bad.iterdir())
