@@ -92,6 +92,18 @@ def _read(path: Path):
             anchored.add(_point(s.position.X, s.position.Y))
     dangling = [p for p, n in ends.items() if n == 1 and p not in anchored]
     assert not dangling, f"wire ends on nothing at {dangling[:5]}"
+    # KiCad also joins a wire end, pin or label that touches the middle of a wire: there must be
+    # none, so that the end-point nets above are KiCad's nets
+    points = set(ends) | anchored
+    for wire in sch.graphicalItems:
+        if getattr(wire, "type", None) != "wire":
+            continue
+        (x1, y1), (x2, y2) = ((round(p.X, 2), round(p.Y, 2)) for p in wire.points)
+        assert x1 == x2 or y1 == y2, "a slanted wire"
+        for _, x, y in points:
+            inside_x = min(x1, x2) < x < max(x1, x2) and y == y1 == y2
+            inside_y = min(y1, y2) < y < max(y1, y2) and x == x1 == x2
+            assert not (inside_x or inside_y), f"({x}, {y}) touches a wire's middle"
     return sch, pins, nets
 
 
