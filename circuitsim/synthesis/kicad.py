@@ -2,8 +2,9 @@
 
 Written with kiutils (the optional ``kicad`` extra). The stages are cut as in
 :func:`~circuitsim.synthesis.schematic.layout`: each op-amp section with its input chains,
-feedback parts and output parts is drawn with real wires; global labels (named after the
-netlist's nodes) join the stages and the sources. Reference designators are the bill of
+feedback parts and output parts is drawn with real wires, and chain ends that share a net
+inside one block are wired together below their row (:func:`_join_blocks`); global labels
+(named after the netlist's nodes) remain where a net leaves its block. Reference designators are the bill of
 materials' (op-amp sections ``U3A`` are unit A of the TL074 ``U3``; each package also gets its
 supply unit E, and a package's unused sections are wired as grounded followers).
 
@@ -125,6 +126,11 @@ class _Sheet:
         self.endpoints: dict[tuple[float, float], int] = {}
         self.power = 0
         self.sources = _source_models(circuit)
+        # chain ends of the current row: (net, point, label to the left, block, stage id)
+        self.pending: list[tuple[str, tuple[float, float], bool, str, int]] = []
+        self.outputs = {
+            e.connections[-1].lower() for e in circuit.elements if isinstance(e, SubcircuitCall)
+        }
         # all units of a package are one subcircuit call in KiCad's netlist: the quad wrapper
         self.opamp_fields = {
             "Spice_Primitive": "X", "Spice_Model": QUAD, "Spice_Netlist_Enabled": "Y",
@@ -325,7 +331,7 @@ def _draw_stage(sheet: _Sheet, s: Stage, x0: float, oy: float) -> tuple[float, f
             sheet.two(element, far, left)
             x, node = left[0], far
         sheet.wire((x, y), (x - GRID, y))
-        sheet.label(net, (x - GRID, y), left=True)
+        sheet.pending.append((net, (x - GRID, y), True, _block(s), id(s)))
     # the output node's label, then the parts hanging on the output, to the right
     sheet.wire((xo, po[1]), (xo + GRID, po[1]))
     sheet.label(s.output, (xo + GRID, po[1]), left=False)
@@ -344,11 +350,62 @@ def _draw_stage(sheet: _Sheet, s: Stage, x0: float, oy: float) -> tuple[float, f
             node = next((n for n in _pin_nodes(element).values() if n != node), node)
             x = right[0]
         sheet.wire((x, y), (x + GRID, y))
-        sheet.label(net, (x + GRID, y), left=False)
+        sheet.pending.append((net, (x + GRID, y), False, _block(s), id(s)))
         right_edge = max(right_edge, x + GRID + 1.27 * len(net) + 5.08)
         low = max(low, y)
     del top
     return right_edge, low
+
+
+def _block(s: Stage) -> str:
+    """The block a stage belongs to: its op-amp's name without the section letter (the two
+    stages of a precision rectifier ``XFLANGE_ABS1A``/``B`` are one block)."""
+    return re.sub(r"[A-D]$", "", s.opamp.name.upper())
+
+
+def _join_blocks(sheet: _Sheet, stages: list[Stage], low: float) -> float:
+    """Wire the row's chain ends that share a net inside one block along a line below the row,
+    label the others (and a wired net that also leaves the block); returns the row's new
+    bottom (mm)."""
+    members: dict[str, set[int]] = {}
+    for s in stages:
+        chains = [e for c, _ in s.inputs + s.outputs for e in c]
+        members.setdefault(_block(s), set()).update(id(e) for e in [s.opamp, *s.feedback, *chains])
+    # each side of a stage drops its wires beyond its outermost chain end, one lane each
+    edge: dict[tuple[int, bool], float] = {}
+    for _, point, left, _, stage in sheet.pending:
+        key = (stage, left)
+        edge[key] = min(edge.get(key, point[0]), point[0]) if left else max(
+            edge.get(key, point[0]), point[0])  # fmt: skip
+    groups: dict[tuple[str, str], list[tuple[tuple[float, float], bool, int]]] = {}
+    for net, point, left, block, stage in sheet.pending:
+        groups.setdefault((block, net), []).append((point, left, stage))
+    sheet.pending.clear()
+    lanes: dict[tuple[int, bool], int] = {}
+    bus = _snap(low + ROW)
+    for (block, net), ends in groups.items():
+        if len(ends) < 2 or net == GROUND:
+            for point, left, _ in ends:
+                sheet.label(net, point, left)
+            continue
+        drops = []
+        for point, left, stage in ends:
+            lane = lanes[(stage, left)] = lanes.get((stage, left), 0) + 1
+            x = edge[(stage, left)] + (-GRID if left else GRID) * lane
+            sheet.wire(point, (x, point[1]), (x, bus))
+            drops.append(x)
+        sheet.wire(*[(x, bus) for x in sorted(drops)])
+        # an op-amp's output keeps its label there, so the wired ends carry one too
+        outside = net in sheet.outputs or any(
+            id(e) not in members[block] and net in (n.lower() for n in e.nodes)
+            for e in sheet.circuit.elements
+        )
+        if outside:
+            right = max(drops)
+            sheet.wire((right, bus), (right + GRID, bus))
+            sheet.label(net, (right + GRID, bus), left=False)
+        bus = _snap(bus + 2 * GRID)
+    return bus
 
 
 def _section(sheet: _Sheet, opamp: SubcircuitCall) -> tuple[str, str]:
@@ -425,6 +482,7 @@ def kicad_schematic_text(
             used.setdefault(package, set()).add(section)
             supplies[package] = tuple(n.lower() for n in s.opamp.connections[2:-1])
             x, low = _snap(right + 7.62), max(low, bottom)
+        low = _join_blocks(sheet, stages, low)
         y = low + 12.7
     # the packages' supply units and their unused sections
     y = _snap(y + 10.16)
