@@ -4,9 +4,10 @@ Written with kiutils (the optional ``kicad`` extra). The stages are cut as in
 :func:`~circuitsim.synthesis.schematic.layout`: each op-amp section with its input chains,
 feedback parts and output parts is drawn with real wires, and chain ends that share a net
 inside one block are wired together below their row (:func:`_join_blocks`); global labels
-(named after the netlist's nodes) remain where a net leaves its block. Reference designators are the bill of
-materials' (op-amp sections ``U3A`` are unit A of the TL074 ``U3``; each package also gets its
-supply unit E, and a package's unused sections are wired as grounded followers).
+(named after the netlist's nodes) remain where a net leaves its block. Reference designators
+are the bill of materials' (op-amp sections ``U3A`` are unit A of the TL074 ``U3``; each
+package also gets its supply unit E, and a package's unused sections are wired as grounded
+followers).
 
 Simulation: KiCad 6's fields (``Spice_Primitive``, ``Spice_Model``, ``Spice_Lib_File``,
 ``Spice_Node_Sequence``); KiCad 7 and later convert these fields on load. The op-amps, diode
