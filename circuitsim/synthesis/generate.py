@@ -193,7 +193,8 @@ def generate(
             circuit, schematic_format(schematic), list(system.states), synthesis.bom
         )
     if kicad is not None:
-        from circuitsim.synthesis.kicad import kicad_schematic_text, spice_library_text
+        from circuitsim.synthesis.kicad import kicad_schematic_text
+        from circuitsim.synthesis.kicad_spice import spice_library_text
 
         texts[Path(kicad)] = kicad_schematic_text(
             circuit, list(system.states), synthesis.bom, kicad_library.name

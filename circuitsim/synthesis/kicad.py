@@ -53,13 +53,18 @@ from circuitsim.netlist.circuit import (
 from circuitsim.netlist.writer import write_netlist
 from circuitsim.synthesis.blocks import BomEntry
 from circuitsim.synthesis.errors import SynthesisError
+from circuitsim.synthesis.kicad_spice import (
+    QUAD,
+    check_switches,
+    kicad_value,
+    source_models,
+)
 from circuitsim.synthesis.kicad_symbols import PINS, TL074_SECTIONS, library_symbol
 from circuitsim.synthesis.parts import board_parts
 from circuitsim.synthesis.schematic import GROUND, Stage, layout
 
 GRID = 2.54  # mm
 ROW = 7.62  # pitch of parallel chains
-QUAD = "TL074_QUAD"
 PAPERS = {"A3": (420, 297), "A2": (594, 420), "A1": (841, 594), "A0": (1189, 841)}  # mm
 
 
@@ -69,15 +74,6 @@ def _effects(hide: bool = False) -> Effects:
 
 def _uid() -> str:
     return str(uuid.uuid4())
-
-
-def kicad_value(value: float, unit: str) -> str:
-    """A value in KiCad's (and SPICE's) notation: 30100 -> ``30.1k``, 1e-7 -> ``100n``."""
-    if value == 0 or not math.isfinite(value):
-        return f"{value:g}"
-    exponent = min(max(3 * math.floor(math.log10(abs(value)) / 3), -12), 6)
-    prefix = {-12: "p", -9: "n", -6: "u", -3: "m", 0: "", 3: "k", 6: "Meg"}[exponent]
-    return f"{float(f'{value / 10.0**exponent:.6g}'):g}{prefix}"
 
 
 def _pin_nodes(element: Element) -> dict[str, str]:
@@ -126,7 +122,7 @@ class _Sheet:
         self.schematic.generator = "eeschema"
         self.endpoints: dict[tuple[float, float], int] = {}
         self.power = 0
-        self.sources = _source_models(circuit)
+        self.sources = source_models(circuit)
         # chain ends of the current row: (net, point, label to the left, block, stage id)
         self.pending: list[tuple[str, tuple[float, float], bool, str, int]] = []
         self.outputs = {
@@ -247,24 +243,6 @@ class _Sheet:
                             fields=self.fields(element))  # fmt: skip
                 return round(left[0] + span, 2), left[1]
         raise SynthesisError(f"kicad schematic: cannot orient {element.name}")  # pragma: no cover
-
-
-def _source_models(circuit: Circuit) -> dict[str, str]:
-    """Each voltage source's value as the ngspice netlist writes it (``DC 15``, ``SIN(0 13.2
-    3)``, ``PWL(...)``), by lower-case name: KiCad's ``Spice_Model`` field."""
-    names = {e.name.lower() for e in circuit.elements if isinstance(e, VoltageSource)}
-    cards: list[str] = []
-    for line in write_netlist(circuit, "ngspice").splitlines():
-        if line.startswith("+") and cards:
-            cards[-1] += " " + line[1:].strip()
-        else:
-            cards.append(line.strip())
-    models = {}
-    for card in cards:
-        fields = card.split(None, 3)
-        if len(fields) == 4 and fields[0].lower() in names:
-            models[fields[0].lower()] = fields[3]
-    return models
 
 
 def _span(element: Element) -> float:
@@ -417,33 +395,6 @@ def _section(sheet: _Sheet, opamp: SubcircuitCall) -> tuple[str, str]:
     return match.group(1), match.group(2)
 
 
-def spice_library_text(circuit: Circuit) -> str:
-    """The models and subcircuits of ``circuit`` plus one 14-pin quad wrapper (pins in TL074
-    order) around its op-amp subcircuit, for the schematic's ``Spice_Lib_File``."""
-    text = write_netlist(circuit, "ngspice", fold_subcircuit_defaults=True)
-    kept, inside, previous = [], False, False
-    for line in text.splitlines():
-        head = line.strip().lower()
-        if head.startswith(".subckt"):
-            inside = True
-        take = inside or head.startswith(".model") or (previous and head.startswith("+"))
-        if take:
-            kept.append(line)
-        previous = take
-        if head.startswith(".ends"):
-            inside = False
-    calls = [e for e in circuit.elements if isinstance(e, SubcircuitCall)]
-    if calls:
-        model, ports = calls[0].subcircuit, len(calls[0].connections)
-        kept.append(f".subckt {QUAD} " + " ".join(f"p{k}" for k in range(1, 15)))
-        for section, (plus, minus, out) in TL074_SECTIONS.items():
-            supplies = ["p4", "p11"][: ports - 3]
-            nodes = [f"p{plus}", f"p{minus}", *supplies, f"p{out}"]
-            kept.append(f"X{section} " + " ".join(nodes) + f" {model}")
-        kept.append(f".ends {QUAD}")
-    return "\n".join(kept) + "\n"
-
-
 def kicad_schematic_text(
     circuit: Circuit,
     states: list[str] | None = None,
@@ -469,7 +420,7 @@ def kicad_schematic_text(
     sheet = _Sheet(circuit, bom, library)
     for lib_id in PINS:
         sheet.schematic.libSymbols.append(library_symbol(lib_id))
-    _check_switches(circuit)
+    check_switches(circuit)
     plan = layout(circuit, states)
     y = 30.48
     used: dict[str, set[str]] = {}
@@ -543,21 +494,6 @@ def kicad_schematic_text(
     sheet.schematic.paper = PageSettings(paperSize=paper, width=width, height=height)
     sheet.schematic.sheetInstances = [HierarchicalSheetInstance("/", "1")]
     return sheet.schematic.to_sexpr()
-
-
-def _check_switches(circuit: Circuit) -> None:
-    """SynthesisError unless every switch is held on by a constant control (drawn closed)."""
-    sources = {e.positive.lower(): e for e in circuit.elements if isinstance(e, VoltageSource)}
-    for switch in (e for e in circuit.elements if isinstance(e, Switch)):
-        control = sources.get(switch.control_positive.lower())
-        model = circuit.models.get(switch.model.lower())
-        threshold = float((model.params if model else {}).get("vt", 0.0))
-        if (control is None or control.waveform is not None or switch.control_negative != GROUND
-                or not float(control.dc) > threshold):  # fmt: skip
-            raise SynthesisError(
-                f"kicad schematic: switch {switch.name} is not held on by a constant control; "
-                "the schematic draws it as a closed panel switch"
-            )
 
 
 def kicad_library_path(schematic: str | os.PathLike) -> Path:
