@@ -94,6 +94,13 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
         help="also draw the circuit (one row of blocks per state, the paper's part names and "
         "values); the format follows the suffix",
     )
+    parser.add_argument(
+        "--kicad",
+        metavar="FILE.kicad_sch",
+        help="also write an editable KiCad 6+ schematic (wired stages, the BOM's designators, "
+        "SPICE fields for KiCad's simulator) and its SPICE library FILE.spice.lib; needs the "
+        "kicad extra (kiutils)",
+    )
     parser.add_argument("-o", "--output", required=True, metavar="FILE.cir", help="netlist file")
     parser.set_defaults(func=_run_generate)
 
@@ -133,16 +140,20 @@ def _run_generate(args: argparse.Namespace) -> int:
     system = switch_at(system, args.switch_at)
     knob = knob_request(args, model)
     options = replace(translator_options(args), **opamp_errors(args))
+    if args.kicad is not None and Path(args.kicad).suffix.lower() != ".kicad_sch":
+        raise UsageError(f"--kicad {args.kicad}: the file name must end in .kicad_sch")
     if args.schematic is not None and Path(args.schematic).suffix.lower() not in (".svg", ".png"):
         raise UsageError(
             f"--schematic {args.schematic}: cannot draw a "
             f"{Path(args.schematic).suffix or 'file without a suffix'}; use .svg or .png"
         )
     result = generate(
-        system, args.output, options, args.dialect, knob=knob, schematic=args.schematic
-    )
+        system, args.output, options, args.dialect, knob=knob, schematic=args.schematic,
+        kicad=args.kicad,
+    )  # fmt: skip
     _print_warnings(result.synthesis)
-    extra = [p for p in (result.knob_file, result.schematic_file) if p is not None]
+    extra = [p for p in (result.knob_file, result.schematic_file, result.kicad_file,
+                         result.kicad_library) if p is not None]  # fmt: skip
     print(
         f"wrote {result.netlist}, {result.scale_file}, {result.bom_file}, {result.order_file}"
         + "".join(f", {p}" for p in extra)

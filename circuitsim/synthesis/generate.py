@@ -46,6 +46,8 @@ class Generated:
     knobs: list[Knob] = field(default_factory=list)
     knob_file: Path | None = None
     schematic_file: Path | None = None
+    kicad_file: Path | None = None
+    kicad_library: Path | None = None
 
     @property
     def warnings(self) -> list[str]:
@@ -75,6 +77,7 @@ def generate(
     dialect: str = "ngspice",
     knob: KnobRequest | None = None,
     schematic: str | os.PathLike | None = None,
+    kicad: str | os.PathLike | None = None,
 ) -> Generated:
     """Translate ``system``, check the circuit, and write the netlist, scale file and BOMs.
 
@@ -100,6 +103,9 @@ def generate(
     schematic : path-like, optional
         Also draw the circuit (:mod:`~circuitsim.synthesis.schematic`) into this ``.svg`` or
         ``.png`` file, written with the others.
+    kicad : path-like, optional
+        Also write a KiCad schematic ``FILE.kicad_sch`` and its SPICE library
+        ``FILE.spice.lib`` (:mod:`~circuitsim.synthesis.kicad`; needs the ``kicad`` extra).
 
     Returns
     -------
@@ -125,6 +131,20 @@ def generate(
     if schematic is not None:
         schematic_format(schematic)
         check_writable(schematic)
+    kicad_library = None
+    if kicad is not None:
+        # kiutils (the kicad extra) is imported only when a KiCad schematic is asked for
+        try:
+            from circuitsim.synthesis.kicad import check_kicad_path, kicad_library_path
+        except ImportError as error:
+            raise SynthesisError(
+                f"kicad schematic {kicad}: needs kiutils ({error}); "
+                "install it with pip install 'circuitsim[kicad]'"
+            ) from None
+        check_kicad_path(kicad)
+        kicad_library = kicad_library_path(kicad)
+        check_writable(kicad)
+        check_writable(kicad_library)
     synthesis = synthesize(system, options)
     offsets = offset_warning(synthesis, system)
     if offsets is not None:
@@ -172,8 +192,17 @@ def generate(
         texts[Path(schematic)] = schematic_image(
             circuit, schematic_format(schematic), list(system.states), synthesis.bom
         )
+    if kicad is not None:
+        from circuitsim.synthesis.kicad import kicad_schematic_text
+        from circuitsim.synthesis.kicad_spice import spice_library_text
+
+        texts[Path(kicad)] = kicad_schematic_text(
+            circuit, list(system.states), synthesis.bom, kicad_library.name
+        )
+        texts[kicad_library] = spice_library_text(circuit)
     write_files_atomic(texts)
     return Generated(
         synthesis, netlist, scale_file, bom_file, report, order_file, knobs, knob_file,
         None if schematic is None else Path(schematic),
+        None if kicad is None else Path(kicad), kicad_library,
     )  # fmt: skip

@@ -34,7 +34,7 @@ from circuitsim.netlist.circuit import (
 from circuitsim.synthesis.blocks import BomEntry
 from circuitsim.synthesis.bom import engineering
 from circuitsim.synthesis.errors import SynthesisError
-from circuitsim.synthesis.parts import _opamp_model
+from circuitsim.synthesis.parts import _opamp_model, board_parts
 
 #: Formats ``save_schematic`` writes, by suffix.
 FORMATS = ("svg", "png")
@@ -205,13 +205,25 @@ L = 2.6  # length of one part in a chain
 CHAR = 0.16  # width of one label character at the font size used
 
 
+class _Records(dict):
+    """The translator's BOM records by part name (lower case), with the bill of materials'
+    reference designators (``XFLANGE_ABS1A`` -> ``U3A``) in ``designators``."""
+
+    def __init__(self, circuit: Circuit, bom: list[BomEntry] | None) -> None:
+        super().__init__((e.part.lower(), e) for e in bom or [])
+        self.designators = {p.part.lower(): p.designator for p in board_parts(circuit, bom or [])}
+
+
+def _designator(element: Element, records: dict) -> str:
+    return getattr(records, "designators", {}).get(element.name.lower(), element.name)
+
+
 def _value_text(element: Element, records: dict[str, BomEntry]) -> str:
-    """``R31A 102k`` style label: the name and the value as a shop writes it."""
-    name = element.name
-    record = records.get(name.lower())
+    """``R31A 102 kΩ`` style label: the BOM's designator and the value as a shop writes it."""
+    name = _designator(element, records)
+    record = records.get(element.name.lower())
     if record is not None and not math.isnan(record.nominal):
-        pot = engineering(record.nominal, "ohm").replace(" Ohm", "").replace(" ", "")
-        return f"{name} {pot} pot"
+        return f"{name} {_short(record.nominal, 'ohm')} pot"
     if isinstance(element, Resistor):
         return f"{name} {_short(element.resistance, 'ohm')}"
     if isinstance(element, Capacitor):
@@ -232,11 +244,12 @@ def _value_text(element: Element, records: dict[str, BomEntry]) -> str:
 
 
 def _short(value, unit: str) -> str:
+    """One unit style on every label: ``30.1 kΩ``, ``205 Ω``, ``100 nF``, ``1 µF``."""
     try:
         text = engineering(float(value), unit)
     except (TypeError, ValueError):
         return str(value)
-    return text.replace(" Ohm", "").replace(" ", "")
+    return text.replace("Ohm", "Ω").replace(" u", " µ")
 
 
 def _symbol(elm, element: Element, records: dict[str, BomEntry]):
@@ -290,12 +303,9 @@ def _draw_stage(d, elm, s: Stage, x0: float, y0: float, records) -> tuple[float,
         _net(d, elm, (x, y), net, "left")
     bottom_in = y0 - max(len(s.inputs) - 1, 0) * DY
     opamp = elm.Opamp(leads=True).right().anchor("in1").at((xj + 0.8, y0)).scale(0.8)
-    name = s.opamp.name[1:] if s.opamp.name.upper().startswith("X") else s.opamp.name
-    if len(name) <= 4:  # the paper's U1A fits inside the triangle
-        d.add(opamp.label(name, loc="center", ofst=(-0.35, 0), fontsize=8))
-    else:
-        d.add(opamp)
-        d.add(elm.Label().at((opamp.out[0] - 1.0, opamp.out[1] - 1.3)).label(name, fontsize=7))
+    name = _designator(s.opamp, records)
+    d.add(opamp.label(name, loc="center", ofst=(-0.35, 0), fontsize=8))
+    _pin_numbers(d, elm, opamp, s, name)
     d.add(elm.Line().at((xj, y0)).to(opamp.in1))
     if s.plus == GROUND:
         d.add(elm.Line().at(opamp.in2).left(0.3))
@@ -330,6 +340,31 @@ def _draw_stage(d, elm, s: Stage, x0: float, y0: float, records) -> tuple[float,
         _net(d, elm, (x, y), net, "right")
         right = max(right, x + 0.5 + CHAR * len(net))
     return right, min(bottom_in, y, y0 - 1.6)
+
+
+#: TL074 pin numbers of a section: (inverting input, non-inverting input, output).
+TL074_PINS = {"A": ("2", "3", "1"), "B": ("6", "5", "7"), "C": ("9", "10", "8"),
+              "D": ("13", "12", "14")}  # fmt: skip
+
+
+def _pin_numbers(d, elm, opamp, s: Stage, name: str) -> None:
+    """The quad package's pin numbers at a section's leads and its supply pins (V+ pin 4,
+    V- pin 11, with their nets where the model has supply pins)."""
+    match = re.fullmatch(r"U\d+([A-D])", name.upper())
+    if match is None:
+        return
+    minus, plus, out = TL074_PINS[match.group(1)]
+    small = {"fontsize": 6, "color": "#8a1c1c"}
+    d.add(elm.Label().at((opamp.in1[0] + 0.15, opamp.in1[1] + 0.18)).label(minus, **small))
+    d.add(elm.Label().at((opamp.in2[0] + 0.15, opamp.in2[1] - 0.18)).label(plus, **small))
+    d.add(elm.Label().at((opamp.out[0] - 0.15, opamp.out[1] + 0.18)).label(out, **small))
+    supplies = [n.lower() for n in s.opamp.connections[2:-1]] or ["", ""]
+    d.add(elm.Line().at(opamp.vd).up(0.3))
+    d.add(elm.Label().at((opamp.vd[0] + 0.1, opamp.vd[1] + 0.3))
+          .label(f"4 {supplies[0]}".strip(), loc="right", **small))  # fmt: skip
+    d.add(elm.Line().at(opamp.vs).down(0.3))
+    d.add(elm.Label().at((opamp.vs[0] + 0.1, opamp.vs[1] - 0.3))
+          .label(f"11 {supplies[-1]}".strip(), loc="right", **small))  # fmt: skip
 
 
 def _draw_part(d, elm, element, records, start, end, reverse: bool) -> None:
@@ -367,7 +402,7 @@ def draw(
     import schemdraw
     import schemdraw.elements as elm
 
-    records = {e.part.lower(): e for e in bom or []}
+    records = _Records(circuit, bom)
     plan = layout(circuit, states)
     d = schemdraw.Drawing(canvas=canvas, show=False)
     d.config(unit=2.0, fontsize=8, lw=1.0)

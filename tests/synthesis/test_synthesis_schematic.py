@@ -1,6 +1,7 @@
 """The schematic of a generated circuit: every part drawn once with its name and value, for
 every shipped model; the files written atomically; a bad suffix refused by name."""
 
+import re
 import xml.etree.ElementTree as ET
 from collections import Counter
 
@@ -12,6 +13,7 @@ from circuitsim.synthesis.bom import engineering
 from circuitsim.synthesis.errors import SynthesisError
 from circuitsim.synthesis.generate import generate
 from circuitsim.synthesis.options import SynthesisOptions
+from circuitsim.synthesis.parts import board_parts
 from circuitsim.synthesis.schematic import layout, schematic_format, schematic_image
 from circuitsim.synthesis.translator import synthesize
 
@@ -23,9 +25,9 @@ def _texts(svg: bytes) -> list[str]:
     return ["".join(t.itertext()) for t in root.iter(f"{SVG}tspan")]
 
 
-def _designator(element) -> str:
-    name = element.name
-    return name[1:] if isinstance(element, SubcircuitCall) else name
+def _designators(circuit, bom) -> dict:
+    """The bill of materials' reference designators (op-amp sections ``U3A``), by part."""
+    return {p.part.lower(): p.designator for p in board_parts(circuit, bom)}
 
 
 @pytest.mark.parametrize("name", ["wheelset", "quarter_car", "bogie", "wheelset_creep"])
@@ -38,15 +40,21 @@ def test_every_part_is_drawn_once_with_its_label(name):
     assert sorted(id(e) for e in drawn) == sorted(id(e) for e in circuit.elements)
     texts = _texts(schematic_image(circuit, "svg", list(system.states), synthesis.bom))
     first_words = Counter(t.split(" ")[0] for t in texts)
+    designators = _designators(circuit, synthesis.bom)
     for element in circuit.elements:
-        assert first_words[_designator(element)] == 1, _designator(element)
+        name = designators[element.name.lower()]
+        assert first_words[name] == 1, name
     # the labels with a part's name are as many as the circuit's parts
-    names = {_designator(e) for e in circuit.elements}
+    names = set(designators.values())
     assert sum(first_words[n] for n in names) == len(circuit.elements)
-    # a resistor's label carries its value as a shop writes it
+    # every op-amp section is drawn under the order file's name (U3A, not FLANGE_ABS1A)
+    for element in circuit.elements:
+        if isinstance(element, SubcircuitCall):
+            assert re.fullmatch(r"U\d+[A-D]", designators[element.name.lower()])
+    # a resistor's label carries its value in one unit style: kΩ / Ω
     resistor = next(e for e in circuit.elements if isinstance(e, Resistor))
-    value = engineering(float(resistor.resistance), "ohm").replace(" Ohm", "").replace(" ", "")
-    assert f"{resistor.name} {value}" in texts
+    value = engineering(float(resistor.resistance), "ohm").replace("Ohm", "Ω")
+    assert f"{designators[resistor.name.lower()]} {value}" in texts
     # one row per state (merged up to four stages), the paper's sections for the wheelset
     titles = [title for title, _ in plan.rows]
     assert all(any(s in t.split(" ", 1)[1].split(", ") for t in titles if t.startswith("state"))
@@ -55,7 +63,25 @@ def test_every_part_is_drawn_once_with_its_label(name):
         assert [[s.opamp.name for s in row] for _, row in plan.rows[:2]] == [
             ["XU1A", "XU1B", "XU2A", "XU2B"], ["XU1C", "XU1D", "XU2C", "XU2D"]
         ]  # fmt: skip
-        assert "R31A 102kOhm" in texts and "C3 100nF" in texts and "S1 (ctl flange_ctl)" in texts
+        assert "R31A 102 kΩ" in texts and "R31B 909 Ω" in texts and "C3 100 nF" in texts
+        assert "C1 1 µF" in texts and "S1 (ctl flange_ctl)" in texts
+        assert "U3A" in texts and not any("FLANGE_ABS1A" in t for t in texts)
+
+
+def test_tl074_pin_numbers_and_supply_pins_are_drawn():
+    """Each section shows the TL074 data sheet's pins: A is 2 (-), 3 (+), 1 (out); the supply
+    pins 4 and 11 carry the rails' nets."""
+    system = load_model("wheelset").system()
+    synthesis = synthesize(system, SynthesisOptions(opamp="tl074", t_stop=0.5))
+    texts = _texts(schematic_image(synthesis.circuit, "svg", list(system.states), synthesis.bom))
+    counts = Counter(texts)
+    sections = 13  # the wheelset: 8 for the states, 4 in the two |x| blocks, 1 summer
+    assert counts["4 vcc"] == sections and counts["11 vee"] == sections
+    # pins of section D (U1D, U2D, U3D in the order file): 13 (-), 12 (+), 14 (out)
+    names = _designators(synthesis.circuit, synthesis.bom).values()
+    d_sections = sum(1 for n in names if re.fullmatch(r"U\d+D", n))
+    assert d_sections == 3
+    assert counts["14"] == d_sections and counts["13"] == d_sections and counts["12"] == d_sections
 
 
 def test_generate_writes_png_and_svg_with_the_other_files(tmp_path):
