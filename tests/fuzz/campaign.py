@@ -53,6 +53,11 @@ def run_campaign(
 ) -> Summary:
     """Run the cases of ``names`` and return the summary (progress on stderr unless quiet);
     each case's outcome is appended to ``log`` when given."""
+    from circuitsim.solver.compiled import warm_up
+
+    # the kernels' first compile (minutes after a source change, on a loaded machine) is
+    # not a case's work: a case's time bound interrupting it would count as a hang
+    warm_up(("ports", "compiled"))
     summary = Summary()
     start = time.perf_counter()
     last = start
