@@ -145,6 +145,8 @@ INTERNAL_READS = {
     "solver/waveforms.py": "np.loadtxt of text read_text has already bounded",
     "cli/bench_verbs.py": "webbrowser.open, not a file",
     "cli/__init__.py": "os.open of the null device for writing",
+    "interop/confine.py": "os.open of the private folder as a Landlock rule's handle",
+    "interop/ngspice_limits.py": "/proc/PID/status of the ngspice process we started",
 }
 _READ = re.compile(
     r"\bopen\(|\.read_text\(|\.read_bytes\(|np\.loadtxt\(|np\.genfromtxt\(|np\.load\(|"

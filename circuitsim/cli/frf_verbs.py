@@ -7,8 +7,6 @@ import json
 import math
 import sys
 
-import numpy as np
-
 from circuitsim.cli.common import (
     UsageError,
     add_figure_options,
@@ -86,7 +84,9 @@ def _add_frf(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=_run_frf)
 
 
-def _region(args: argparse.Namespace, system) -> np.ndarray:
+def _region(args: argparse.Namespace, system):
+    import numpy as np
+
     x = np.zeros(system.n)
     for text in args.region:
         name, sep, value = text.partition("=")
@@ -160,6 +160,8 @@ def _run_frf(args: argparse.Namespace) -> int:
 
 
 def _summary(responses: dict, args: argparse.Namespace) -> dict:
+    import numpy as np
+
     from circuitsim.compare.frf import departure, differences, resonances
 
     model = responses["model"]
@@ -233,6 +235,8 @@ def _peak_text(peaks: list[dict]) -> str:
 
 
 def _write_csv(path: str, responses: dict) -> None:
+    import numpy as np
+
     from circuitsim.atomic import write_text_atomic
 
     model = responses["model"]

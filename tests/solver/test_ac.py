@@ -182,7 +182,7 @@ def _ac_deck(path: Path, card: str) -> str:
     out, in_analysis = [], False
     for line in lines:
         word = line.strip().lower().split(" ")[0] if line.strip() else ""
-        if word in (".tran", ".op", ".ac"):
+        if word in (".tran", ".op", ".ac", ".print"):  # .print tran needs its .tran
             in_analysis = True
             continue
         if in_analysis and word.startswith("+"):
