@@ -227,7 +227,7 @@ def _vacask_element(e: ckt.Element, circuit: ckt.Circuit) -> str:
         return f"{head} r r={e.resistance!r}"
     if isinstance(e, ckt.Switch):
         return f"{head} r r={_switch_resistance(e, circuit)!r}"
-    if isinstance(e, ckt.Capacitor) and e.ic is None:
+    if isinstance(e, ckt.Capacitor):  # its IC= goes into the analysis's ic (initial_voltages)
         return f"{head} c c={e.capacitance!r}"
     if isinstance(e, ckt.Vcvs):
         return f"{head} vcvs gain={e.gain!r}"
@@ -245,6 +245,34 @@ def _vacask_element(e: ckt.Element, circuit: ckt.Circuit) -> str:
             return (f'{head} vsource type="sine" sinedc={sin.offset!r} ampl={sin.amplitude!r} '
                     f"freq={sin.frequency!r}")  # fmt: skip
     raise ValueError(f"{e.name}: no VACASK form written for {e!r}")
+
+
+def initial_voltages(circuit: ckt.Circuit) -> dict[str, float]:
+    """The node voltages at t = 0 that ``.ic`` and the capacitors' ``IC=`` give (VACASK's
+    capacitor has no IC, its analysis takes node voltages): a capacitor's IC fixes one node
+    from the other (given by ``.ic``, or ground, or else 0 V, as SPICE's uic starts it).
+
+    Raises
+    ------
+    ValueError
+        A capacitor's IC= that contradicts ``.ic``.
+    """
+    initial = {node: float(value) for node, value in circuit.initial_conditions.items()}
+    for cap in (e for e in circuit.elements if isinstance(e, ckt.Capacitor)):
+        if cap.ic is None:
+            continue
+        p, n, volts = cap.positive, cap.negative, float(cap.ic)
+        known = {"0": 0.0, **initial}
+        if p in known and n in known:
+            if not np.isclose(known[p] - known[n], volts, rtol=1e-12, atol=1e-15):
+                raise ValueError(f"{cap.name}: IC={volts:g} V against .ic {known[p] - known[n]:g}")
+        elif p in known:
+            initial[n] = known[p] - volts
+        else:
+            initial[p] = known.get(n, 0.0) + volts
+            if n not in known:
+                initial[n] = 0.0
+    return initial
 
 
 OPTIONS = {"reltol": "reltol", "abstol": "abstol", "vntol": "vntol", "chgtol": "chgtol",
@@ -286,11 +314,9 @@ def vacask_text(netlist: Path, probes: list[str]) -> str:
         analysis += f" maxstep={tran.tmax!r}"
     if tran.uic:
         analysis += ' icmode="uic"'
-    if circuit.initial_conditions:
-        pairs = ", ".join(
-            f'"{_vacask_name(node)}", {float(value)!r}'
-            for node, value in circuit.initial_conditions.items()
-        )
+    initial = initial_voltages(circuit)
+    if initial:
+        pairs = ", ".join(f'"{_vacask_name(node)}", {value!r}' for node, value in initial.items())
         analysis += " ic={" + pairs + "}"
     options = " ".join(f"{OPTIONS[k]}={float(v)!r}" for k, v in circuit.options.items())
     lines += ["", "control"]
