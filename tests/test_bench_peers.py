@@ -108,6 +108,13 @@ def test_gnucap_runs_the_rc_to_its_analytic_solution(tmp_path):
     result = bench_peers.gnucap_run(netlist)
     assert "error" not in result, result.get("error")
     waves = result["waves"]
-    later = waves.time > 0.0  # gnucap prints t = 0 before it applies IC= (0 V)
+    assert waves.time[0] == pytest.approx(10e-6)  # its t = 0 row (before IC=) is dropped
     assert waves.time[-1] == pytest.approx(5e-3)
-    assert np.max(np.abs(waves["v(out)"][later] - rc_exact(waves.time[later]))) < 1e-4
+    assert np.max(np.abs(waves["v(out)"] - rc_exact(waves.time))) < 1e-4
+
+
+def test_a_process_past_the_cpu_limit_is_a_row_not_a_hang(tmp_path):
+    done = bench_peers.child_run([sys.executable, "-c", "while True: pass"], tmp_path, cpu_limit=1)
+    result = bench_peers._timed_out({"returncode": done["returncode"]})
+    assert result["error"] == f"stopped at the CPU limit ({bench_peers.CPU_LIMIT_S} s)"
+    assert 0.9 < done["cpu_s"] < 10.0
