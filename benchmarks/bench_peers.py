@@ -170,6 +170,9 @@ def gnucap_run(netlist: Path) -> dict:
     except ValueError as exc:
         result["error"] = f"gnucap: {exc}; {_tail(done)}"
         return result
+    if len(waves.time) < 3:
+        result["error"] = f"gnucap: {len(waves.time)} rows printed; {_tail(done)}"
+        return result
     # gnucap prints its t = 0 row before it applies the capacitors' IC= (0 V there, the IC
     # from its first step on): that row is not its solution, the traces start after it
     result["waves"] = Waveforms(
@@ -451,7 +454,7 @@ def measure(case: dict, folder: Path, log) -> list[dict]:
                "engine": engine, "load": load, "cpu_s": r.get("cpu_s"),
                "wall_s": r.get("process_s", r.get("solve_s")), "steps": r.get("steps"),
                "failure": r.get("missing") or r.get("error")}  # fmt: skip
-        if "waves" in r:
+        if "waves" in r and not row["failure"]:  # a stopped run's partial table: no traces
             row["points"] = len(r["waves"].time)
             row["nrmsd_ode"] = accuracy(case, r["waves"])
             if reference is not None and engine != "ngspice":
