@@ -1,7 +1,7 @@
 """Benchmark harness: our MNA solver against ngspice, at equal accuracy, and speed sweeps.
 
     python benchmarks/run.py [--quick] [--out DIR] [--parts wheelset golden sweep profile scaling
-                                                           macromodels kernels]
+                                                           macromodels kernels peers]
 
 Parts: ``wheelset`` (work-precision of the generated wheelset circuit, ideal and TL074 op-amps,
 against the direct ODE solution), ``golden`` (tests/solver/golden netlists: time ratio and max
@@ -16,7 +16,10 @@ and without ``--probe``; median of ``--repeat`` processes), ``macromodels`` (the
 the JFET-input and bipolar Boyle op-amps of netlist/library/macromodels.lib, and the built-in
 TL074: time and accuracy against ngspice and the ODE; only when named in --parts), ``kernels``
 (the scaling circuits up to 8 masses on the ports and the MNA kernel, CPU time, against
-``kernel="auto"``'s choice; only when named in --parts). ``--family lattice``: ``scaling``
+``kernel="auto"``'s choice; only when named in --parts), ``peers`` (gnucap and VACASK, each
+where installed, beside ngspice and ours on the committed wheelset netlists and chains of
+1, 4, 16, 64 masses (``--sizes``): CPU time interleaved, the load, accuracy against ngspice
+and the ODE; only when named in --parts). ``--family lattice``: ``scaling``
 and ``kernels`` on lattices of N masses with one-sided stops (circuitsim.mechanics.lattice), a
 family the solver was not tuned on, written to scaling_lattice.* / kernels_lattice.*. Prints text
 tables and writes <part>.json / <part>.md and machine.json into --out (default
@@ -37,6 +40,7 @@ import bench_common  # noqa: E402
 import bench_golden  # noqa: E402
 import bench_kernels  # noqa: E402
 import bench_macromodels  # noqa: E402
+import bench_peers  # noqa: E402
 import bench_profile  # noqa: E402
 import bench_scaling  # noqa: E402
 import bench_startup  # noqa: E402
@@ -52,7 +56,9 @@ PARTS = {
     "startup": bench_startup,
     "macromodels": bench_macromodels,
     "kernels": bench_kernels,
+    "peers": bench_peers,
 }
+BY_NAME = ("macromodels", "kernels", "peers")  # run only when named in --parts
 
 
 def log(message: str) -> None:
@@ -67,14 +73,17 @@ def main(argv=None) -> int:
         "--parts",
         nargs="+",
         choices=list(PARTS),
-        default=[p for p in PARTS if p not in ("macromodels", "kernels")],  # asked for by name
+        default=[p for p in PARTS if p not in BY_NAME],
     )
     parser.add_argument("--sweep", action="store_true", help="only the sweep part")
     parser.add_argument(
         "--repeat", type=int, default=1, help="wheelset/golden: best of N runs (default 1)"
     )
     parser.add_argument(
-        "--sizes", type=int, nargs="+", help="scaling: the chains' masses (default 1 2 4 ... 64)"
+        "--sizes",
+        type=int,
+        nargs="+",
+        help="scaling, peers: the chains' masses (default 1 2 4 ... 64; peers 1 4 16 64)",
     )
     parser.add_argument(
         "--family",
@@ -85,6 +94,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.sizes:
         bench_scaling.CHAIN_SIZES = tuple(args.sizes)
+        bench_peers.SIZES = tuple(args.sizes)
     bench_scaling.FAMILY = args.family
     parts = ["sweep"] if args.sweep else args.parts
     bench_common.REPEAT[0] = args.repeat
