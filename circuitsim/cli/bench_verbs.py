@@ -6,13 +6,11 @@ import argparse
 import math
 import sys
 
-from circuitsim.cli.common import (
-    UsageError,
+from circuitsim.cli.common import UsageError, progress, require_positive
+from circuitsim.cli.scenario_options import (
     add_model_options,
     add_scenario_options,
     check_scenario_options,
-    progress,
-    require_positive,
     scenario_system,
 )
 from circuitsim.cli.translator_options import (

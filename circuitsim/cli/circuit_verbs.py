@@ -12,10 +12,7 @@ from circuitsim.cli.common import (
     add_figure_options,
     add_jobs_option,
     add_max_step,
-    add_model_options,
     add_ngspice_timeout,
-    add_scenario_options,
-    check_scenario_options,
     figure_format,
     plot_target,
     prepare_output_folder,
@@ -26,9 +23,14 @@ from circuitsim.cli.common import (
     require_jobs,
     require_positive,
     require_writable,
-    scenario_system,
 )
 from circuitsim.cli.opamp_options import add_opamp_error_options, opamp_errors
+from circuitsim.cli.scenario_options import (
+    add_model_options,
+    add_scenario_options,
+    check_scenario_options,
+    scenario_system,
+)
 from circuitsim.cli.translator_options import (
     add_knob_options,
     add_opamp_options,

@@ -10,17 +10,15 @@ import sys
 from circuitsim.cli.common import (
     UsageError,
     add_figure_options,
-    add_model_options,
     add_ngspice_timeout,
-    add_scenario_options,
     figure_format,
     plot_target,
     require_figure_options,
     require_figure_path,
     require_positive,
     require_writable,
-    scenario_system,
 )
+from circuitsim.cli.scenario_options import add_model_options, add_scenario_options, scenario_system
 from circuitsim.cli.translator_options import add_translator_options, check_translator_options
 from circuitsim.cli.translator_options import translator_options as synthesis_options
 
@@ -306,8 +304,9 @@ def _add_stepped_sine(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_stepped_sine(args: argparse.Namespace) -> int:
-    from circuitsim.cli.common import check_scenario_options, prepare_output_folder
+    from circuitsim.cli.common import prepare_output_folder
     from circuitsim.cli.hunting_verbs import _Eta
+    from circuitsim.cli.scenario_options import check_scenario_options
     from circuitsim.mechanics import load_model
     from circuitsim.studies.hunting import speed_grid
     from circuitsim.studies.hunting_result import HuntingError, HuntingSettings

@@ -12,14 +12,16 @@ from circuitsim.cli.common import (
     UsageError,
     add_figure_options,
     add_max_step,
-    add_model_options,
-    add_scenario_options,
-    check_scenario_options,
     figure_format,
     prepare_output_folder,
     print_warning,
     require_figure_options,
     require_positive,
+)
+from circuitsim.cli.scenario_options import (
+    add_model_options,
+    add_scenario_options,
+    check_scenario_options,
     scenario_system,
     with_inputs,
 )

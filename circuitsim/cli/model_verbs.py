@@ -10,10 +10,6 @@ from circuitsim.cli.common import (
     UsageError,
     add_figure_options,
     add_max_step,
-    add_model_options,
-    add_scenario_options,
-    check_scenario_options,
-    parameter_assignment,
     plot_target,
     require_count,
     require_figure_options,
@@ -22,6 +18,12 @@ from circuitsim.cli.common import (
     require_fraction,
     require_positive,
     require_writable,
+)
+from circuitsim.cli.scenario_options import (
+    add_model_options,
+    add_scenario_options,
+    check_scenario_options,
+    parameter_assignment,
     scenario_system,
 )
 

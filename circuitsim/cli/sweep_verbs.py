@@ -14,17 +14,19 @@ from circuitsim.cli.common import (
     UsageError,
     add_figure_options,
     add_jobs_option,
-    add_model_options,
     add_ngspice_timeout,
-    add_scenario_options,
-    check_scenario_options,
     figure_format,
-    parameter_assignment,
     prepare_output_folder,
     print_warning,
     require_figure_options,
     require_jobs,
     require_positive,
+)
+from circuitsim.cli.scenario_options import (
+    add_model_options,
+    add_scenario_options,
+    check_scenario_options,
+    parameter_assignment,
     scenario_system,
     with_inputs,
 )

@@ -13,9 +13,6 @@ from circuitsim.cli.common import (
     add_figure_options,
     add_jobs_option,
     add_max_step,
-    add_model_options,
-    add_scenario_options,
-    check_scenario_options,
     figure_format,
     prepare_output_folder,
     progress_after,
@@ -23,6 +20,11 @@ from circuitsim.cli.common import (
     require_figure_options,
     require_jobs,
     require_positive,
+)
+from circuitsim.cli.scenario_options import (
+    add_model_options,
+    add_scenario_options,
+    check_scenario_options,
     scenario_system,
 )
 from circuitsim.netlist.values import parse_value

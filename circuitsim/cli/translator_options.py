@@ -8,7 +8,8 @@ import argparse
 import functools
 import math
 
-from circuitsim.cli.common import UsageError, require_positive, scenario_system
+from circuitsim.cli.common import UsageError, require_positive
+from circuitsim.cli.scenario_options import scenario_system
 
 
 def state_range(text: str) -> tuple[str, float]:

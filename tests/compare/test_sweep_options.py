@@ -62,8 +62,8 @@ def test_sweep_refuses_y0_that_fixes_the_swept_parameter(tmp_path, capsys):
 
 @pytest.mark.parametrize("verb", ["generate", "compare", "ode", "sweep"])
 def test_every_scenario_verb_takes_the_same_scenario_options(verb):
-    """One set of scenario options (common.add_scenario_options) for every verb that builds
-    the model's System: --y0 is no longer ode's alone."""
+    """One set of scenario options (scenario_options.add_scenario_options) for every verb that
+    builds the model's System: --y0 is no longer ode's alone."""
     scenario = {"--speed", "--freq", "--amplitude", "--y0", "--flange", "--no-flange",
                 "--forcing", "--param"}  # fmt: skip
     parser = build_parser()
