@@ -23,9 +23,15 @@ from circuitsim.netlist.names import fold
 
 @dataclass(frozen=True)
 class Expression:
-    """An unevaluated SPICE expression, the text between ``{`` and ``}`` (braces excluded)."""
+    """An unevaluated SPICE expression, the text between ``{`` and ``}`` (braces excluded).
+
+    ``included`` names the included file it was read from (None: the netlist itself, or a
+    circuit built in Python): messages then name the file instead of quoting the text, as
+    the reader does for an included file's lines. It takes no part in comparisons.
+    """
 
     text: str
+    included: str | None = field(default=None, compare=False)
 
     def __str__(self) -> str:
         return "{" + self.text + "}"

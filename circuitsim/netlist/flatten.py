@@ -132,11 +132,15 @@ class _Flattener:
         try:
             return evaluate_value(value, params)
         except ValueError as exc:
+            why = str(exc)
+            included = getattr(value, "included", None)
+            if included is not None:  # name the file, never quote it
+                why = f"an expression of the included file {included} cannot be evaluated"
             if self.problems is None:
-                raise self.error(f"{what}: {exc}") from None
+                raise self.error(f"{what}: {why}") from None
             if not _uses_failed(value, params):
-                undefined = getattr(exc, "name", None)
-                self.problems.append(ValueProblem(what, str(exc), self.owner, undefined))
+                undefined = None if included else getattr(exc, "name", None)
+                self.problems.append(ValueProblem(what, why, self.owner, undefined))
             return math.nan
 
     # --- scopes ---

@@ -60,6 +60,7 @@ from circuitsim.netlist.circuit import (
 )
 from circuitsim.netlist.errors import NetlistError
 from circuitsim.netlist.expressions import evaluate
+from circuitsim.netlist.included import expressions, mark_included
 from circuitsim.netlist.names import fold
 from circuitsim.netlist.reader_elements import (
     Cursor,
@@ -205,10 +206,14 @@ class _Reader:
         _, lines = logical_lines(read_file(line, path, str(path)), str(path), has_title=False)
         lines = select_sections(lines, section, line, path)
         self.include_stack.append(key)
+        hide = LIBRARY_DIR not in path.resolve().parents  # our part library is no secret
+        before = expressions((self.circuit, self.scopes)) if hide else []
         try:
             self.run(lines, path.parent)
         finally:
             self.include_stack.pop()
+        if hide:
+            mark_included((self.circuit, self.scopes), before, str(path))
 
     def lib(self, line: Line, rest: str, base_dir: Path) -> None:
         self.include(line, rest, base_dir)

@@ -138,12 +138,6 @@ def test_hide_included_leaves_the_part_library_and_plain_decks_alone(tmp_path):
 @requires_ngspice
 @pytest.mark.ngspice
 @pytest.mark.parametrize("engine", ["builtin", "ngspice"])
-@pytest.mark.xfail(
-    strict=True,
-    reason="netlist/flatten.py quotes an expression it cannot evaluate, also one from an "
-    "included file (elements do not record their file), and simulate --engine ngspice shows "
-    "the builtin reader's message in its note on ngspice's own columns",
-)
 def test_an_expression_of_an_included_file_is_not_quoted(engine, tmp_path, monkeypatch, capsys):
     (tmp_path / "secret.txt").write_text("R7 a 0 {zzsecretword*2}\n")
     (tmp_path / "main.cir").write_text(NETLIST.format(name="secret.txt"))
