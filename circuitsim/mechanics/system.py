@@ -299,6 +299,68 @@ Forcing = Sinusoid | PiecewiseLinearInput | Bump
 
 
 @dataclass(frozen=True)
+class Factor:
+    """One factor of a :class:`ProductTerm`: ``row . x + offset``, or an input signal u(t).
+
+    Attributes
+    ----------
+    row : ndarray, shape (n,)
+        Weights on the states (all zero for a signal factor).
+    offset : float
+        Added to ``row . x``, in the factor's units.
+    signal : Sinusoid, PiecewiseLinearInput, Bump or None
+        When given, the factor is this input's u(t) (a time-varying coefficient, e.g. 1/V(t)
+        of a speed run-up) and ``row``/``offset`` are unused; the signal's own ``direction``
+        is unused too (it drives nothing by itself).
+    """
+
+    row: np.ndarray
+    offset: float = 0.0
+    signal: Forcing | None = None
+
+    def value(self, t: float | np.ndarray, x: np.ndarray) -> float | np.ndarray:
+        """The factor at time t (s) and state x, shape (n,) or (n, m)."""
+        if self.signal is not None:
+            return self.signal.value(t)
+        return self.row @ x + self.offset
+
+
+@dataclass(frozen=True)
+class ProductTerm:
+    """``direction * coefficient * prod_i factor_i``: a product of states (and inputs).
+
+    A monomial of a polynomial term: x*y is two factors, x**3 three equal ones, u(t)*y a
+    signal factor and a state factor.
+
+    Attributes
+    ----------
+    name : str
+        Identifier (the model file's term name, with a suffix per monomial).
+    direction : ndarray, shape (n,)
+        How the product enters dx/dt.
+    coefficient : float
+        Scalar multiplying the product, in the units that make direction * product a rate.
+    factors : tuple of Factor
+        At least two (a single factor is linear and belongs in ``A``).
+    t_on : float or None
+        Time (s) from which the term acts; None: always.
+    """
+
+    name: str
+    direction: np.ndarray
+    coefficient: float
+    factors: tuple[Factor, ...]
+    t_on: float | None = None
+
+    def value(self, t: float | np.ndarray, x: np.ndarray) -> float | np.ndarray:
+        """The scalar ``coefficient * prod_i factor_i`` (ignores ``t_on``)."""
+        total = self.coefficient
+        for factor in self.factors:
+            total = total * factor.value(t, x)
+        return total
+
+
+@dataclass(frozen=True)
 class System:
     """A model evaluated at given parameter values, in first-order form.
 
@@ -330,6 +392,8 @@ class System:
         ``k_y`` ... in SI units); empty for hand-built systems.
     coefficient_set : str
         Name of that coefficient set (``"paper"``); empty for hand-built systems.
+    products : tuple of ProductTerm
+        Enabled product (polynomial) terms: the multiplier blocks of the circuit.
     """
 
     name: str
@@ -344,6 +408,7 @@ class System:
     circuit_hints: dict = field(default_factory=dict)
     coefficients: dict[str, float] = field(default_factory=dict)
     coefficient_set: str = ""
+    products: tuple[ProductTerm, ...] = ()
 
     @property
     def n(self) -> int:
@@ -358,4 +423,7 @@ class System:
                 dx = dx + term.direction * term.value(x)
         for force in self.forcing:
             dx = dx + force.direction * force.value(t)
+        for product in self.products:
+            if product.t_on is None or t >= product.t_on:
+                dx = dx + product.direction * product.value(t, x)
         return dx
