@@ -100,8 +100,7 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
         "--kicad",
         metavar="FILE.kicad_sch",
         help="also write an editable KiCad 6+ schematic (wired stages, the BOM's designators, "
-        "SPICE fields for KiCad's simulator) and its SPICE library FILE.spice.lib; needs the "
-        "kicad extra (kiutils)",
+        "SPICE fields for KiCad's simulator) and its SPICE library FILE.spice.lib",
     )
     parser.add_argument("-o", "--output", required=True, metavar="FILE.cir", help="netlist file")
     parser.set_defaults(func=_run_generate)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import platform
 from datetime import UTC, datetime
+from pathlib import Path
 
 from circuitsim.studies.agreement_report import number_cell, render_agreement
 from circuitsim.studies.frequency_report import render_frequency
@@ -92,7 +93,9 @@ def _drawing(result, add) -> None:
         "potentiometer set for the simulated speed (`.knob.csv` beside it: the dial tables). "
         "One row per state (integrator, inverter), then the flange's |x| blocks and summer, "
         "then the sources; a labelled open dot is a net (same label, same node). Also as "
-        "`figures/schematic.svg`."
+        "`figures/schematic.svg`, and as an editable KiCad schematic with the same "
+        f"designators, `{_rel(result, str(Path(result.knob_netlist).with_suffix('.kicad_sch')))}` "
+        "(its SPICE models in the `.spice.lib` beside it: it simulates in KiCad's ngspice)."
     )
     add("")
     add(f"![schematic of the generated circuit]({result.figures['schematic']})")
@@ -347,8 +350,6 @@ def _circuits_sorted(result):
 
 def _rel(result, path: str) -> str:
     try:
-        from pathlib import Path
-
         return str(Path(path).relative_to(result.out_dir))
     except ValueError:
         return str(path)

@@ -201,9 +201,10 @@ def circuit_job(
 
 def schematic_job(scenario: Scenario, out: str, low: float = 40.0, high: float = 70.0):
     """The paper's circuit as one would build it (TL074 sections, E96 parts, the speed knob
-    over ``low``-``high`` m/s): netlist, BOMs and dial table in ``out``/netlists, the
-    schematic (PNG and SVG) in ``out``/figures. Returns (knobs, netlist, problem); never
-    raises (a failure is the report's sentence, not a crash)."""
+    over ``low``-``high`` m/s): netlist, BOMs, dial table and the editable KiCad schematic
+    (with its SPICE library) in ``out``/netlists, the drawing (PNG and SVG) in
+    ``out``/figures. Returns (knobs, netlist, problem); never raises (a failure is the
+    report's sentence, not a crash)."""
     from functools import cache
 
     from circuitsim.mechanics import load_model
@@ -227,6 +228,7 @@ def schematic_job(scenario: Scenario, out: str, low: float = 40.0, high: float =
             SynthesisOptions(opamp="tl074", series="E96", t_stop=scenario.t_stop),
             knob=KnobRequest("V", low, high, linear_part, "m/s"),
             schematic=Path(out) / "figures" / "schematic.png",
+            kicad=netlist.with_suffix(".kicad_sch"),
         )
         save_schematic(
             generated.synthesis.circuit,

@@ -105,7 +105,7 @@ def generate(
         ``.png`` file, written with the others.
     kicad : path-like, optional
         Also write a KiCad schematic ``FILE.kicad_sch`` and its SPICE library
-        ``FILE.spice.lib`` (:mod:`~circuitsim.synthesis.kicad`; needs the ``kicad`` extra).
+        ``FILE.spice.lib`` (:mod:`~circuitsim.synthesis.kicad`).
 
     Returns
     -------
@@ -133,14 +133,9 @@ def generate(
         check_writable(schematic)
     kicad_library = None
     if kicad is not None:
-        # kiutils (the kicad extra) is imported only when a KiCad schematic is asked for
-        try:
-            from circuitsim.synthesis.kicad import check_kicad_path, kicad_library_path
-        except ImportError as error:
-            raise SynthesisError(
-                f"kicad schematic {kicad}: needs kiutils ({error}); "
-                "install it with pip install 'circuitsim[kicad]'"
-            ) from None
+        # kiutils is imported only when a KiCad schematic is asked for
+        from circuitsim.synthesis.kicad import check_kicad_path, kicad_library_path
+
         check_kicad_path(kicad)
         kicad_library = kicad_library_path(kicad)
         check_writable(kicad)

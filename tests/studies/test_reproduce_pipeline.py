@@ -4,6 +4,7 @@ The references are independent of the comparator: the ODE is integrated by scipy
 events (mechanics room), the circuit by ngspice (a program we did not write) or our solver.
 """
 
+import csv
 import json
 import shutil
 
@@ -149,6 +150,23 @@ def test_reproduce_one_short_scenario_writes_report_figures_and_honest_rows(tmp_
     dial_rows = [line for line in report.splitlines() if line.startswith(("| 40 |", "| 70 |"))]
     assert len(dial_rows) == 2
     assert (tmp_path / "netlists" / "f10-flange-on-tl074-e96-knob.knob.csv").exists()
+    # ... and as an editable KiCad schematic whose references are the BOM's designators
+    from kiutils.schematic import Schematic
+
+    kicad = tmp_path / "netlists" / "f10-flange-on-tl074-e96-knob.kicad_sch"
+    assert (tmp_path / "netlists" / "f10-flange-on-tl074-e96-knob.spice.lib").is_file()
+    assert f"`{kicad.relative_to(tmp_path)}`" in report
+    references = {
+        prop.value
+        for symbol in Schematic.from_file(str(kicad)).schematicSymbols
+        for prop in symbol.properties
+        if prop.key == "Reference"
+    }
+    with open(tmp_path / "netlists" / "f10-flange-on-tl074-e96-knob.bom.csv") as bom:
+        rows = list(csv.DictReader(bom))
+    kinds = ("resistor", "capacitor", "potentiometer")
+    passive = {r["designator"] for r in rows if r["kind"] in kinds}
+    assert passive and passive <= references, sorted(passive - references)[:5]
     # The netlist's realized slowest mode, recomputed from the file, is the model's (exact values).
     info = result.circuits[(scenario.name, "ideal", "exact")]
     slowest = eigenvalues(load_model(), "V", [55.0])[0, 0].real

@@ -6,12 +6,10 @@ import math
 from pathlib import Path
 
 import pytest
+from kiutils.schematic import Schematic
 
-kiutils = pytest.importorskip("kiutils", reason="the kicad extra (kiutils) is not installed")
-from kiutils.schematic import Schematic  # noqa: E402
-
-from circuitsim.mechanics import load_model  # noqa: E402
-from circuitsim.netlist.circuit import (  # noqa: E402
+from circuitsim.mechanics import load_model
+from circuitsim.netlist.circuit import (
     Capacitor,
     Diode,
     Resistor,
@@ -19,10 +17,10 @@ from circuitsim.netlist.circuit import (  # noqa: E402
     Switch,
     VoltageSource,
 )
-from circuitsim.synthesis.errors import SynthesisError  # noqa: E402
-from circuitsim.synthesis.generate import generate  # noqa: E402
-from circuitsim.synthesis.options import SynthesisOptions  # noqa: E402
-from circuitsim.synthesis.parts import board_parts  # noqa: E402
+from circuitsim.synthesis.errors import SynthesisError
+from circuitsim.synthesis.generate import generate
+from circuitsim.synthesis.options import SynthesisOptions
+from circuitsim.synthesis.parts import board_parts
 
 # The TL074 data sheet's pinout: section -> (non-inverting input, inverting input, output).
 TL074 = {"A": ("3", "2", "1"), "B": ("5", "6", "7"), "C": ("10", "9", "8"), "D": ("12", "13", "14")}
@@ -212,7 +210,7 @@ def test_a_bad_suffix_is_refused_before_anything_is_written(tmp_path):
 
 
 def test_the_rest_of_circuitsim_does_not_import_kiutils():
-    """kiutils is an optional extra: the CLI and the generator load it only for --kicad."""
+    """kiutils is loaded only where a KiCad file is written (--kicad, reproduce), not at import."""
     import subprocess
     import sys
 
