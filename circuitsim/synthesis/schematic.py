@@ -5,8 +5,10 @@ an analog computer's patch panel is read - the inputs come in from the left into
 junction (each a chain of parts: a resistor, a series pair, a switch and its resistor, a fixed
 resistor and a potentiometer), the feedback parts (capacitor, resistor, diodes) sit above the
 op-amp, and parts that hang on the output (a precision rectifier's through-diode) leave to the
-right. A chain ends at a labelled net (``y_dot``, ``flange_sig``) instead of a wire, so no wire
-crosses another; nets with the same label are one node. Rows: one per state (its integrator
+right. Within a row, a net that leaves one stage and enters the next (an integrator's output
+into its inverter, a precision rectifier's half-wave into its second stage) is a wire; any
+other chain ends at a labelled net (``y_dot``, ``flange_sig``), so no wire crosses another;
+nets with the same label are one node. Rows: one per state (its integrator
 and inverter, as the paper's Fig. 5 draws U1A..U2D), then the nonlinear blocks, then the
 sources (supplies, references, switch controls, generators). Every element of the circuit
 appears once, labelled with its name and value (:func:`layout` says where).
@@ -289,9 +291,48 @@ def _oriented(chain: list[Element], start: str) -> list[tuple[Element, bool]]:
     return out
 
 
-def _draw_stage(d, elm, s: Stage, x0: float, y0: float, records) -> tuple[float, float]:
-    """Draw one stage with its input area's left edge at ``x0`` and the junction at ``y0``;
-    returns the stage's (right edge, bottom)."""
+def _wire(d, elm, start, end) -> None:
+    """A wire from the previous stage's net at ``start`` (where it ends, and the x of the gap
+    between the stages) to an input chain's end at ``end``: right into the gap, then up or
+    down, then right."""
+    x_net, y_start, x_turn = start
+    d.add(elm.Line().at((x_net, y_start)).to((x_turn, y_start)))
+    start = (x_turn, y_start)
+    d.add(elm.Line().at(start).to((x_turn, end[1])))
+    d.add(elm.Line().at((x_turn, end[1])).to(end))
+
+
+def _leave(d, elm, at, name, wired: bool) -> float:
+    """Where a stage's output net ends: a labelled open dot, or (wired on to the next stage) a
+    junction dot named below the wire (above it sit the parts' labels). Returns the right edge
+    of what was drawn."""
+    if not wired:
+        _net(d, elm, at, name, "right")
+        return at[0] + 0.2 + CHAR * len(name)
+    d.add(elm.Dot().at(at).label(name, loc="bottom", halign="left", ofst=(0.1, -0.05),
+                                 fontsize=8, color="#1f4e9e"))  # fmt: skip
+    return at[0] + 0.1 + CHAR * len(name)
+
+
+def _draw_stage(
+    d,
+    elm,
+    s: Stage,
+    x0: float,
+    y0: float,
+    records,
+    arriving: dict | None = None,
+    onward: set[str] = frozenset(),
+) -> tuple[float, float, dict]:
+    """Draw one stage with its input area's left edge at ``x0`` and the junction at ``y0``.
+
+    ``arriving`` maps the nets the stage drawn just left of this one leaves on (its output and
+    its output chains' ends) to where they end: an input chain ending at one of them is wired
+    to it (a block's stages joined by wires, as a precision rectifier is drawn) instead of
+    labelled. ``onward``: the next stage's input nets (those of this stage's nets are drawn to
+    be wired on). Returns the stage's right edge, its bottom and its own leaving nets.
+    """
+    arriving = arriving or {}
     width_in = max([_chain_width(c, n) for c, n in s.inputs] or [1.0])
     xj = x0 + width_in
     for k, (chain, net) in enumerate(s.inputs):
@@ -300,7 +341,10 @@ def _draw_stage(d, elm, s: Stage, x0: float, y0: float, records) -> tuple[float,
         for element, reverse in _oriented(chain, s.junction):
             _draw_part(d, elm, element, records, (x, y), (x - L, y), reverse)
             x -= L
-        _net(d, elm, (x, y), net, "left")
+        if net in arriving:
+            _wire(d, elm, arriving[net], (x, y))
+        else:
+            _net(d, elm, (x, y), net, "left")
     bottom_in = y0 - max(len(s.inputs) - 1, 0) * DY
     opamp = elm.Opamp(leads=True).right().anchor("in1").at((xj + 0.8, y0)).scale(0.8)
     name = _designator(s.opamp, records)
@@ -326,9 +370,9 @@ def _draw_stage(d, elm, s: Stage, x0: float, y0: float, records) -> tuple[float,
     if s.inputs:
         d.add(elm.Line().at((xj, y0)).to((xj, bottom_in)))
     d.add(elm.Dot().at((xj, y0)))
-    _net(d, elm, (xo + 0.3, opamp.out[1]), s.output, "right")
+    right = _leave(d, elm, (xo + 0.3, opamp.out[1]), s.output, s.output in onward) + 0.3
     d.add(elm.Line().at((xo, opamp.out[1])).to((xo + 0.3, opamp.out[1])))
-    right = xo + 0.5 + CHAR * len(s.output)
+    leaving = {s.output: (xo + 0.3, opamp.out[1])}
     y = opamp.out[1]
     for chain, net in s.outputs:
         y -= DY
@@ -337,9 +381,11 @@ def _draw_stage(d, elm, s: Stage, x0: float, y0: float, records) -> tuple[float,
         for element, reverse in _oriented(chain, s.output):
             _draw_part(d, elm, element, records, (x, y), (x + L, y), reverse)
             x += L
-        _net(d, elm, (x, y), net, "right")
-        right = max(right, x + 0.5 + CHAR * len(net))
-    return right, min(bottom_in, y, y0 - 1.6)
+        right = max(right, _leave(d, elm, (x, y), net, net in onward) + 0.3)
+        leaving[net] = (x, y)
+    # a wire on to the next stage turns in the gap between the stages
+    leaving = {net: (end, y_net, right + 0.4) for net, (end, y_net) in leaving.items()}
+    return right, min(bottom_in, y, y0 - 1.6), leaving
 
 
 #: TL074 pin numbers of a section: (inverting input, non-inverting input, output).
@@ -415,9 +461,10 @@ def draw(
                                                  color="#7a4b00"))  # fmt: skip
         top = max(1.3 + (len(s.feedback) - 1) * DY for s in stages)
         y -= top + 0.6
-        x, bottom = 0.0, y
-        for s in stages:
-            right, low = _draw_stage(d, elm, s, x, y, records)
+        x, bottom, leaving = 0.0, y, {}
+        for k, s in enumerate(stages):
+            onward = {net for _, net in stages[k + 1].inputs} if k + 1 < len(stages) else set()
+            right, low, leaving = _draw_stage(d, elm, s, x, y, records, leaving, onward)
             x, bottom = right + 0.8, min(bottom, low)
         y = bottom - 1.8
     if plan.others:

@@ -112,3 +112,113 @@ def test_bad_suffix_or_folder_writes_nothing(tmp_path, capsys):
     error = capsys.readouterr().err
     assert "--schematic" in error and "w.jpg" in error and "use .svg or .png" in error
     assert list(tmp_path.iterdir()) == []
+
+
+def _drawn_nets(d) -> tuple[dict, dict]:
+    """The drawing's connectivity read from its geometry alone: wires (a wire's end on another
+    wire joins it), junction dots, net labels on open dots and ground symbols. Returns each
+    part's terminals as groups (by the designator its label starts with) and each group's name
+    where a label or a ground names it."""
+    def key(p):
+        return (round(p[0], 6), round(p[1], 6))
+
+    parent: dict = {}
+
+    def find(p):
+        parent.setdefault(p, p)
+        while parent[p] != p:
+            parent[p] = parent[parent[p]]
+            p = parent[p]
+        return p
+
+    def join(a, b):
+        parent[find(a)] = find(b)
+
+    lines = [(key(e.absanchors["start"]), key(e.absanchors["end"]))
+             for e in d.elements if type(e).__name__ == "Line"]  # fmt: skip
+    terminals, names = {}, {}
+    points = {a for line in lines for a in line}
+    for e in d.elements:
+        kind = type(e).__name__
+        text = e._userlabels[0].label.split(" ")[0] if e._userlabels else ""
+        if kind == "Opamp":
+            terminals[text] = [key(e.absanchors[p]) for p in ("in2", "in1", "out")]
+        elif kind in {"Dot", "Ground"}:
+            points.add(key(e.absanchors["start"]))
+            if kind == "Ground":
+                names[key(e.absanchors["start"])] = "0"
+            elif text:
+                names[key(e.absanchors["start"])] = text
+        elif kind not in {"Line", "Label"} and text:
+            terminals[text] = [key(e.absanchors["start"]), key(e.absanchors["end"])]
+    points |= {p for ends in terminals.values() for p in ends}
+    for a, b in lines:
+        join(a, b)
+        for p in points:  # a T-junction: an end lying on the wire
+            on_x = min(a[0], b[0]) - 1e-6 <= p[0] <= max(a[0], b[0]) + 1e-6
+            on_y = min(a[1], b[1]) - 1e-6 <= p[1] <= max(a[1], b[1]) + 1e-6
+            cross = (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])
+            if on_x and on_y and abs(cross) < 1e-6:
+                join(p, a)
+    by_name: dict = {}
+    for p, name in names.items():
+        by_name.setdefault(name, []).append(p)
+    for group in by_name.values():  # nets with the same label are one node
+        for p in group[1:]:
+            join(p, group[0])
+    named = {find(p): name for p, name in names.items()}
+    return {t: [find(p) for p in ends] for t, ends in terminals.items()}, named
+
+
+@pytest.mark.parametrize("name", ["wheelset", "quarter_car", "bogie", "wheelset_creep"])
+def test_the_drawing_wires_equal_the_netlist_and_join_a_blocks_stages_by_wire(name):
+    """The nets read back from the drawing's geometry are the circuit's nets, and inside a
+    block (integrator -> inverter, a precision rectifier's two stages) the stages are joined by
+    wires: the rectifier's half-wave net is labelled once where it was labelled at both ends."""
+    from circuitsim.netlist.circuit import Capacitor, Diode, Switch, VoltageSource
+    from circuitsim.synthesis.schematic import draw
+
+    system = load_model(name).system()
+    synthesis = synthesize(system, SynthesisOptions(t_stop=0.5))
+    circuit = synthesis.circuit
+    d = draw(circuit, list(system.states), synthesis.bom)
+    terminals, named = _drawn_nets(d)
+    designators = _designators(circuit, synthesis.bom)
+    wanted = {}
+    for e in circuit.elements:
+        if isinstance(e, SubcircuitCall):
+            c = [n.lower() for n in e.connections]
+            wanted[designators[e.name.lower()]] = [c[0], c[1], c[-1]]
+        elif isinstance(e, Resistor | Capacitor | VoltageSource):
+            wanted[designators[e.name.lower()]] = [e.positive.lower(), e.negative.lower()]
+        elif isinstance(e, Diode):
+            wanted[designators[e.name.lower()]] = [e.anode.lower(), e.cathode.lower()]
+        elif isinstance(e, Switch):
+            wanted[designators[e.name.lower()]] = [e.positive.lower(), e.negative.lower()]
+    assert set(terminals) == set(wanted)
+    # a group's node: from its name, else from a part whose other end is known (a chain's
+    # inner node); every part must then see exactly its circuit nodes
+    node = dict(named)
+    for _ in range(4):
+        for t, groups in terminals.items():
+            if len(groups) == 2:
+                for g, other in (groups, groups[::-1]):
+                    if g not in node and other in node and node[other] in wanted[t]:
+                        rest = [n for n in wanted[t] if n != node[other]] or [node[other]]
+                        node[g] = rest[0]
+    for t, groups in terminals.items():
+        drawn = [node.get(g) for g in groups]
+        if len(groups) == 3:
+            assert drawn == wanted[t], t
+        else:
+            assert sorted(drawn) == sorted(wanted[t]), t
+    # one group per node: no two circuit nodes drawn as one (a short)
+    assert len({node[g] for g in node}) == len(set(node))
+    if name != "wheelset":
+        return
+    texts = [e._userlabels[0].label for e in d.elements if type(e).__name__ == "Dot"
+             and e._userlabels]  # fmt: skip
+    assert texts.count("flange_abs1_h1") == 2  # the feedback end and the wired junction
+    wired = [e for e in d.elements if type(e).__name__ == "Dot" and not e.params.get("open")
+             and e._userlabels]  # fmt: skip
+    assert {e._userlabels[0].label for e in wired} >= {"y_neg", "psi_neg", "flange_abs1_h1"}
